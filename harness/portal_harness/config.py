@@ -1,0 +1,533 @@
+"""Experiment configs (configs/experiments/*.yaml): loading and validation.
+
+Everything is checked before any render starts; each error names the file,
+the key and what was expected (errors.ConfigError). Relative paths are
+relative to the experiment file's folder. The schema is in harness/README.md.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from portal_harness.errors import ConfigError
+from portal_harness.metrics import WHOLE_IMAGE, Region
+from portal_harness.spec import (
+    HARNESS_RENDER_KEYS,
+    INTEGRATORS,
+    SNAPSHOT_KEYS,
+    STRATEGIES,
+    Overrides,
+    RunSpec,
+    format_value,
+    sha256_file,
+)
+
+CURVE_METRICS = ("rel_mse", "mse")
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Per-run limits of a sweep: render time (s) and/or samples per pixel (0: none)."""
+
+    time_s: float
+    spp: int
+    threads: int
+    seed: int
+    snapshots: Overrides
+
+
+@dataclass(frozen=True)
+class ReferenceSettings:
+    strategy: str
+    spp: int
+    time_s: float
+    seed: int
+    threads: int
+
+
+@dataclass(frozen=True)
+class Axis:
+    """The x axis of the figures: a swept parameter, optionally divided by another."""
+
+    param: str
+    divide_by: str | None
+    label: str
+
+
+@dataclass(frozen=True)
+class RegressSettings:
+    spp: int
+    seeds: tuple[int, ...]
+    z_max: float
+    baseline: Path
+
+
+@dataclass(frozen=True)
+class Point:
+    """One point of the sweep's cross product."""
+
+    values: tuple[tuple[str, Any], ...]
+    axis_value: float
+
+    @property
+    def id(self) -> str:
+        return ",".join(f"{k.split('.')[-1]}={format_value(v)}" for k, v in self.values)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    name: str
+    path: Path
+    scene: Path
+    integrator: str
+    strategies: tuple[str, ...]
+    sweep: tuple[tuple[str, tuple[Any, ...]], ...]
+    fixed: Overrides
+    budget: Budget | None
+    reference: ReferenceSettings
+    insets: tuple[Region, ...]
+    axis: Axis
+    regress: RegressSettings | None
+    width: int
+    height: int
+    equal_time_s: float | None
+    curve_metric: str
+    scene_params: tuple[tuple[str, Any], ...]
+
+    def points(self) -> list[Point]:
+        keys = [k for k, _ in self.sweep]
+        out = []
+        for combo in itertools.product(*(values for _, values in self.sweep)):
+            values = tuple(zip(keys, combo))
+            out.append(Point(values=values, axis_value=self._axis_value(dict(values))))
+        return out
+
+    def _lookup(self, key: str, values: dict[str, Any]) -> Any:
+        if key in values:
+            return values[key]
+        fixed = dict(self.fixed)
+        if key in fixed:
+            return fixed[key]
+        return dict(self.scene_params).get(key)
+
+    def _axis_value(self, values: dict[str, Any]) -> float:
+        x = float(self._lookup(self.axis.param, values))
+        if self.axis.divide_by is not None:
+            x /= float(self._lookup(self.axis.divide_by, values))
+        return x
+
+    def _overrides(self, point: Point) -> Overrides:
+        merged = dict(self.fixed)
+        merged.update({k: format_value(v) for k, v in point.values})
+        return tuple(sorted(merged.items()))
+
+    def _labels(self, point: Point) -> tuple[tuple[str, float], ...]:
+        return (("axis", point.axis_value),) if self.axis.divide_by is not None else ()
+
+    def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None) -> RunSpec:
+        if self.budget is None:
+            raise ConfigError(str(self.path), "budget", "required to run a sweep")
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=sha256_file(self.scene),
+            strategy=strategy,
+            integrator=self.integrator,
+            spp=self.budget.spp if spp is None else spp,
+            time_s=self.budget.time_s if spp is None else 0.0,
+            seed=self.budget.seed if seed is None else seed,
+            threads=self.budget.threads,
+            overrides=self._overrides(point),
+            snapshots=self.budget.snapshots,
+            labels=self._labels(point),
+        )
+
+    def reference_spec(self, point: Point) -> RunSpec:
+        r = self.reference
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=sha256_file(self.scene),
+            strategy=r.strategy,
+            integrator=self.integrator,
+            spp=r.spp,
+            time_s=r.time_s,
+            seed=r.seed,
+            threads=r.threads,
+            overrides=self._overrides(point),
+            snapshots=tuple((k, "0") for k in SNAPSHOT_KEYS),
+            reference=True,
+            labels=self._labels(point),
+        )
+
+
+class _Reader:
+    """Typed access to a YAML mapping with file/key-qualified errors."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+
+    def fail(self, key: str, message: str) -> ConfigError:
+        return ConfigError(self.file, key, message)
+
+    def mapping(self, node: Any, key: str, allowed: set[str], required: set[str] = frozenset()) -> dict[str, Any]:
+        if not isinstance(node, dict):
+            raise self.fail(key, f"expected a mapping, got {_kind(node)}")
+        for k in node:
+            if not isinstance(k, str) or k not in allowed:
+                raise self.fail(_join(key, str(k)), f"unknown key (expected one of {', '.join(sorted(allowed))})")
+        for k in sorted(required):
+            if k not in node:
+                raise self.fail(_join(key, k), "missing required key")
+        return node
+
+    def number(self, node: Any, key: str, minimum: float = 0.0, positive: bool = False) -> float:
+        if isinstance(node, bool) or not isinstance(node, (int, float)):
+            raise self.fail(key, f"expected a number, got {_kind(node)}")
+        if node < minimum or (positive and node <= 0):
+            bound = "> 0" if positive else f">= {minimum}"
+            raise self.fail(key, f"expected a number {bound}, got {node}")
+        return float(node)
+
+    def integer(self, node: Any, key: str, minimum: int = 0) -> int:
+        if isinstance(node, bool) or not isinstance(node, int):
+            raise self.fail(key, f"expected an integer, got {_kind(node)}")
+        if node < minimum:
+            raise self.fail(key, f"expected an integer >= {minimum}, got {node}")
+        return int(node)
+
+    def string(self, node: Any, key: str) -> str:
+        if not isinstance(node, str) or not node:
+            raise self.fail(key, f"expected a non-empty string, got {_kind(node)}")
+        return node
+
+    def choice(self, node: Any, key: str, choices: tuple[str, ...], what: str) -> str:
+        s = self.string(node, key)
+        if s not in choices:
+            raise self.fail(key, f"unknown {what} {s!r} (expected {'|'.join(choices)})")
+        return s
+
+    def scalar(self, node: Any, key: str) -> Any:
+        if isinstance(node, (dict, list)) or node is None:
+            raise self.fail(key, f"expected a scalar (number, string or boolean), got {_kind(node)}")
+        return node
+
+    def sequence(self, node: Any, key: str, non_empty: bool = True) -> list[Any]:
+        if not isinstance(node, list):
+            raise self.fail(key, f"expected a list, got {_kind(node)}")
+        if non_empty and not node:
+            raise self.fail(key, "expected a non-empty list")
+        return node
+
+
+def _kind(node: Any) -> str:
+    if node is None:
+        return "nothing"
+    if isinstance(node, bool):
+        return f"a boolean ({node})"
+    if isinstance(node, dict):
+        return "a mapping"
+    if isinstance(node, list):
+        return "a list"
+    if isinstance(node, str):
+        return f"the string {node!r}"
+    return f"{type(node).__name__} {node!r}"
+
+
+def _join(prefix: str, key: str) -> str:
+    return f"{prefix}.{key}" if prefix else key
+
+
+def read_yaml(path: Path, what: str) -> Any:
+    """Parses a YAML file; a missing file or a syntax error is a ConfigError with file:line:column."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(str(path), "", f"{what} not found") from None
+    except OSError as e:
+        raise ConfigError(str(path), "", f"cannot read {what}: {e.strerror}") from None
+    try:
+        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except yaml.MarkedYAMLError as e:
+        mark = e.problem_mark
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark is not None else str(path)
+        raise ConfigError(where, "", f"YAML syntax error: {e.problem}") from None
+    except yaml.YAMLError as e:
+        raise ConfigError(str(path), "", f"YAML error: {e}") from None
+
+
+def flatten(node: Any, prefix: str = "") -> dict[str, Any]:
+    """Dotted keys of every scalar in a YAML tree (sequence items by index)."""
+    out: dict[str, Any] = {}
+    if isinstance(node, dict):
+        for k, v in node.items():
+            out.update(flatten(v, _join(prefix, str(k))))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            out.update(flatten(v, _join(prefix, str(i))))
+    else:
+        out[prefix] = node
+    return out
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """What the harness needs to know of a scene file: its scalars and render defaults."""
+
+    path: Path
+    scalars: dict[str, Any]
+
+    @property
+    def width(self) -> int:
+        return int(self.scalars.get("film.width", 256))
+
+    @property
+    def height(self) -> int:
+        return int(self.scalars.get("film.height", 256))
+
+
+def read_scene(path: Path) -> SceneInfo:
+    tree = read_yaml(path, "scene file")
+    if not isinstance(tree, dict):
+        raise ConfigError(str(path), "", f"expected a mapping at the top of the scene, got {_kind(tree)}")
+    return SceneInfo(path=path, scalars=flatten(tree))
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def parse_threads(node: Any, reader: _Reader, key: str) -> int:
+    if node == "auto":
+        return _cores()
+    return reader.integer(node, key, minimum=1)
+
+
+def _check_override_key(reader: _Reader, key: str, where: str) -> None:
+    if not key or any(not part for part in key.split(".")):
+        raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {key!r}")
+    if key in HARNESS_RENDER_KEYS or key.startswith("render.snapshots"):
+        raise reader.fail(where, f"{key} is set by the harness (use strategies, integrator, budget or reference)")
+
+
+def load_experiment(path: Path | str) -> Experiment:
+    """Reads and validates an experiment; raises ConfigError on the first problem."""
+    p = Path(path).resolve() if Path(path).exists() else Path(path)
+    r = _Reader(str(path))
+    root = r.mapping(
+        read_yaml(p, "experiment file"),
+        "",
+        allowed={"name", "scene", "integrator", "strategies", "sweep", "fixed", "budget", "reference", "insets",
+                 "axis", "regress", "figures", "description"},
+        required={"scene", "strategies", "sweep"},
+    )
+    name = r.string(root.get("name", p.stem), "name")
+    if "/" in name or name.startswith("."):
+        raise r.fail("name", f"expected a plain name usable as a file name, got {name!r}")
+
+    scene = (p.parent / r.string(root["scene"], "scene")).resolve()
+    if not scene.is_file():
+        raise r.fail("scene", f"scene file {scene} not found")
+    scene_info = read_scene(scene)
+
+    integrator = r.choice(root.get("integrator", scene_info.scalars.get("render.integrator", "direct")),
+                          "integrator", INTEGRATORS, "integrator")
+
+    strategies_node = r.sequence(root["strategies"], "strategies")
+    strategies = tuple(r.choice(s, f"strategies.{i}", STRATEGIES, "strategy") for i, s in enumerate(strategies_node))
+    if len(set(strategies)) != len(strategies):
+        raise r.fail("strategies", "a strategy is listed twice")
+
+    sweep_node = root["sweep"]
+    if sweep_node is None or sweep_node == {}:
+        raise r.fail("sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)")
+    if not isinstance(sweep_node, dict):
+        raise r.fail("sweep", f"expected a mapping from parameter to list of values, got {_kind(sweep_node)}")
+    sweep: list[tuple[str, tuple[Any, ...]]] = []
+    for k, values in sweep_node.items():
+        key = str(k)
+        _check_override_key(r, key, f"sweep.{key}")
+        items = r.sequence(values, f"sweep.{key}")
+        sweep.append((key, tuple(r.scalar(v, f"sweep.{key}.{i}") for i, v in enumerate(items))))
+        if len(set(map(format_value, sweep[-1][1]))) != len(items):
+            raise r.fail(f"sweep.{key}", "a value is listed twice")
+
+    fixed_node = root.get("fixed", {}) or {}
+    if not isinstance(fixed_node, dict):
+        raise r.fail("fixed", f"expected a mapping from parameter to value, got {_kind(fixed_node)}")
+    fixed: dict[str, str] = {}
+    for k, v in fixed_node.items():
+        key = str(k)
+        _check_override_key(r, key, f"fixed.{key}")
+        if key in dict(sweep):
+            raise r.fail(f"fixed.{key}", "also swept (a parameter is either fixed or swept)")
+        fixed[key] = format_value(r.scalar(v, f"fixed.{key}"))
+
+    def size(axis: str) -> int:
+        if f"film.{axis}" in fixed:
+            try:
+                return int(fixed[f"film.{axis}"])
+            except ValueError:
+                raise r.fail(f"fixed.film.{axis}", "expected an integer") from None
+        return getattr(scene_info, axis)
+
+    width, height = size("width"), size("height")
+
+    budget = None
+    if "budget" in root:
+        b = r.mapping(root["budget"], "budget", {"time_s", "spp", "threads", "seed", "snapshots"})
+        time_s = r.number(b.get("time_s", 0), "budget.time_s")
+        spp = r.integer(b.get("spp", 0), "budget.spp")
+        if time_s == 0 and spp == 0:
+            raise r.fail("budget", "expected time_s > 0 or spp > 0 (a run needs a limit)")
+        snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
+        snapshots = tuple(
+            (k, format_value(r.integer(v, f"budget.snapshots.{k}") if k == "every_spp"
+                             else r.number(v, f"budget.snapshots.{k}")))
+            for k, v in sorted(snaps_node.items())
+        )
+        budget = Budget(time_s=time_s, spp=spp, threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
+                        seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots)
+
+    ref_node = r.mapping(root.get("reference", {}) or {}, "reference", {"strategy", "spp", "time_s", "seed", "threads"})
+    reference = ReferenceSettings(
+        strategy=r.choice(ref_node.get("strategy", "light"), "reference.strategy", STRATEGIES, "strategy"),
+        spp=r.integer(ref_node.get("spp", 1024), "reference.spp"),
+        time_s=r.number(ref_node.get("time_s", 0), "reference.time_s"),
+        seed=r.integer(ref_node.get("seed", 7919), "reference.seed"),
+        threads=parse_threads(ref_node.get("threads", budget.threads if budget else 1), r, "reference.threads"),
+    )
+    if reference.spp == 0 and reference.time_s == 0:
+        raise r.fail("reference", "expected spp > 0 or time_s > 0")
+
+    insets: list[Region] = []
+    for i, node in enumerate(r.sequence(root.get("insets", []) or [], "insets", non_empty=False)):
+        key = f"insets.{i}"
+        m = r.mapping(node, key, {"name", "x", "y", "width", "height"}, {"name", "x", "y", "width", "height"})
+        region = Region(
+            name=r.string(m["name"], f"{key}.name"),
+            x=r.integer(m["x"], f"{key}.x"),
+            y=r.integer(m["y"], f"{key}.y"),
+            width=r.integer(m["width"], f"{key}.width", minimum=1),
+            height=r.integer(m["height"], f"{key}.height", minimum=1),
+        )
+        if region.name == WHOLE_IMAGE or region.name in {x.name for x in insets}:
+            raise r.fail(f"{key}.name", f"inset name {region.name!r} is reserved or used twice")
+        if not region.fits(width, height):
+            raise r.fail(key, f"rectangle x={region.x} y={region.y} {region.width}x{region.height} "
+                              f"does not fit the {width}x{height} image")
+        insets.append(region)
+
+    swept = [k for k, _ in sweep]
+    axis_node = r.mapping(root.get("axis", {}) or {}, "axis", {"param", "divide_by", "label"})
+    axis_param = r.string(axis_node.get("param", swept[0]), "axis.param")
+    if axis_param not in swept:
+        raise r.fail("axis.param", f"{axis_param!r} is not swept (expected one of {', '.join(swept)})")
+    divide_by = axis_node.get("divide_by")
+    if divide_by is not None:
+        divide_by = r.string(divide_by, "axis.divide_by")
+        value = dict(sweep).get(divide_by, [fixed.get(divide_by, scene_info.scalars.get(divide_by))])
+        try:
+            [float(v) for v in value]
+        except (TypeError, ValueError):
+            raise r.fail("axis.divide_by", f"{divide_by!r} has no numeric value in the sweep, fixed or scene") from None
+    for i, v in enumerate(dict(sweep)[axis_param]):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {_kind(v)}")
+    default_label = f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
+    axis = Axis(param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label"))
+
+    regress = None
+    if "regress" in root:
+        g = r.mapping(root["regress"], "regress", {"spp", "seeds", "z_max", "baseline"}, {"spp"})
+        seeds = tuple(r.integer(s, f"regress.seeds.{i}")
+                      for i, s in enumerate(r.sequence(g.get("seeds", [1, 2]), "regress.seeds")))
+        if len(seeds) < 2 or len(set(seeds)) != len(seeds):
+            raise r.fail("regress.seeds", "expected at least two different seeds (the standard error needs them)")
+        baseline = g.get("baseline")
+        regress = RegressSettings(
+            spp=r.integer(g["spp"], "regress.spp", minimum=1),
+            seeds=seeds,
+            z_max=r.number(g.get("z_max", 4.0), "regress.z_max", positive=True),
+            baseline=(p.parent / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
+        )
+
+    fig = r.mapping(root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric"})
+    equal_time = fig.get("equal_time_s")
+    return Experiment(
+        name=name,
+        path=p,
+        scene=scene,
+        integrator=integrator,
+        strategies=strategies,
+        sweep=tuple(sweep),
+        fixed=tuple(sorted(fixed.items())),
+        budget=budget,
+        reference=reference,
+        insets=tuple(insets),
+        axis=axis,
+        regress=regress,
+        width=width,
+        height=height,
+        equal_time_s=None if equal_time is None else r.number(equal_time, "figures.equal_time_s", positive=True),
+        curve_metric=r.choice(fig.get("curve_metric", "rel_mse"), "figures.curve_metric", CURVE_METRICS, "metric"),
+        scene_params=tuple((k, v) for k, v in scene_info.scalars.items() if k.startswith("params.")),
+    )
+
+
+def spec_from_scene(
+    scene: Path,
+    overrides: dict[str, str],
+    strategy: str | None = None,
+    integrator: str | None = None,
+    spp: int | None = None,
+    time_s: float | None = None,
+    seed: int | None = None,
+    threads: int | str | None = None,
+    snapshots: dict[str, str] | None = None,
+    reference: bool = False,
+) -> RunSpec:
+    """A RunSpec for `run`/`reference` on a scene file: unset settings come
+    from the scene's render section (with --set render.* applied), so the key
+    covers everything."""
+    scene = scene.resolve()
+    info = read_scene(scene)
+    r = _Reader(str(scene))
+    merged = dict(info.scalars)
+    for k, v in overrides.items():
+        merged[k] = yaml.safe_load(v) if v != "" else v
+
+    def pick(given: Any, key: str, default: Any) -> Any:
+        return given if given is not None else merged.get(key, default)
+
+    chosen_strategy = r.choice(pick(strategy, "render.strategy", "light"), "render.strategy", STRATEGIES, "strategy")
+    chosen_integrator = r.choice(pick(integrator, "render.integrator", "direct"), "render.integrator",
+                                 INTEGRATORS, "integrator")
+    chosen_spp = r.integer(pick(spp, "render.spp", 0), "render.spp")
+    chosen_time = r.number(pick(time_s, "render.time", 0), "render.time")
+    if chosen_spp == 0 and chosen_time == 0:
+        raise r.fail("render", "expected spp > 0 or time > 0 (a run needs a limit)")
+    passed = {k: v for k, v in overrides.items() if k not in HARNESS_RENDER_KEYS and not k.startswith("render.snapshots")}
+    if snapshots is None:
+        snapshots = {k.split(".")[-1]: format_value(v) for k, v in merged.items()
+                     if k.startswith("render.snapshots.") and k.split(".")[-1] in SNAPSHOT_KEYS}
+    return RunSpec(
+        scene=str(scene),
+        scene_sha256=sha256_file(scene),
+        strategy=chosen_strategy,
+        integrator=chosen_integrator,
+        spp=chosen_spp,
+        time_s=chosen_time,
+        seed=r.integer(pick(seed, "render.seed", 1), "render.seed"),
+        threads=parse_threads(pick(threads, "render.threads", "auto"), r, "render.threads"),
+        overrides=tuple(sorted(passed.items())),
+        snapshots=tuple(sorted(snapshots.items())),
+        reference=reference,
+    )

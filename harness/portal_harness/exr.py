@@ -1,0 +1,122 @@
+"""Reading the renderer's EXR snapshots: the only module that opens EXR files.
+
+The format (renderer contract): float channels R, G, B (running mean of
+radiance) and variance.R/G/B (variance of that mean), with the header
+attributes render_time_s, spp, strategy, integrator, seed, config_hash,
+renderer_version, rays and nonfinite_samples. A file that cannot be read
+completely, lacks a channel or attribute, or holds non-finite pixels raises
+CorruptExrError, so that it is reported and never averaged into a metric.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import OpenEXR
+
+from portal_harness.errors import CorruptExrError
+
+RGB_CHANNELS = ("R", "G", "B")
+VARIANCE_CHANNELS = ("variance.R", "variance.G", "variance.B")
+
+
+@dataclass(frozen=True)
+class SnapshotHeader:
+    """The header attributes of one snapshot, typed."""
+
+    width: int
+    height: int
+    render_time_s: float
+    spp: int
+    strategy: str
+    integrator: str
+    seed: int
+    config_hash: str
+    renderer_version: str
+    rays: float
+    nonfinite_samples: float
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """One snapshot: rgb and variance are float64 arrays of shape (height, width, 3),
+    row 0 at the top of the image."""
+
+    path: Path
+    header: SnapshotHeader
+    rgb: np.ndarray
+    variance: np.ndarray
+
+
+def _scalar(value: Any) -> float:
+    """A C double attribute arrives as a one-element float64 array."""
+    return float(np.asarray(value, dtype=np.float64).reshape(-1)[0])
+
+
+def _header_from(path: Path, raw: dict[str, Any]) -> SnapshotHeader:
+    try:
+        lo, hi = raw["dataWindow"]
+        width = int(hi[0]) - int(lo[0]) + 1
+        height = int(hi[1]) - int(lo[1]) + 1
+        return SnapshotHeader(
+            width=width,
+            height=height,
+            render_time_s=_scalar(raw["render_time_s"]),
+            spp=int(raw["spp"]),
+            strategy=str(raw["strategy"]),
+            integrator=str(raw["integrator"]),
+            seed=int(str(raw["seed"])),
+            config_hash=str(raw["config_hash"]),
+            renderer_version=str(raw["renderer_version"]),
+            rays=_scalar(raw["rays"]),
+            nonfinite_samples=_scalar(raw["nonfinite_samples"]),
+        )
+    except KeyError as missing:
+        raise CorruptExrError(str(path), f"missing header attribute {missing}") from None
+    except (TypeError, ValueError, IndexError) as bad:
+        raise CorruptExrError(str(path), f"malformed header attribute ({bad})") from None
+
+
+def read_header(path: Path | str) -> SnapshotHeader:
+    """The header of a snapshot, without reading its pixels."""
+    p = Path(path)
+    try:
+        with OpenEXR.File(str(p), header_only=True) as f:
+            raw = dict(f.header())
+    except (RuntimeError, ValueError, OSError) as e:
+        raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
+    return _header_from(p, raw)
+
+
+def _stack(path: Path, channels: dict[str, Any], names: tuple[str, ...], height: int, width: int) -> np.ndarray:
+    planes = []
+    for name in names:
+        if name not in channels:
+            raise CorruptExrError(str(path), f"missing channel {name!r} (has {sorted(channels)})")
+        plane = np.asarray(channels[name].pixels, dtype=np.float64)
+        if plane.shape != (height, width):
+            raise CorruptExrError(str(path), f"channel {name!r} has shape {plane.shape}, expected {(height, width)}")
+        planes.append(plane)
+    return np.stack(planes, axis=-1)
+
+
+def read_snapshot(path: Path | str) -> Snapshot:
+    """Reads a whole snapshot; raises CorruptExrError if anything is missing or unreadable."""
+    p = Path(path)
+    try:
+        with OpenEXR.File(str(p), separate_channels=True) as f:
+            raw = dict(f.header())
+            channels = dict(f.channels())
+            header = _header_from(p, raw)
+            rgb = _stack(p, channels, RGB_CHANNELS, header.height, header.width)
+            variance = _stack(p, channels, VARIANCE_CHANNELS, header.height, header.width)
+    except CorruptExrError:
+        raise
+    except (RuntimeError, ValueError, OSError, IndexError, KeyError) as e:
+        raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
+    if not (np.all(np.isfinite(rgb)) and np.all(np.isfinite(variance))):
+        raise CorruptExrError(str(p), "non-finite pixel values")
+    return Snapshot(path=p, header=header, rgb=rgb, variance=variance)

@@ -1,0 +1,20 @@
+/* camera.h: pinhole camera with a vertical field of view; pixel (0, 0) is at
+   the top left; box-filtered pixels are sampled by jittering inside them. */
+#ifndef CAMERA_H
+#define CAMERA_H
+
+#include "config.h"
+#include "vec.h"
+
+struct camera {
+    struct vec3 origin;
+    struct vec3 forward, right, up; /* unit */
+    double tan_half_fov;
+    int width, height;
+};
+
+void camera_init(struct camera *c, const struct camera_desc *d, int width, int height);
+/* Unit direction through film position (px, py) in pixels (continuous). */
+struct vec3 camera_ray(const struct camera *c, double px, double py);
+
+#endif

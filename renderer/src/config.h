@@ -1,0 +1,158 @@
+/* config.h: the validated description of a scene and a render, as read from
+   one YAML file plus command-line overrides. Plain data: no Embree, no I/O
+   beyond reading the file. Every error names file:line:column. */
+#ifndef CONFIG_H
+#define CONFIG_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "error.h"
+#include "polygon.h"
+#include "vec.h"
+
+#define CONFIG_NAME_MAX 64
+#define CONFIG_PATH_MAX 1024
+#define CONFIG_SCHEDULE_MAX 256
+
+enum integrator_kind { INTEGRATOR_DIRECT, INTEGRATOR_PATH };
+
+enum strategy_kind {
+    STRATEGY_LIGHT_AREA,
+    STRATEGY_LIGHT,
+    STRATEGY_PORTAL,
+    STRATEGY_PROJECTION,
+    STRATEGY_ANTISHADOW,
+    STRATEGY_ANTISHADOW_EXACT
+};
+#define STRATEGY_COUNT 6
+
+/* MIS_NONE: light sampling only (no BSDF-sampled direct light). */
+enum mis_kind { MIS_NONE, MIS_BALANCE, MIS_POWER };
+
+/* How a shading point distributes light samples over (light, portal) pairs. */
+enum portal_weight_kind { PORTAL_WEIGHT_AREA, PORTAL_WEIGHT_DISTANCE, PORTAL_WEIGHT_IRRADIANCE };
+
+enum material_kind { MATERIAL_DIFFUSE, MATERIAL_GGX };
+
+/* Names as written in configs, indexed by the enums above. */
+extern const char *const integrator_names[2];
+extern const char *const strategy_names[STRATEGY_COUNT];
+extern const char *const mis_names[3];
+extern const char *const portal_weight_names[3];
+extern const char *const material_names[2];
+
+struct source_loc {
+    int line, column; /* one-based, of the YAML node that defined the item */
+};
+
+struct material_desc {
+    char name[CONFIG_NAME_MAX];
+    enum material_kind kind;
+    struct rgb albedo;     /* diffuse reflectance, or GGX specular colour */
+    double roughness;      /* GGX alpha (0, 1]; unused for diffuse */
+    struct source_loc loc;
+};
+
+/* Every shape is reduced to an indexed mesh of quads and triangles. Surfaces
+   are two-sided. */
+struct shape_desc {
+    int material;                 /* index into config.materials */
+    int n_vertices;
+    struct vec3 *vertices;        /* owned */
+    int n_triangles;
+    int (*triangles)[3];          /* owned, may be NULL */
+    int n_quads;
+    int (*quads)[4];              /* owned, may be NULL; planar convex */
+    struct source_loc loc;
+};
+
+/* Uniform emitter on a convex planar polygon. One-sided lights emit towards
+   the side of polygon_normal(&polygon) (counter-clockwise as seen from the
+   lit side). Lights reflect nothing. */
+struct light_desc {
+    char name[CONFIG_NAME_MAX];
+    struct polygon polygon;       /* 3..POLYGON_INPUT_MAX vertices */
+    struct rgb radiance;
+    bool two_sided;
+    struct source_loc loc;
+};
+
+/* An opening through which every path of its light leaves (not geometry). */
+struct portal_desc {
+    char name[CONFIG_NAME_MAX];
+    int light;                    /* index into config.lights */
+    struct polygon polygon;       /* 3..POLYGON_INPUT_MAX vertices */
+    struct source_loc loc;
+};
+
+struct camera_desc {
+    struct vec3 position, look_at, up;
+    double fov_y_deg;             /* vertical field of view, (0, 180) */
+};
+
+/* When to write snapshots; any combination; the final one is always written. */
+struct snapshot_schedule {
+    double every_s;               /* 0: off */
+    double doubling_s;            /* first time, then 2x, 4x...; 0: off */
+    int n_times;
+    double times_s[CONFIG_SCHEDULE_MAX];
+    int every_spp;                /* 0: off */
+    int n_spps;
+    int spps[CONFIG_SCHEDULE_MAX];
+};
+
+struct render_desc {
+    enum integrator_kind integrator;
+    enum strategy_kind strategy;
+    enum mis_kind mis;
+    enum portal_weight_kind portal_weight;
+    double defensive;             /* [0, 1): fraction of plain light sampling */
+    int max_depth;                /* path: >= 1 bounces; direct ignores it */
+    int rr_depth;                 /* path: Russian roulette from this depth */
+    int spp;                      /* 0: no sample limit */
+    double time_s;                /* 0: no time limit; at least one is set */
+    struct snapshot_schedule snapshots;
+    uint64_t seed;
+    int threads;                  /* 0: auto (number of online CPUs) */
+    char output[CONFIG_PATH_MAX];
+};
+
+struct config {
+    char path[CONFIG_PATH_MAX];   /* the file it came from */
+    int width, height;
+    struct camera_desc camera;
+    int n_materials;
+    struct material_desc *materials;
+    int n_shapes;
+    struct shape_desc *shapes;
+    int n_lights;
+    struct light_desc *lights;
+    int n_portals;
+    struct portal_desc *portals;
+    struct render_desc render;
+    /* Canonical YAML of the effective configuration (params substituted,
+       overrides applied, defaults filled); loads back to the same config. */
+    char *effective_yaml;
+    uint64_t hash;                /* FNV-1a 64 of effective_yaml */
+};
+
+/* One --set key.path=value. Paths are dot-separated mapping keys and
+   sequence indices (e.g. "params.s_L", "camera.position.1", "lights.0.two_sided"). */
+struct config_override {
+    const char *path;
+    const char *value;
+};
+
+/* Reads, validates and fills `out`. On failure `out` is left empty (nothing to
+   free) and err holds "file:line:column: what was wrong (expected ...)". */
+bool config_load(const char *path, const struct config_override *overrides, int n_overrides,
+                 struct config *out, struct error *err);
+/* Same from memory; `name` is used as the file name in messages. */
+bool config_load_string(const char *text, size_t length, const char *name,
+                        const struct config_override *overrides, int n_overrides,
+                        struct config *out, struct error *err);
+void config_free(struct config *c);
+
+#endif

@@ -1,0 +1,96 @@
+/* film.h: per-pixel accumulation of radiance samples (running mean and
+   second moment, Welford) and the OpenEXR snapshot format: R, G, B of the
+   mean and variance.R/G/B of the mean, written atomically. */
+#ifndef FILM_H
+#define FILM_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "error.h"
+#include "vec.h"
+
+/* Accumulator. Every progressive pass adds exactly one sample to each pixel,
+   so all pixels share the sample count `passes`; rows are owned by one thread
+   within a pass, so no locking is needed. */
+struct film {
+    int width, height;
+    double *mean;      /* 3 per pixel, row-major, row 0 at the top */
+    double *m2;        /* 3 per pixel: sum of squared deviations */
+    int64_t passes;    /* completed passes */
+};
+
+/* Largest accepted image: each side at most FILM_MAX_SIDE pixels and at most
+   FILM_MAX_PIXELS pixels in all (a film of that size holds 3 GiB of doubles).
+   Larger requests fail with a message instead of an allocation attempt. */
+#define FILM_MAX_SIDE 65536
+#define FILM_MAX_PIXELS ((int64_t)1 << 27)
+
+/* Allocates a zeroed width x height film; fails on non-positive or absurd
+   sizes and on allocation failure. */
+bool film_init(struct film *f, int width, int height, struct error *err);
+void film_free(struct film *f);
+/* Adds the sample of pass number `pass` (0-based) to pixel (x, y). */
+static inline void film_add(struct film *f, int x, int y, struct rgb c, int64_t pass)
+{
+    double *m = f->mean + 3 * ((int64_t)y * f->width + x);
+    double *s = f->m2 + 3 * ((int64_t)y * f->width + x);
+    double inv = 1.0 / (double)(pass + 1);
+    double v[3] = { c.r, c.g, c.b };
+    for (int k = 0; k < 3; ++k) {
+        double d = v[k] - m[k];
+        m[k] += d * inv;
+        s[k] += d * (v[k] - m[k]);
+    }
+}
+
+/* A snapshot: float images ready to write. */
+struct film_image {
+    int width, height;
+    float *rgb;        /* 3 per pixel: running mean */
+    float *variance;   /* 3 per pixel: variance of the mean (sigma^2 / n) */
+};
+
+/* Same size rules as film_init; film_image_free is safe on a zeroed or freed image. */
+bool film_image_alloc(struct film_image *img, int width, int height, struct error *err);
+void film_image_free(struct film_image *img);
+/* Copies the film's state after n = `f->passes` passes into img (same size).
+   variance = m2 / (n (n - 1)), the unbiased sample variance over n; for
+   n < 2 it is unknown and written as 0 (never NaN or Inf): readers must look
+   at spp before trusting it. Doubles beyond the float range are clamped to
+   +-FLT_MAX; a NaN that overflowing accumulation could produce becomes 0 in
+   the mean and FLT_MAX in the variance, so no NaN is ever written. */
+void film_snapshot(const struct film *f, struct film_image *img);
+
+/* Header attributes of a snapshot. */
+struct snapshot_info {
+    double render_time_s;          /* rendering only, snapshot I/O excluded */
+    int64_t spp;
+    const char *strategy;
+    const char *integrator;
+    uint64_t seed;
+    uint64_t config_hash;
+    const char *renderer_version;
+    uint64_t rays;                 /* rays traced so far */
+    uint64_t nonfinite_samples;    /* samples dropped for NaN/Inf */
+};
+
+/* Writes an EXR (ZIP, float channels B, G, R, variance.B/G/R) to
+   "path.tmp-<pid>" then fsyncs and renames it to `path`, so a reader never
+   sees a partial file. On failure nothing is left at `path` or the temporary
+   name and err says why. Header attributes: render_time_s (double),
+   spp (int, saturated), strategy, integrator, seed (string, decimal),
+   config_hash (string, 16 hex digits), renderer_version (string),
+   rays (double), nonfinite_samples (double). */
+bool film_write_exr(const char *path, const struct film_image *img, const struct snapshot_info *info,
+                    struct error *err);
+
+/* Reads back what film_write_exr wrote (for tests and tools). Strings in
+   `info` point into `storage`, which the caller frees with free(). */
+struct snapshot_read {
+    struct snapshot_info info;
+    char *storage;
+};
+bool film_read_exr(const char *path, struct film_image *img, struct snapshot_read *meta, struct error *err);
+
+#endif

@@ -1,0 +1,40 @@
+/* integrator.h: radiance along a camera ray: `direct` (emission plus direct
+   lighting at the first hit) and `path` (unidirectional path tracing with
+   next-event estimation and Russian roulette), both combining the light
+   strategy with BSDF sampling by multiple importance sampling. */
+#ifndef INTEGRATOR_H
+#define INTEGRATOR_H
+
+#include <stdint.h>
+
+#include "config.h"
+#include "rng.h"
+#include "scene.h"
+#include "strategy.h"
+
+/* Counters a render thread accumulates; summed across threads. */
+struct integrator_stats {
+    uint64_t rays;              /* all rays traced */
+    uint64_t shadow_rays;       /* occlusion rays towards a sampled light point */
+    uint64_t shadow_blocked;    /* ...of which were occluded */
+    uint64_t light_samples;     /* next-event samples that produced a direction */
+    uint64_t light_missed;      /* ...whose direction missed the light (no ray traced) */
+};
+
+struct integrator {
+    enum integrator_kind kind;
+    enum mis_kind mis;
+    int max_depth;
+    int rr_depth;
+    const struct scene *scene;
+    const struct strategy *strategy;
+};
+
+void integrator_init(struct integrator *it, const struct render_desc *rd, const struct scene *scene,
+                     const struct strategy *strategy);
+
+/* Radiance arriving at the camera along o + t d (d unit). */
+struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
+                               struct vec3 d, struct rng *rng, struct integrator_stats *stats);
+
+#endif

@@ -1,0 +1,316 @@
+/* polygon.c: convex planar polygons in 3D (see polygon.h). */
+#include "polygon.h"
+
+#include <float.h>
+
+/* Relative tolerances, as fractions of the polygon's size (bounding-box
+   diagonal). Clipping snaps distances below POLYGON_SNAP_REL to the plane so
+   that vertices on a clip edge are kept as they are and no sliver vertex is
+   created next to them; vertices closer than POLYGON_DUP_REL are merged. */
+#define POLYGON_SNAP_REL 1e-12
+#define POLYGON_DUP_REL 1e-10
+#define POLYGON_CONVEX_REL 1e-9
+#define POLYGON_CONTAINS_REL 1e-9
+#define POLYGON_DEGENERATE_REL 1e-12
+
+static double polygon_size(const struct polygon *poly)
+{
+    if (poly->n <= 0) return 0.0;
+    struct vec3 lo = poly->v[0], hi = poly->v[0];
+    for (int i = 1; i < poly->n; ++i) {
+        struct vec3 p = poly->v[i];
+        lo = vec3_make(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+        hi = vec3_make(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+    }
+    return vec3_length(vec3_sub(hi, lo));
+}
+
+static double polygon_max_abs(const struct polygon *poly)
+{
+    double m = 0.0;
+    for (int i = 0; i < poly->n; ++i) m = fmax(m, vec3_max_abs(poly->v[i]));
+    return m;
+}
+
+/* The fan sum of cross(v_i - v_0, v_{i+1} - v_0) equals Newell's sum of
+   cross(v_i, v_{i+1}) for any closed polygon (the translation terms cancel),
+   but differences of nearby vertices keep their precision far from the
+   origin. */
+struct vec3 polygon_area_normal(const struct polygon *poly)
+{
+    struct vec3 n = vec3_make(0.0, 0.0, 0.0);
+    for (int i = 1; i + 1 < poly->n; ++i) {
+        struct vec3 a = vec3_sub(poly->v[i], poly->v[0]);
+        struct vec3 b = vec3_sub(poly->v[i + 1], poly->v[0]);
+        n = vec3_add(n, vec3_cross(a, b));
+    }
+    return n;
+}
+
+struct vec3 polygon_normal(const struct polygon *poly)
+{
+    struct vec3 n = polygon_area_normal(poly);
+    double len = vec3_length(n), size = polygon_size(poly);
+    if (!(len > POLYGON_DEGENERATE_REL * size * size) || !isfinite(len)) return vec3_make(0.0, 0.0, 0.0);
+    return vec3_scale(n, 1.0 / len);
+}
+
+double polygon_area(const struct polygon *poly)
+{
+    return 0.5 * vec3_length(polygon_area_normal(poly));
+}
+
+/* Area centroid: fan triangles weighted by their area signed along the
+   polygon's normal (exact for any simple planar polygon); the vertex mean
+   when the polygon has no area. */
+struct vec3 polygon_centroid(const struct polygon *poly)
+{
+    if (poly->n <= 0) return vec3_make(0.0, 0.0, 0.0);
+    struct vec3 nrm = polygon_normal(poly);
+    struct vec3 sum = vec3_make(0.0, 0.0, 0.0);
+    double weight = 0.0;
+    for (int i = 1; i + 1 < poly->n; ++i) {
+        struct vec3 a = vec3_sub(poly->v[i], poly->v[0]);
+        struct vec3 b = vec3_sub(poly->v[i + 1], poly->v[0]);
+        double w = vec3_dot(vec3_cross(a, b), nrm);
+        sum = vec3_madd(sum, vec3_add(a, b), w / 3.0);
+        weight += w;
+    }
+    if (weight > 0.0) return vec3_madd(poly->v[0], sum, 1.0 / weight);
+    struct vec3 mean = vec3_make(0.0, 0.0, 0.0);
+    for (int i = 0; i < poly->n; ++i) mean = vec3_add(mean, vec3_sub(poly->v[i], poly->v[0]));
+    return vec3_madd(poly->v[0], mean, 1.0 / poly->n);
+}
+
+struct plane polygon_plane(const struct polygon *poly)
+{
+    struct plane pl;
+    pl.normal = polygon_normal(poly);
+    pl.offset = vec3_dot(pl.normal, polygon_centroid(poly));
+    return pl;
+}
+
+bool polygon_is_planar(const struct polygon *poly, double rel_tol)
+{
+    if (poly->n < 3 || poly->n > POLYGON_MAX) return false;
+    struct plane pl = polygon_plane(poly);
+    if (vec3_length2(pl.normal) == 0.0) return false;
+    double tol = rel_tol * polygon_size(poly);
+    for (int i = 0; i < poly->n; ++i)
+        if (!(fabs(plane_distance(&pl, poly->v[i])) <= tol)) return false;
+    return true;
+}
+
+/* Every other vertex must lie strictly on the inner side of every edge (the
+   side the winding normal turns to). This rejects collinear and repeated
+   vertices, reflex corners, and self-intersecting or multiply wound polygons
+   (a pentagram has all left turns but fails the edge test). O(n^2), n <= 24. */
+bool polygon_is_convex(const struct polygon *poly)
+{
+    int n = poly->n;
+    if (n < 3 || n > POLYGON_MAX) return false;
+    struct vec3 nrm = polygon_normal(poly);
+    if (vec3_length2(nrm) == 0.0) return false;
+    double tol = POLYGON_CONVEX_REL * polygon_size(poly);
+    for (int i = 0; i < n; ++i) {
+        struct vec3 a = poly->v[i], e = vec3_sub(poly->v[(i + 1) % n], a);
+        double len = vec3_length(e);
+        if (!(len > tol)) return false;
+        for (int j = 0; j < n; ++j) {
+            if (j == i || j == (i + 1) % n) continue;
+            double side = vec3_dot(vec3_cross(e, vec3_sub(poly->v[j], a)), nrm) / len;
+            if (!(side > tol)) return false;
+        }
+    }
+    return true;
+}
+
+/* Removes consecutive (cyclically) vertices closer than tol, then, if the
+   vertex count still exceeds POLYGON_MAX, drops the vertex whose triangle
+   with its neighbours has the least area until it fits: the result shrinks
+   by that sliver, which only happens for inputs beyond POLYGON_INPUT_MAX. */
+static int polygon_finish(const struct vec3 *buf, int m, double tol, struct polygon *out)
+{
+    struct vec3 tmp[2 * POLYGON_MAX + 2];
+    int k = 0;
+    for (int i = 0; i < m; ++i) {
+        if (k > 0 && vec3_length(vec3_sub(buf[i], tmp[k - 1])) <= tol) continue;
+        tmp[k++] = buf[i];
+    }
+    while (k > 1 && vec3_length(vec3_sub(tmp[k - 1], tmp[0])) <= tol) --k;
+    while (k > POLYGON_MAX) {
+        int best = 0;
+        double best_area = INFINITY;
+        for (int i = 0; i < k; ++i) {
+            struct vec3 prev = tmp[(i + k - 1) % k], next = tmp[(i + 1) % k];
+            double area = vec3_length(vec3_cross(vec3_sub(tmp[i], prev), vec3_sub(next, tmp[i])));
+            if (area < best_area) {
+                best_area = area;
+                best = i;
+            }
+        }
+        for (int i = best; i + 1 < k; ++i) tmp[i] = tmp[i + 1];
+        --k;
+    }
+    if (k < 3) k = 0;
+    for (int i = 0; i < k; ++i) out->v[i] = tmp[i];
+    out->n = k;
+    return k;
+}
+
+/* Sutherland-Hodgman for one plane. Distances within the snap tolerance
+   count as exactly zero, so a vertex on the plane is emitted once as itself
+   and an edge is split only where its end points lie strictly on opposite
+   sides. `in` and `out` may be the same polygon. */
+int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out)
+{
+    int n = in->n;
+    if (n < 3 || n > POLYGON_MAX) {
+        out->n = 0;
+        return 0;
+    }
+    double size = polygon_size(in);
+    double eps = POLYGON_SNAP_REL * size + 4.0 * DBL_EPSILON * (polygon_max_abs(in) * vec3_max_abs(pl->normal) + fabs(pl->offset));
+    double d[POLYGON_MAX];
+    bool all_in = true;
+    for (int i = 0; i < n; ++i) {
+        d[i] = plane_distance(pl, in->v[i]);
+        if (fabs(d[i]) <= eps) d[i] = 0.0;
+        if (d[i] < 0.0) all_in = false;
+    }
+    if (all_in) {
+        if (out != in) *out = *in;
+        return out->n;
+    }
+    struct vec3 buf[2 * POLYGON_MAX + 2];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        int j = (i + 1) % n;
+        struct vec3 a = in->v[i], b = in->v[j];
+        if (d[i] >= 0.0) buf[m++] = a;
+        if ((d[i] > 0.0 && d[j] < 0.0) || (d[i] < 0.0 && d[j] > 0.0)) {
+            /* Interpolate from the end point nearer the plane: the smaller
+               step keeps the intersection closest to the exact one. */
+            double t = d[i] / (d[i] - d[j]);
+            buf[m++] = t <= 0.5 ? vec3_madd(a, vec3_sub(b, a), t) : vec3_madd(b, vec3_sub(a, b), 1.0 - t);
+        }
+    }
+    return polygon_finish(buf, m, POLYGON_DUP_REL * size, out);
+}
+
+/* The clip polygon's edge planes point inwards: with its winding normal N,
+   cross(N, edge) turns left of the edge, which is the inside for either
+   winding because N follows the winding. The centroid check guards nearly
+   degenerate clip polygons. */
+int polygon_clip_convex(const struct polygon *subject, const struct polygon *clip, struct polygon *out)
+{
+    struct vec3 nrm = polygon_normal(clip);
+    if (subject->n < 3 || clip->n < 3 || vec3_length2(nrm) == 0.0) {
+        out->n = 0;
+        return 0;
+    }
+    struct vec3 c = polygon_centroid(clip);
+    double tol = POLYGON_DUP_REL * polygon_size(clip);
+    struct polygon work = *subject;
+    for (int i = 0; i < clip->n && work.n > 0; ++i) {
+        struct vec3 a = clip->v[i], e = vec3_sub(clip->v[(i + 1) % clip->n], a);
+        if (!(vec3_length(e) > tol)) continue;
+        struct plane pl;
+        pl.normal = vec3_normalize(vec3_cross(nrm, e));
+        pl.offset = vec3_dot(pl.normal, a);
+        if (plane_distance(&pl, c) < 0.0) {
+            pl.normal = vec3_neg(pl.normal);
+            pl.offset = -pl.offset;
+        }
+        polygon_clip_plane(&work, &pl, &work);
+    }
+    *out = work;
+    return out->n;
+}
+
+/* Inclusive of the boundary within POLYGON_CONTAINS_REL of the polygon's
+   size, measured in the polygon's plane (the normal component of x - v_i is
+   ignored). Valid for convex polygons of either winding. */
+bool polygon_contains(const struct polygon *poly, struct vec3 x)
+{
+    int n = poly->n;
+    struct vec3 nrm = polygon_normal(poly);
+    if (n < 3 || vec3_length2(nrm) == 0.0) return false;
+    double tol = POLYGON_CONTAINS_REL * polygon_size(poly);
+    for (int i = 0; i < n; ++i) {
+        struct vec3 a = poly->v[i], e = vec3_sub(poly->v[(i + 1) % n], a);
+        double len = vec3_length(e);
+        if (len == 0.0) continue;
+        if (vec3_dot(vec3_cross(e, vec3_sub(x, a)), nrm) < -tol * len) return false;
+    }
+    return true;
+}
+
+bool polygon_intersect_ray(const struct polygon *poly, struct vec3 o, struct vec3 d, double *t)
+{
+    struct vec3 nrm = polygon_normal(poly);
+    double denom = vec3_dot(nrm, d);
+    if (vec3_length2(nrm) == 0.0 || !(fabs(denom) > 1e-15 * vec3_length(d))) return false;
+    double tt = vec3_dot(nrm, vec3_sub(poly->v[0], o)) / denom;
+    if (!(tt > 0.0) || !isfinite(tt)) return false;
+    if (!polygon_contains(poly, vec3_madd(o, d, tt))) return false;
+    *t = tt;
+    return true;
+}
+
+/* Van Oosterom and Strackee (1983): for the triangle a, b, c seen from the
+   origin, tan(Omega / 2) = det[a b c] / (|a||b||c| + (a.b)|c| + (a.c)|b| +
+   (b.c)|a|). The determinant is formed as a . ((b - a) x (c - a)) from the
+   original vertex differences, which keeps it accurate when the triangle is
+   small or far (the vectors from o are then nearly parallel). The fan sum is
+   signed, so it is also right for non-convex fans. */
+double polygon_solid_angle(const struct polygon *poly, struct vec3 o)
+{
+    if (poly->n < 3) return 0.0;
+    struct vec3 a = vec3_sub(poly->v[0], o);
+    double la = vec3_length(a), sum = 0.0;
+    for (int i = 1; i + 1 < poly->n; ++i) {
+        struct vec3 b = vec3_sub(poly->v[i], o), c = vec3_sub(poly->v[i + 1], o);
+        double lb = vec3_length(b), lc = vec3_length(c);
+        double num = vec3_dot(a, vec3_cross(vec3_sub(poly->v[i], poly->v[0]), vec3_sub(poly->v[i + 1], poly->v[0])));
+        double den = la * lb * lc + vec3_dot(a, b) * lc + vec3_dot(a, c) * lb + vec3_dot(b, c) * la;
+        sum += 2.0 * atan2(num, den);
+    }
+    return fabs(sum);
+}
+
+/* Edge i runs from a = v_i - o to b = v_{i+1} - o. theta_i = atan2(|a x b|,
+   a . b) is accurate for short and long edges alike, and a x b is formed as
+   a x (v_{i+1} - v_i). The unit normal is taken as b x a (note the order):
+   for a polygon wound counter-clockwise as seen from o, i.e. whose winding
+   normal points back towards o, Phi then points towards the polygon. */
+struct vec3 polygon_vector_irradiance(const struct polygon *poly, struct vec3 o)
+{
+    struct vec3 phi = vec3_make(0.0, 0.0, 0.0);
+    int n = poly->n;
+    for (int i = 0; i < n; ++i) {
+        int j = (i + 1) % n;
+        struct vec3 a = vec3_sub(poly->v[i], o), b = vec3_sub(poly->v[j], o);
+        struct vec3 axb = vec3_cross(a, vec3_sub(poly->v[j], poly->v[i]));
+        double len = vec3_length(axb);
+        if (!(len > 0.0)) continue;
+        double theta = atan2(len, vec3_dot(a, b));
+        phi = vec3_madd(phi, axb, -theta / len);
+    }
+    return vec3_scale(phi, 1.0 / (2.0 * M_PI));
+}
+
+/* Lambert: the integral of dot(n, w) over the polygon's solid angle is
+   pi * dot(n, Phi) (up to the winding sign) once the polygon lies in n's
+   closed hemisphere, which the clip against the plane through o ensures.
+   Edges in the horizon plane contribute nothing since their plane normal is
+   orthogonal to n. */
+double polygon_projected_solid_angle(const struct polygon *poly, struct vec3 o, struct vec3 n)
+{
+    struct plane horizon;
+    horizon.normal = n;
+    horizon.offset = vec3_dot(n, o);
+    struct polygon above;
+    if (polygon_clip_plane(poly, &horizon, &above) == 0) return 0.0;
+    return M_PI * fabs(vec3_dot(n, polygon_vector_irradiance(&above, o)));
+}

@@ -1,0 +1,78 @@
+/* polygon.h: convex planar polygons in 3D: the shape of every area light and
+   portal. Area, plane, validity checks, Sutherland-Hodgman clipping, ray
+   intersection, solid angle and the Lambert/Arvo vector irradiance. */
+#ifndef POLYGON_H
+#define POLYGON_H
+
+#include <stdbool.h>
+
+#include "vec.h"
+
+/* Clipping a convex n-gon by a convex m-gon yields at most n + m vertices;
+   lights and portals have at most POLYGON_INPUT_MAX so clipped results fit. */
+#define POLYGON_INPUT_MAX 8
+#define POLYGON_MAX 24
+
+struct polygon {
+    int n;
+    struct vec3 v[POLYGON_MAX];
+};
+
+/* Plane dot(normal, x) = offset, normal unit length. */
+struct plane {
+    struct vec3 normal;
+    double offset;
+};
+
+static inline double plane_distance(const struct plane *pl, struct vec3 x)
+{
+    return vec3_dot(pl->normal, x) - pl->offset;
+}
+
+/* Newell's normal: length is twice the area, direction by right-hand winding. */
+struct vec3 polygon_area_normal(const struct polygon *poly);
+/* Unit normal by right-hand winding (zero vector when degenerate). */
+struct vec3 polygon_normal(const struct polygon *poly);
+double polygon_area(const struct polygon *poly);
+struct vec3 polygon_centroid(const struct polygon *poly);
+/* The supporting plane, oriented by the winding. */
+struct plane polygon_plane(const struct polygon *poly);
+
+/* Input validity; tolerances are relative to the polygon's size. */
+bool polygon_is_planar(const struct polygon *poly, double rel_tol);
+/* Strictly convex in its plane, consistently wound, no repeated vertices. */
+bool polygon_is_convex(const struct polygon *poly);
+
+/* Sutherland-Hodgman against one plane: keeps the part with
+   plane_distance >= 0. Returns the number of output vertices (0 if empty). */
+int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out);
+/* Clips `subject` by the convex `clip` polygon, both in (nearly) the same
+   plane: keeps subject inside every edge of clip. Winding of clip may be
+   either way. Returns the vertex count of `out` (0 when they do not overlap). */
+int polygon_clip_convex(const struct polygon *subject, const struct polygon *clip, struct polygon *out);
+
+/* Ray o + t d (d need not be unit) against the polygon: true with *t when the
+   ray hits the polygon's interior at t > 0 (either side). */
+bool polygon_intersect_ray(const struct polygon *poly, struct vec3 o, struct vec3 d, double *t);
+/* Point-in-polygon for a point on (or projected onto) the polygon's plane. */
+bool polygon_contains(const struct polygon *poly, struct vec3 x);
+
+/* Solid angle subtended by the polygon from o, in steradians (>= 0). */
+double polygon_solid_angle(const struct polygon *poly, struct vec3 o);
+/* Lambert's vector irradiance (Arvo 1995): Phi = 1/(2 pi) sum_i theta_i u_i,
+   with theta_i the angle subtended by edge i (from v_i to v_{i+1}) and u_i the
+   unit normal of the plane through o and that edge, taken as
+   u_i = normalize((v_{i+1} - o) x (v_i - o)). So for a polygon wound
+   counter-clockwise as seen from o (its winding normal points back towards
+   o) Phi points towards the polygon and dot(n, Phi) >= 0 for a receiver
+   normal n facing it; the opposite winding flips Phi. Irradiance from a uniform emitter of radiance L at a receiver
+   with normal n is E = pi * L * |dot(n, Phi)| when the whole polygon is above
+   the receiver's horizon; this function does not clip to the horizon. */
+struct vec3 polygon_vector_irradiance(const struct polygon *poly, struct vec3 o);
+/* Cosine-weighted solid angle integral over the polygon seen from o with
+   receiver normal n: integral of max(0, dot(n, w)) dw over directions w
+   towards the polygon; clips the polygon to n's hemisphere first. Equals
+   E / L for a uniform emitter. */
+double polygon_projected_solid_angle(const struct polygon *poly, struct vec3 o, struct vec3 n);
+
+#endif

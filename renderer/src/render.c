@@ -1,0 +1,434 @@
+#include "render.h"
+
+#include <pthread.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+#include <pmmintrin.h>
+#include <xmmintrin.h>
+
+#include "camera.h"
+#include "film.h"
+#include "rng.h"
+#include "strategy.h"
+#include "version.h"
+
+/* The one piece of process-wide state: set by the signal handler, read by
+   the render loop between passes. */
+static volatile sig_atomic_t interrupt_requested = 0;
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    interrupt_requested = 1;
+}
+
+void render_catch_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---- passes ------------------------------------------------------------ */
+
+/* Shared between the main thread and the workers; guarded by `lock`. */
+struct pass_control {
+    pthread_mutex_t lock;
+    pthread_cond_t start, done;
+    int64_t generation;       /* incremented to start a pass */
+    int next_row;
+    int active;               /* workers still in the current pass */
+    bool quit;
+    int64_t pass;             /* index of the pass being rendered */
+    uint64_t nonfinite;
+    struct integrator_stats stats;
+};
+
+struct worker {
+    pthread_t thread;
+    struct pass_control *pc;
+    const struct config *cfg;
+    const struct camera *camera;
+    const struct integrator *integrator;
+    struct film *film;
+    struct strategy_scratch scratch;
+};
+
+static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
+{
+    a->rays += b->rays;
+    a->shadow_rays += b->shadow_rays;
+    a->shadow_blocked += b->shadow_blocked;
+    a->light_samples += b->light_samples;
+    a->light_missed += b->light_missed;
+}
+
+static void render_row(struct worker *w, int y, int64_t pass, struct integrator_stats *stats, uint64_t *nonfinite)
+{
+    const struct config *cfg = w->cfg;
+    for (int x = 0; x < cfg->width; ++x) {
+        struct rng rng;
+        /* One stream per (pixel, pass): pixels never depend on which thread
+           rendered them, so fixed-spp renders are bit-identical. */
+        rng_seed(&rng, cfg->render.seed, (uint64_t)y * (uint64_t)cfg->width + (uint64_t)x, (uint64_t)pass);
+        double jx = rng_uniform(&rng), jy = rng_uniform(&rng);
+        struct vec3 d = camera_ray(w->camera, x + jx, y + jy);
+        struct rgb c = integrator_radiance(w->integrator, &w->scratch, w->camera->origin, d, &rng, stats);
+        if (!rgb_is_finite(c)) {
+            /* A NaN/Inf sample would poison the pixel forever: drop it to
+               zero and count it, so the count is visible in the output. */
+            ++*nonfinite;
+            c = rgb_make(0.0, 0.0, 0.0);
+        }
+        film_add(w->film, x, y, c, pass);
+    }
+}
+
+static void *worker_main(void *arg)
+{
+    struct worker *w = arg;
+    struct pass_control *pc = w->pc;
+    /* Denormals are never needed here and cost ~100x per operation. */
+    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+    int64_t seen = 0;
+    pthread_mutex_lock(&pc->lock);
+    for (;;) {
+        while (pc->generation == seen && !pc->quit) pthread_cond_wait(&pc->start, &pc->lock);
+        if (pc->quit) break;
+        seen = pc->generation;
+        int64_t pass = pc->pass;
+        struct integrator_stats stats = { 0, 0, 0, 0, 0 };
+        uint64_t nonfinite = 0;
+        for (;;) {
+            int y = pc->next_row < w->cfg->height ? pc->next_row++ : -1;
+            if (y < 0) break;
+            pthread_mutex_unlock(&pc->lock);
+            render_row(w, y, pass, &stats, &nonfinite);
+            pthread_mutex_lock(&pc->lock);
+        }
+        stats_add(&pc->stats, &stats);
+        pc->nonfinite += nonfinite;
+        if (--pc->active == 0) pthread_cond_signal(&pc->done);
+    }
+    pthread_mutex_unlock(&pc->lock);
+    return NULL;
+}
+
+/* ---- snapshots ----------------------------------------------------------- */
+
+/* Next due time or sample count of each schedule; a snapshot is taken at the
+   first pass boundary at or after it. */
+struct schedule_state {
+    const struct snapshot_schedule *sch;
+    double next_every, next_doubling;
+    int next_time, next_spp_list;
+    int64_t next_every_spp;
+};
+
+static void schedule_init(struct schedule_state *s, const struct snapshot_schedule *sch)
+{
+    s->sch = sch;
+    s->next_every = sch->every_s > 0.0 ? sch->every_s : INFINITY;
+    s->next_doubling = sch->doubling_s > 0.0 ? sch->doubling_s : INFINITY;
+    s->next_time = 0;
+    s->next_spp_list = 0;
+    s->next_every_spp = sch->every_spp > 0 ? sch->every_spp : INT64_MAX;
+}
+
+/* True if a snapshot is due at (t, spp); advances every schedule past it. */
+static bool schedule_due(struct schedule_state *s, double t, int64_t spp)
+{
+    const struct snapshot_schedule *sch = s->sch;
+    bool due = false;
+    if (t >= s->next_every) {
+        due = true;
+        while (s->next_every <= t) s->next_every += sch->every_s;
+    }
+    if (t >= s->next_doubling) {
+        due = true;
+        while (s->next_doubling <= t) s->next_doubling *= 2.0;
+    }
+    while (s->next_time < sch->n_times && t >= sch->times_s[s->next_time]) {
+        due = true;
+        ++s->next_time;
+    }
+    if (spp >= s->next_every_spp) {
+        due = true;
+        while (s->next_every_spp <= spp) s->next_every_spp += sch->every_spp;
+    }
+    while (s->next_spp_list < sch->n_spps && spp >= sch->spps[s->next_spp_list]) {
+        due = true;
+        ++s->next_spp_list;
+    }
+    return due;
+}
+
+/* Writes snapshots on its own thread so render threads never wait for I/O;
+   holds one pending image at a time. */
+struct writer {
+    pthread_t thread;
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    bool busy, quit, failed;
+    struct error err;
+    FILE *json;
+    struct film_image image;
+    struct snapshot_info info;
+    char path[CONFIG_PATH_MAX + 64];
+    int index;
+};
+
+static void json_string(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; ++s) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
+        else if (c < 0x20) fprintf(f, "\\u%04x", c);
+        else fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+static void json_snapshot(FILE *f, const char *event, int index, const char *path, const struct snapshot_info *info)
+{
+    fprintf(f, "{\"event\":\"%s\",", event);
+    if (index > 0) fprintf(f, "\"index\":%d,", index);
+    fputs("\"path\":", f);
+    json_string(f, path);
+    fprintf(f, ",\"time_s\":%.6f,\"spp\":%lld,\"rays\":%llu,\"nonfinite\":%llu", info->render_time_s,
+            (long long)info->spp, (unsigned long long)info->rays, (unsigned long long)info->nonfinite_samples);
+}
+
+static void *writer_main(void *arg)
+{
+    struct writer *w = arg;
+    pthread_mutex_lock(&w->lock);
+    for (;;) {
+        while (!w->busy && !w->quit) pthread_cond_wait(&w->cond, &w->lock);
+        if (!w->busy && w->quit) break;
+        pthread_mutex_unlock(&w->lock);
+        struct error err;
+        bool ok = film_write_exr(w->path, &w->image, &w->info, &err);
+        if (ok) {
+            json_snapshot(w->json, "snapshot", w->index, w->path, &w->info);
+            fputs("}\n", w->json);
+            fflush(w->json);
+        }
+        pthread_mutex_lock(&w->lock);
+        if (!ok && !w->failed) {
+            w->failed = true;
+            w->err = err;
+        }
+        w->busy = false;
+        pthread_cond_broadcast(&w->cond);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return NULL;
+}
+
+static void writer_wait_idle(struct writer *w)
+{
+    pthread_mutex_lock(&w->lock);
+    while (w->busy) pthread_cond_wait(&w->cond, &w->lock);
+    pthread_mutex_unlock(&w->lock);
+}
+
+/* ---- the loop -------------------------------------------------------------- */
+
+static int thread_count(const struct render_desc *rd)
+{
+    if (rd->threads > 0) return rd->threads;
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (int)n : 1;
+}
+
+static void fill_info(struct snapshot_info *info, const struct config *cfg, double t, int64_t spp,
+                      const struct pass_control *pc)
+{
+    info->render_time_s = t;
+    info->spp = spp;
+    info->strategy = strategy_names[cfg->render.strategy];
+    info->integrator = integrator_names[cfg->render.integrator];
+    info->seed = cfg->render.seed;
+    info->config_hash = cfg->hash;
+    info->renderer_version = RENDERER_VERSION;
+    info->rays = pc->stats.rays;
+    info->nonfinite_samples = pc->nonfinite;
+}
+
+bool render_run(const struct config *cfg, const struct scene *scene, FILE *json, struct render_result *result,
+                struct error *err)
+{
+    const struct render_desc *rd = &cfg->render;
+    memset(result, 0, sizeof *result);
+    struct strategy strategy;
+    if (!strategy_init(&strategy, scene, rd, err)) return false;
+    struct integrator integrator;
+    integrator_init(&integrator, rd, scene, &strategy);
+    struct camera camera;
+    camera_init(&camera, &cfg->camera, cfg->width, cfg->height);
+    struct film film;
+    if (!film_init(&film, cfg->width, cfg->height, err)) {
+        strategy_free(&strategy);
+        return false;
+    }
+
+    struct writer wr;
+    memset(&wr, 0, sizeof wr);
+    wr.json = json;
+    bool ok = film_image_alloc(&wr.image, cfg->width, cfg->height, err);
+
+    int n_threads = thread_count(rd);
+    struct pass_control pc;
+    memset(&pc, 0, sizeof pc);
+    pthread_mutex_init(&pc.lock, NULL);
+    pthread_cond_init(&pc.start, NULL);
+    pthread_cond_init(&pc.done, NULL);
+    pthread_mutex_init(&wr.lock, NULL);
+    pthread_cond_init(&wr.cond, NULL);
+    struct worker *workers = calloc((size_t)n_threads, sizeof *workers);
+    int started = 0;
+    bool writer_started = false;
+    if (ok && !workers) ok = error_set(err, "out of memory for %d threads", n_threads);
+    for (int i = 0; ok && i < n_threads; ++i) {
+        struct worker *w = &workers[i];
+        w->pc = &pc;
+        w->cfg = cfg;
+        w->camera = &camera;
+        w->integrator = &integrator;
+        w->film = &film;
+        if (!strategy_scratch_init(&strategy, &w->scratch, err)) ok = false;
+        else if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+            strategy_scratch_free(&w->scratch);
+            ok = error_set(err, "cannot start render thread %d", i);
+        } else ++started;
+    }
+    if (ok) {
+        if (pthread_create(&wr.thread, NULL, writer_main, &wr) != 0) ok = error_set(err, "cannot start the writer thread");
+        else writer_started = true;
+    }
+
+    if (ok) {
+        fprintf(json, "{\"event\":\"start\",\"out\":");
+        json_string(json, rd->output);
+        fprintf(json, ",\"width\":%d,\"height\":%d,\"strategy\":\"%s\",\"integrator\":\"%s\",\"seed\":%llu,"
+                      "\"config_hash\":\"%016llx\",\"renderer_version\":\"%s\",\"threads\":%d,"
+                      "\"spp_target\":%d,\"time_target_s\":%g}\n",
+                cfg->width, cfg->height, strategy_names[rd->strategy], integrator_names[rd->integrator],
+                (unsigned long long)rd->seed, (unsigned long long)cfg->hash, RENDERER_VERSION, n_threads, rd->spp,
+                rd->time_s);
+        fflush(json);
+    }
+
+    struct schedule_state sched;
+    schedule_init(&sched, &rd->snapshots);
+    double elapsed = 0.0, last_pass = 0.0;
+    int64_t pass = 0;
+    while (ok) {
+        if (rd->spp > 0 && pass >= rd->spp) break;
+        /* Stop when another pass would end nearer past the limit than before it. */
+        if (rd->time_s > 0.0 && elapsed + 0.5 * last_pass >= rd->time_s) break;
+        if (interrupt_requested) {
+            result->interrupted = true;
+            break;
+        }
+        double t0 = now_s();
+        pthread_mutex_lock(&pc.lock);
+        pc.pass = pass;
+        pc.next_row = 0;
+        pc.active = started;
+        ++pc.generation;
+        pthread_cond_broadcast(&pc.start);
+        while (pc.active > 0) pthread_cond_wait(&pc.done, &pc.lock);
+        pthread_mutex_unlock(&pc.lock);
+        last_pass = now_s() - t0;
+        elapsed += last_pass;
+        film.passes = ++pass;
+
+        if (schedule_due(&sched, elapsed, pass)) {
+            /* Waiting for the writer and copying the film happen between
+               passes, outside the render clock. */
+            writer_wait_idle(&wr);
+            pthread_mutex_lock(&wr.lock);
+            if (wr.failed) {
+                pthread_mutex_unlock(&wr.lock);
+                break;
+            }
+            film_snapshot(&film, &wr.image);
+            fill_info(&wr.info, cfg, elapsed, pass, &pc);
+            wr.index = ++result->snapshots;
+            snprintf(wr.path, sizeof wr.path, "%s/snapshot_%04d.exr", rd->output, wr.index);
+            wr.busy = true;
+            pthread_cond_broadcast(&wr.cond);
+            pthread_mutex_unlock(&wr.lock);
+        }
+    }
+
+    /* Stop the workers. */
+    pthread_mutex_lock(&pc.lock);
+    pc.quit = true;
+    pthread_cond_broadcast(&pc.start);
+    pthread_mutex_unlock(&pc.lock);
+    for (int i = 0; i < started; ++i) {
+        pthread_join(workers[i].thread, NULL);
+        strategy_scratch_free(&workers[i].scratch);
+    }
+    if (writer_started) {
+        writer_wait_idle(&wr);
+        pthread_mutex_lock(&wr.lock);
+        wr.quit = true;
+        pthread_cond_broadcast(&wr.cond);
+        pthread_mutex_unlock(&wr.lock);
+        pthread_join(wr.thread, NULL);
+        if (wr.failed) ok = error_set(err, "%s", wr.err.message);
+    }
+
+    if (ok) {
+        /* The final snapshot, always, from the main thread. */
+        struct snapshot_info info;
+        char path[CONFIG_PATH_MAX + 64];
+        film_snapshot(&film, &wr.image);
+        fill_info(&info, cfg, elapsed, pass, &pc);
+        snprintf(path, sizeof path, "%s/final.exr", rd->output);
+        ok = film_write_exr(path, &wr.image, &info, err);
+        if (ok) {
+            json_snapshot(json, "final", 0, path, &info);
+            fprintf(json, ",\"interrupted\":%s,\"shadow_rays\":%llu,\"shadow_blocked\":%llu,"
+                          "\"light_samples\":%llu,\"light_missed\":%llu}\n",
+                    result->interrupted ? "true" : "false", (unsigned long long)pc.stats.shadow_rays,
+                    (unsigned long long)pc.stats.shadow_blocked, (unsigned long long)pc.stats.light_samples,
+                    (unsigned long long)pc.stats.light_missed);
+            fflush(json);
+        }
+    }
+
+    result->spp = pass;
+    result->time_s = elapsed;
+    result->nonfinite_samples = pc.nonfinite;
+    result->stats = pc.stats;
+    free(workers);
+    pthread_mutex_destroy(&pc.lock);
+    pthread_cond_destroy(&pc.start);
+    pthread_cond_destroy(&pc.done);
+    pthread_mutex_destroy(&wr.lock);
+    pthread_cond_destroy(&wr.cond);
+    film_image_free(&wr.image);
+    film_free(&film);
+    strategy_free(&strategy);
+    return ok;
+}

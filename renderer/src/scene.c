@@ -1,0 +1,214 @@
+#include "scene.h"
+
+#include <embree3/rtcore.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Embree reports device errors through a callback; the first one is kept in
+   the struct error the callback points at, so it reaches the caller. */
+static void on_embree_error(void *user, enum RTCError code, const char *message)
+{
+    struct error *err = user;
+    if (err && err->message[0] == '\0')
+        error_set(err, "Embree error %d: %s", (int)code, message ? message : "(no message)");
+}
+
+static bool grow_geometries(struct scene *s, struct error *err)
+{
+    struct geometry_info *g = realloc(s->geometries, sizeof *g * (size_t)(s->n_geometries + 1));
+    if (!g) return error_set(err, "out of memory adding geometry %d", s->n_geometries);
+    s->geometries = g;
+    return true;
+}
+
+/* Attaches an indexed mesh of triangles (k = 3) or quads (k = 4). */
+static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces, int k,
+                     struct geometry_info info, struct error *err)
+{
+    RTCDevice dev = s->device;
+    RTCGeometry g = rtcNewGeometry(dev, k == 4 ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (!g) return error_set(err, "Embree could not create a geometry");
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                        (size_t)n_verts);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0,
+                                           k == 4 ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3, (size_t)k * sizeof(unsigned),
+                                           (size_t)n_faces);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        return error_set(err, "out of memory for Embree buffers");
+    }
+    for (int i = 0; i < n_verts; ++i) {
+        vb[3 * i + 0] = (float)verts[i].x;
+        vb[3 * i + 1] = (float)verts[i].y;
+        vb[3 * i + 2] = (float)verts[i].z;
+    }
+    for (int i = 0; i < k * n_faces; ++i) ib[i] = (unsigned)indices[i];
+    rtcCommitGeometry(g);
+    if (!grow_geometries(s, err)) {
+        rtcReleaseGeometry(g);
+        return false;
+    }
+    unsigned id = rtcAttachGeometry(s->rtc_scene, g);
+    rtcReleaseGeometry(g);
+    if (id != (unsigned)s->n_geometries) return error_set(err, "unexpected Embree geometry id %u", id);
+    s->geometries[s->n_geometries++] = info;
+    return true;
+}
+
+static void bounds_add(struct vec3 *lo, struct vec3 *hi, struct vec3 p)
+{
+    lo->x = fmin(lo->x, p.x), lo->y = fmin(lo->y, p.y), lo->z = fmin(lo->z, p.z);
+    hi->x = fmax(hi->x, p.x), hi->y = fmax(hi->y, p.y), hi->z = fmax(hi->z, p.z);
+}
+
+static bool build_lights(struct scene *s, const struct config *cfg, struct error *err)
+{
+    s->lights = calloc((size_t)cfg->n_lights, sizeof *s->lights);
+    s->portals = calloc((size_t)(cfg->n_portals > 0 ? cfg->n_portals : 1), sizeof *s->portals);
+    if (!s->lights || !s->portals) return error_set(err, "out of memory for %d lights", cfg->n_lights);
+    s->n_lights = cfg->n_lights;
+    for (int i = 0; i < cfg->n_lights; ++i) {
+        struct light *l = &s->lights[i];
+        if (!light_init(l, &cfg->lights[i].polygon, cfg->lights[i].radiance, cfg->lights[i].two_sided))
+            return error_at(err, cfg->path, cfg->lights[i].loc.line, cfg->lights[i].loc.column,
+                            "light \"%s\" is degenerate", cfg->lights[i].name);
+        /* Portals are grouped by light so that a light's portals are one range. */
+        l->first_portal = s->n_portals;
+        for (int j = 0; j < cfg->n_portals; ++j) {
+            if (cfg->portals[j].light != i) continue;
+            struct portal *pt = &s->portals[s->n_portals];
+            pt->light = i;
+            const struct portal_desc *pd = &cfg->portals[j];
+            struct error aerr;
+            if (!target_init(&pt->target, &pd->polygon))
+                return error_at(err, cfg->path, pd->loc.line, pd->loc.column, "portal \"%s\" is degenerate", pd->name);
+            pt->centroid = polygon_centroid(&pt->target.polygon);
+            if (!antishadow_build(&l->target.polygon, &pt->target.polygon, &pt->antishadow, &aerr))
+                return error_at(err, cfg->path, pd->loc.line, pd->loc.column, "portal \"%s\": %s", pd->name,
+                                aerr.message);
+            ++s->n_portals;
+        }
+        l->n_portals = s->n_portals - l->first_portal;
+    }
+    return true;
+}
+
+bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
+{
+    memset(s, 0, sizeof *s);
+    struct error dev_err = { { 0 } };
+    s->device = rtcNewDevice(NULL);
+    if (!s->device) return error_set(err, "cannot create the Embree device (error %d)", (int)rtcGetDeviceError(NULL));
+    rtcSetDeviceErrorFunction(s->device, on_embree_error, &dev_err);
+    s->rtc_scene = rtcNewScene(s->device);
+    rtcSetSceneFlags(s->rtc_scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(s->rtc_scene, RTC_BUILD_QUALITY_HIGH);
+
+    s->n_materials = cfg->n_materials;
+    s->materials = calloc((size_t)(cfg->n_materials > 0 ? cfg->n_materials : 1), sizeof *s->materials);
+    if (!s->materials) goto oom;
+    for (int i = 0; i < cfg->n_materials; ++i) {
+        s->materials[i].kind = cfg->materials[i].kind;
+        s->materials[i].albedo = cfg->materials[i].albedo;
+        s->materials[i].roughness = cfg->materials[i].roughness;
+    }
+
+    struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
+    for (int i = 0; i < cfg->n_shapes; ++i) {
+        const struct shape_desc *sh = &cfg->shapes[i];
+        struct geometry_info info = { sh->material, -1 };
+        for (int v = 0; v < sh->n_vertices; ++v) bounds_add(&lo, &hi, sh->vertices[v]);
+        if (sh->n_quads > 0 &&
+            !add_mesh(s, sh->vertices, sh->n_vertices, &sh->quads[0][0], sh->n_quads, 4, info, err))
+            goto fail;
+        if (sh->n_triangles > 0 &&
+            !add_mesh(s, sh->vertices, sh->n_vertices, &sh->triangles[0][0], sh->n_triangles, 3, info, err))
+            goto fail;
+    }
+    if (!build_lights(s, cfg, err)) goto fail;
+    for (int i = 0; i < s->n_lights; ++i) {
+        const struct polygon *poly = &s->lights[i].target.polygon;
+        struct geometry_info info = { -1, i };
+        int fan[3 * (POLYGON_MAX - 2)];
+        for (int k = 0; k + 2 < poly->n; ++k) fan[3 * k] = 0, fan[3 * k + 1] = k + 1, fan[3 * k + 2] = k + 2;
+        for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
+        if (!add_mesh(s, poly->v, poly->n, fan, poly->n - 2, 3, info, err)) goto fail;
+    }
+    s->scale = vec3_length(vec3_sub(hi, lo));
+    if (!(s->scale > 0.0) || !isfinite(s->scale)) s->scale = 1.0;
+    rtcCommitScene(s->rtc_scene);
+    if (dev_err.message[0]) {
+        error_set(err, "%s", dev_err.message);
+        goto fail;
+    }
+    rtcSetDeviceErrorFunction(s->device, NULL, NULL);
+    return true;
+oom:
+    error_set(err, "out of memory building the scene");
+fail:
+    rtcSetDeviceErrorFunction(s->device, NULL, NULL);
+    scene_destroy(s);
+    return false;
+}
+
+void scene_destroy(struct scene *s)
+{
+    if (s->rtc_scene) rtcReleaseScene(s->rtc_scene);
+    if (s->device) rtcReleaseDevice(s->device);
+    free(s->materials);
+    free(s->lights);
+    free(s->portals);
+    free(s->geometries);
+    memset(s, 0, sizeof *s);
+}
+
+static void ray_setup(struct RTCRay *r, struct vec3 o, struct vec3 d, double tmax)
+{
+    r->org_x = (float)o.x, r->org_y = (float)o.y, r->org_z = (float)o.z;
+    r->dir_x = (float)d.x, r->dir_y = (float)d.y, r->dir_z = (float)d.z;
+    r->tnear = 0.0f;
+    r->tfar = tmax < 3.0e38 ? (float)tmax : INFINITY;
+    r->time = 0.0f;
+    r->mask = ~0u;
+    r->id = 0;
+    r->flags = 0;
+}
+
+bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    ray_setup(&rh.ray, o, d, tmax);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(s->rtc_scene, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    const struct geometry_info *g = &s->geometries[rh.hit.geomID];
+    h->t = rh.ray.tfar;
+    h->p = vec3_madd(o, d, h->t);
+    h->ng = vec3_normalize(vec3_make(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+    h->material = g->material;
+    h->light = g->light;
+    return true;
+}
+
+bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay r;
+    ray_setup(&r, o, d, tmax);
+    rtcOccluded1(s->rtc_scene, &ctx, &r);
+    return r.tfar < 0.0f;
+}
+
+struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+{
+    /* Float geometry (Embree) has relative error ~1e-7 of the coordinates;
+       pushing off by a small multiple of the scene size and the point's own
+       magnitude clears it without visible light leaks. */
+    double eps = 1e-5 * s->scale + 1e-6 * vec3_max_abs(p);
+    return vec3_madd(p, ng, vec3_dot(ng, d) > 0.0 ? eps : -eps);
+}

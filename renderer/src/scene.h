@@ -1,0 +1,69 @@
+/* scene.h: the render-ready scene: materials, lights, portals and the Embree
+   acceleration structure for closest-hit and occlusion queries. Embree types
+   stay inside scene.c. */
+#ifndef SCENE_H
+#define SCENE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "antishadow.h"
+#include "bsdf.h"
+#include "config.h"
+#include "error.h"
+#include "light.h"
+#include "vec.h"
+
+/* One portal of a light, with its antishadow precomputed at load. */
+struct portal {
+    int light;
+    struct target target;         /* the opening's polygon, area, normal */
+    struct vec3 centroid;
+    struct antishadow antishadow;
+};
+
+/* What a geometry stands for: a surface with a material, or a light. */
+struct geometry_info {
+    int material;   /* -1 for lights */
+    int light;      /* -1 for surfaces */
+};
+
+struct scene {
+    int n_materials;
+    struct material *materials;
+    int n_lights;
+    struct light *lights;
+    int n_portals;
+    struct portal *portals;       /* grouped by light: light.first_portal.. */
+    int n_geometries;
+    struct geometry_info *geometries; /* indexed by Embree geomID */
+    double scale;                 /* bounding-box diagonal, for ray offsets */
+    void *device;                 /* RTCDevice */
+    void *rtc_scene;              /* RTCScene, committed */
+};
+
+struct hit {
+    double t;
+    struct vec3 p;
+    struct vec3 ng;     /* unit geometric normal, winding-oriented */
+    int material;       /* -1 when a light was hit */
+    int light;          /* -1 when a surface was hit */
+};
+
+/* Builds Embree geometry for every shape and light; precomputes portals. */
+bool scene_create(const struct config *cfg, struct scene *out, struct error *err);
+void scene_destroy(struct scene *s);
+
+/* Closest hit along o + t d, t in (0, tmax) (d unit). False on a miss. */
+bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h);
+/* True when anything blocks o + t d for t in (0, tmax). */
+bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
+
+/* Origin for a ray leaving surface point p with geometric normal ng towards
+   d: pushed off the surface on d's side, scaled to the scene, so it does not
+   re-hit the surface it starts on. */
+struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d);
+/* Relative distance shortening for shadow rays that must stop short of a light. */
+#define SCENE_SHADOW_EPS 1e-5
+
+#endif

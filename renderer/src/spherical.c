@@ -1,0 +1,224 @@
+/* spherical.c: solid-angle sampling of rectangles, triangles and convex
+   polygons seen from a point (see spherical.h). */
+#include "spherical.h"
+
+/* Below this solid angle (sr) the rectangle and polygon samplers refuse:
+   sphrect's mapping loses about 1e-16 / Omega of the rectangle's size in
+   position (see sphrect_sample), i.e. 1e-4 here. */
+#define SPHERICAL_MIN_SOLID_ANGLE 1e-12
+/* A fan triangle below this solid angle is skipped; sphtri itself stays
+   accurate far below it (see sphtri_sample). */
+#define SPHTRI_MIN_AREA 1e-16
+/* o counts as in the plane when closer than this fraction of the shape's size. */
+#define SPHERICAL_PLANE_REL 1e-12
+
+static double clamp(double x, double lo, double hi)
+{
+    return x < lo ? lo : (x > hi ? hi : x);
+}
+
+/* Urena, Fajardo, King 2013, section 3 and algorithm 1. In the local frame
+   (x along ex, y along ey, z towards o's side flipped so that the rectangle
+   lies at z = z0 < 0) the corners are v00 = (x0, y0, z0) ... v11 = (x1, y1, z0).
+   The unit normals of the planes through o and each edge have the closed
+   forms n0 ~ (0, z0, -y0), n1 ~ (-z0, 0, x1), n2 ~ (0, -z0, y1),
+   n3 ~ (z0, 0, -x0); we use them instead of normalised cross products. The
+   interior angle between consecutive edge planes, g_i = acos(-n_i . n_{i+1}),
+   is evaluated as atan2(|n_i x n_{i+1}|, -n_i . n_{i+1}), which reduces to
+   atan2(|z0| |v|, +-x y) at the shared corner v = (x, y, z0): accurate for
+   angles near 0 and pi (grazing views) where acos is not.
+   The paper's solid angle S = g0 + g1 + g2 + g3 - 2 pi cancels badly for
+   small rectangles; we compute it instead as the sum of two Van Oosterom-
+   Strackee triangles (v00, v10, v11) and (v00, v11, v01), whose determinants
+   are exactly z0 * |ex| * |ey| each (the edges are axis-aligned locally). */
+bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey)
+{
+    double exl = vec3_length(ex), eyl = vec3_length(ey);
+    if (!(exl > 0.0) || !(eyl > 0.0) || !isfinite(exl) || !isfinite(eyl)) return false;
+    r->o = o;
+    r->ex_len = exl;
+    r->ey_len = eyl;
+    r->x = vec3_scale(ex, 1.0 / exl);
+    r->y = vec3_scale(ey, 1.0 / eyl);
+    r->z = vec3_cross(r->x, r->y);
+    struct vec3 d = vec3_sub(s, o);
+    double z0 = vec3_dot(d, r->z);
+    if (z0 > 0.0) {
+        z0 = -z0;
+        r->z = vec3_neg(r->z);
+    }
+    if (!(-z0 > SPHERICAL_PLANE_REL * fmax(exl, eyl))) return false;
+    double x0 = vec3_dot(d, r->x), y0 = vec3_dot(d, r->y);
+    double x1 = x0 + exl, y1 = y0 + eyl;
+    r->z0 = z0;
+    r->x0 = x0;
+    r->y0 = y0;
+    r->x1 = x1;
+    r->y1 = y1;
+
+    double z0sq = z0 * z0, az0 = -z0;
+    double l00 = sqrt(x0 * x0 + y0 * y0 + z0sq), l10 = sqrt(x1 * x1 + y0 * y0 + z0sq);
+    double l01 = sqrt(x0 * x0 + y1 * y1 + z0sq), l11 = sqrt(x1 * x1 + y1 * y1 + z0sq);
+    /* g0 at v10, g1 at v11, g2 at v01, g3 at v00. */
+    double g2 = atan2(az0 * l01, x0 * y1);
+    double g3 = atan2(az0 * l00, -x0 * y0);
+    r->b0 = -y0 / sqrt(z0sq + y0 * y0); /* n0.z */
+    r->b1 = y1 / sqrt(z0sq + y1 * y1);  /* n2.z */
+    r->k = 2.0 * M_PI - g2 - g3;
+
+    /* Van Oosterom-Strackee with a = v00, b = v10, c = v11 and a = v00,
+       b = v11, c = v01; dot products written out in local coordinates. */
+    double det = az0 * exl * eyl;
+    double d_a10 = x0 * x1 + y0 * y0 + z0sq, d_a11 = x0 * x1 + y0 * y1 + z0sq;
+    double d_1011 = x1 * x1 + y0 * y1 + z0sq, d_a01 = x0 * x0 + y0 * y1 + z0sq;
+    double d_1101 = x1 * x0 + y1 * y1 + z0sq;
+    double den1 = l00 * l10 * l11 + d_a10 * l11 + d_a11 * l10 + d_1011 * l00;
+    double den2 = l00 * l11 * l01 + d_a11 * l01 + d_a01 * l11 + d_1101 * l00;
+    r->solid_angle = 2.0 * (atan2(det, den1) + atan2(det, den2));
+    return r->solid_angle > SPHERICAL_MIN_SOLID_ANGLE && isfinite(r->solid_angle);
+}
+
+/* Algorithm 1 of the paper. u fixes the sub-rectangle [x0, xu] whose solid
+   angle is u * S: its area au = u S + k determines the cosine cu of the angle
+   between the edge plane at xu and the x axis. v is then uniform in
+   h = cos of the elevation along that edge line, i.e. in solid angle.
+   Guards: cu and h are clamped into [-1, 1] and xu, yv into the rectangle;
+   sin(au) = 0 is the limit fu -> +-inf, cu -> 0, xu -> 0. For tiny solid
+   angles au is close to pi and sin(au) carries an absolute error of about
+   1e-16, i.e. xu moves by ~1e-16 / S of the rectangle's width; init refuses
+   S < 1e-12 for that reason. */
+struct vec3 sphrect_sample(const struct sphrect *r, double u, double v)
+{
+    double z0 = r->z0, z0sq = z0 * z0;
+    double au = u * r->solid_angle + r->k;
+    double sin_au = sin(au), cos_au = cos(au);
+    double xu;
+    if (sin_au != 0.0) {
+        double fu = (cos_au * r->b0 - r->b1) / sin_au;
+        double cu = clamp((fu > 0.0 ? 1.0 : -1.0) / sqrt(fu * fu + r->b0 * r->b0), -1.0, 1.0);
+        double num = -cu * z0, den = sqrt(fmax(0.0, (1.0 - cu) * (1.0 + cu)));
+        xu = den > 0.0 ? num / den : (num > 0.0 ? r->x1 : r->x0);
+    } else {
+        xu = 0.0;
+    }
+    xu = clamp(xu, r->x0, r->x1);
+
+    double dd = xu * xu + z0sq, d = sqrt(dd);
+    double h0 = r->y0 / sqrt(dd + r->y0 * r->y0);
+    double h1 = r->y1 / sqrt(dd + r->y1 * r->y1);
+    double hv = clamp(h0 + v * (h1 - h0), -1.0, 1.0);
+    double one_minus = (1.0 - hv) * (1.0 + hv);
+    double yv = one_minus > 1e-300 ? hv * d / sqrt(one_minus) : (hv > 0.0 ? r->y1 : r->y0);
+    yv = clamp(yv, r->y0, r->y1);
+    return vec3_add(r->o, vec3_add(vec3_add(vec3_scale(r->x, xu), vec3_scale(r->y, yv)), vec3_scale(r->z, z0)));
+}
+
+/* Tangent at the unit vector p towards q, of length sin(arc), formed from the
+   difference q - p so that it stays accurate for nearby points. */
+static struct vec3 sph_tangent(struct vec3 p, struct vec3 q)
+{
+    struct vec3 dq = vec3_sub(q, p);
+    return vec3_sub(dq, vec3_scale(p, vec3_dot(dq, p)));
+}
+
+/* Area: Van Oosterom-Strackee, tan(A/2) = |det[a b c]| / (1 + a.b + b.c + c.a)
+   for unit vectors, with det = a . ((b - a) x (c - a)). The angle alpha at a
+   is between the tangents towards b and c, again from differences. */
+bool sphtri_init(struct sphtri *t, struct vec3 a, struct vec3 b, struct vec3 c)
+{
+    a = vec3_normalize(a);
+    b = vec3_normalize(b);
+    c = vec3_normalize(c);
+    t->a = a;
+    t->b = b;
+    t->c = c;
+    struct vec3 tb = sph_tangent(a, b), tc = sph_tangent(a, c);
+    t->alpha = atan2(vec3_length(vec3_cross(tb, tc)), vec3_dot(tb, tc));
+    t->sin_alpha = sin(t->alpha);
+    t->cos_alpha = cos(t->alpha);
+    t->cos_c = vec3_dot(a, b);
+    double det = fabs(vec3_dot(a, vec3_cross(vec3_sub(b, a), vec3_sub(c, a))));
+    double den = 1.0 + vec3_dot(a, b) + vec3_dot(b, c) + vec3_dot(c, a);
+    t->area = 2.0 * atan2(det, den);
+    return t->area > SPHTRI_MIN_AREA && isfinite(t->area) && t->sin_alpha > 0.0;
+}
+
+/* Arvo 1995 picks the point c' on the arc from a to c such that the triangle
+   (a, b, c') has area A' = u * A, then samples the arc from b to c' with
+   cos(theta) uniform in [b.c', 1]. Arvo solves for cos(b') (b' = arc a c')
+   with a ratio of differences that both vanish as the triangle shrinks
+   (cos(A' - alpha) - cos(alpha), ...), so c' loses about 1e-16 / b'^2 of its
+   position. We use instead the excess formula for two sides and their
+   included angle, tan(A'/2) = tan(b'/2) tan(c/2) sin(alpha) /
+   (1 + tan(b'/2) tan(c/2) cos(alpha)), solved for tan(b'/2):
+       tan(b'/2) = sin(A'/2) / (tan(c/2) sin(alpha - A'/2)),
+   a quotient of products without cancellation (A' < A < 2 alpha holds in
+   every spherical triangle, so the denominator is positive), with
+   tan(c/2) = |a - b| / |a + b|. The second step uses 1 - b.c' = |c' - b|^2/2
+   and sin(theta) = sqrt((1 - z)(1 + z)) for the same reason. */
+struct vec3 sphtri_sample(const struct sphtri *t, double u, double v)
+{
+    double half = 0.5 * u * t->area;
+    double tan_half_c = vec3_length(vec3_sub(t->a, t->b)) / vec3_length(vec3_add(t->a, t->b));
+    struct vec3 tac = vec3_normalize(sph_tangent(t->a, t->c));
+    double den = tan_half_c * sin(t->alpha - half);
+    struct vec3 cp;
+    if (den > 0.0) {
+        double x = sin(half) / den, cos_b, sin_b;
+        /* cos b' = (1 - x^2)/(1 + x^2), sin b' = 2x/(1 + x^2); in 1/x above 1. */
+        if (x <= 1.0) {
+            cos_b = (1.0 - x * x) / (1.0 + x * x);
+            sin_b = 2.0 * x / (1.0 + x * x);
+        } else {
+            double y = 1.0 / x;
+            cos_b = (y * y - 1.0) / (y * y + 1.0);
+            sin_b = 2.0 * y / (y * y + 1.0);
+        }
+        cp = vec3_add(vec3_scale(t->a, cos_b), vec3_scale(tac, sin_b));
+    } else {
+        cp = t->c;
+    }
+    struct vec3 d = vec3_sub(cp, t->b);
+    double one_minus_z = v * 0.5 * vec3_length2(d);
+    double sin_theta = sqrt(fmax(0.0, one_minus_z * (2.0 - one_minus_z)));
+    struct vec3 tangent = vec3_normalize(sph_tangent(t->b, cp));
+    struct vec3 w = vec3_add(vec3_scale(t->b, 1.0 - one_minus_z), vec3_scale(tangent, sin_theta));
+    return vec3_normalize(w);
+}
+
+bool sphpoly_init(struct sphpoly *sp, const struct polygon *poly, struct vec3 o)
+{
+    sp->n = 0;
+    sp->solid_angle = 0.0;
+    if (poly->n < 3 || poly->n > POLYGON_MAX) return false;
+    struct plane pl = polygon_plane(poly);
+    if (vec3_length2(pl.normal) == 0.0) return false;
+    double size = 0.0;
+    for (int i = 1; i < poly->n; ++i) size = fmax(size, vec3_length(vec3_sub(poly->v[i], poly->v[0])));
+    if (!(fabs(plane_distance(&pl, o)) > SPHERICAL_PLANE_REL * size)) return false;
+
+    struct vec3 w[POLYGON_MAX];
+    for (int i = 0; i < poly->n; ++i) w[i] = vec3_normalize(vec3_sub(poly->v[i], o));
+    double total = 0.0;
+    for (int i = 1; i + 1 < poly->n; ++i) {
+        struct sphtri *t = &sp->tri[sp->n];
+        if (!sphtri_init(t, w[0], w[i], w[i + 1])) continue;
+        total += t->area;
+        sp->cdf[sp->n++] = total;
+    }
+    if (sp->n == 0 || !(total > SPHERICAL_MIN_SOLID_ANGLE)) {
+        sp->n = 0;
+        return false;
+    }
+    for (int i = 0; i < sp->n; ++i) sp->cdf[i] /= total;
+    sp->cdf[sp->n - 1] = 1.0;
+    sp->solid_angle = total;
+    return true;
+}
+
+struct vec3 sphpoly_sample(const struct sphpoly *sp, double u_select, double u, double v)
+{
+    int i = 0;
+    while (i + 1 < sp->n && u_select >= sp->cdf[i]) ++i;
+    return sphtri_sample(&sp->tri[i], u, v);
+}

@@ -1,0 +1,62 @@
+/* spherical.h: solid-angle sampling of planar shapes seen from a point:
+   spherical rectangles (Urena, Fajardo, King 2013), spherical triangles
+   (Arvo 1995), and convex polygons as fans of spherical triangles chosen by
+   solid angle. Each sampler's pdf is 1 / solid angle inside the shape. */
+#ifndef SPHERICAL_H
+#define SPHERICAL_H
+
+#include <stdbool.h>
+
+#include "polygon.h"
+#include "vec.h"
+
+/* Spherical rectangle: rectangle corner s, edge vectors ex and ey
+   (perpendicular), seen from o. Precomputation per shading point. */
+struct sphrect {
+    struct vec3 o, x, y, z;       /* local frame at o */
+    double z0, x0, y0, x1, y1;    /* rectangle in that frame */
+    double b0, b1, k;             /* Urena's constants */
+    double solid_angle;
+    double ex_len, ey_len;
+};
+
+/* False when o lies (nearly) in the rectangle's plane or the solid angle is
+   too small to sample robustly (callers then fall back to area sampling). */
+bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey);
+/* Point on the rectangle for (u, v) in [0,1)^2; the direction from o to it
+   has solid-angle pdf 1 / r->solid_angle. */
+struct vec3 sphrect_sample(const struct sphrect *r, double u, double v);
+
+/* Spherical triangle with unit vertex directions a, b, c. */
+struct sphtri {
+    struct vec3 a, b, c;
+    double area;             /* solid angle */
+    double alpha;            /* interior angle at a */
+    double sin_alpha, cos_alpha;
+    double cos_c;            /* cosine of the arc from a to b */
+};
+
+/* False for a degenerate triangle (area below a small threshold). */
+bool sphtri_init(struct sphtri *t, struct vec3 a, struct vec3 b, struct vec3 c);
+/* Unit direction for (u, v) in [0,1)^2, pdf 1 / t->area (Arvo 1995). */
+struct vec3 sphtri_sample(const struct sphtri *t, double u, double v);
+
+/* Convex polygon seen from o as a fan of spherical triangles; a triangle is
+   chosen with probability proportional to its solid angle. */
+struct sphpoly {
+    int n;                               /* number of usable triangles */
+    struct sphtri tri[POLYGON_MAX - 2];
+    double cdf[POLYGON_MAX - 2];         /* normalised, cdf[n-1] == 1 */
+    double solid_angle;
+};
+
+/* False when o is (nearly) in the polygon's plane or the polygon subtends no
+   measurable solid angle. */
+bool sphpoly_init(struct sphpoly *sp, const struct polygon *poly, struct vec3 o);
+/* Unit direction from o; pdf 1 / sp->solid_angle. u_select picks a triangle
+   with probability proportional to its solid angle, then (u, v) sample that
+   triangle (Arvo's map, area-preserving in (u, v)); the three uniforms must
+   be independent. */
+struct vec3 sphpoly_sample(const struct sphpoly *sp, double u_select, double u, double v);
+
+#endif

@@ -1,0 +1,375 @@
+#include "strategy.h"
+
+#include <stdlib.h>
+
+static bool uses_portals(enum strategy_kind k)
+{
+    switch (k) {
+    case STRATEGY_LIGHT_AREA:
+    case STRATEGY_LIGHT:
+        return false;
+    case STRATEGY_PORTAL:
+    case STRATEGY_PROJECTION:
+    case STRATEGY_ANTISHADOW:
+    case STRATEGY_ANTISHADOW_EXACT:
+        return true;
+    }
+    return false;
+}
+
+/* The antishadow strategies classify; `portal` and `projection` are the
+   plain techniques of the paper and must not benefit from classification. */
+static bool classifies(enum strategy_kind k)
+{
+    return k == STRATEGY_ANTISHADOW || k == STRATEGY_ANTISHADOW_EXACT;
+}
+
+bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err)
+{
+    s->kind = rd->strategy;
+    s->weight = rd->portal_weight;
+    s->defensive = uses_portals(rd->strategy) ? rd->defensive : 0.0;
+    s->scene = scene;
+    s->pairs = NULL;
+    s->first_pair = NULL;
+    s->n_pairs = 0;
+    double *power = malloc(sizeof *power * (size_t)scene->n_lights);
+    if (!power) return error_set(err, "out of memory for %d lights", scene->n_lights);
+    for (int i = 0; i < scene->n_lights; ++i) power[i] = scene->lights[i].power;
+    bool ok = alias_build(&s->power, power, scene->n_lights, err);
+    free(power);
+    if (!ok) return false;
+
+    int n = 0;
+    for (int i = 0; i < scene->n_lights; ++i) {
+        int np = uses_portals(s->kind) ? scene->lights[i].n_portals : 0;
+        n += np > 0 ? np : 1;
+    }
+    s->pairs = malloc(sizeof *s->pairs * (size_t)n);
+    s->first_pair = malloc(sizeof *s->first_pair * (size_t)(scene->n_lights + 1));
+    if (!s->pairs || !s->first_pair) {
+        strategy_free(s);
+        return error_set(err, "out of memory for %d light/portal pairs", n);
+    }
+    for (int i = 0; i < scene->n_lights; ++i) {
+        const struct light *l = &scene->lights[i];
+        s->first_pair[i] = s->n_pairs;
+        if (uses_portals(s->kind) && l->n_portals > 0) {
+            for (int k = 0; k < l->n_portals; ++k)
+                s->pairs[s->n_pairs++] = (struct strategy_pair){ i, l->first_portal + k };
+        } else {
+            s->pairs[s->n_pairs++] = (struct strategy_pair){ i, -1 };
+        }
+    }
+    s->first_pair[scene->n_lights] = s->n_pairs;
+    return true;
+}
+
+void strategy_free(struct strategy *s)
+{
+    alias_free(&s->power);
+    free(s->pairs);
+    free(s->first_pair);
+    s->pairs = NULL;
+    s->first_pair = NULL;
+    s->n_pairs = 0;
+}
+
+bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err)
+{
+    scratch->cdf = malloc(sizeof *scratch->cdf * (size_t)s->n_pairs);
+    scratch->region = malloc((size_t)s->n_pairs);
+    if (!scratch->cdf || !scratch->region) {
+        strategy_scratch_free(scratch);
+        return error_set(err, "out of memory for strategy scratch");
+    }
+    return true;
+}
+
+void strategy_scratch_free(struct strategy_scratch *scratch)
+{
+    free(scratch->cdf);
+    free(scratch->region);
+    scratch->cdf = NULL;
+    scratch->region = NULL;
+}
+
+enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, int region)
+{
+    switch (s->kind) {
+    case STRATEGY_LIGHT_AREA:
+        return TECHNIQUE_LIGHT_AREA;
+    case STRATEGY_LIGHT:
+        return TECHNIQUE_LIGHT_SOLID;
+    case STRATEGY_PORTAL:
+        return pair->portal < 0 ? TECHNIQUE_LIGHT_SOLID : TECHNIQUE_PORTAL_AREA;
+    case STRATEGY_PROJECTION:
+        return pair->portal < 0 ? TECHNIQUE_LIGHT_SOLID : TECHNIQUE_VISIBLE_AREA;
+    case STRATEGY_ANTISHADOW:
+    case STRATEGY_ANTISHADOW_EXACT: {
+        if (pair->portal < 0) return TECHNIQUE_LIGHT_SOLID;
+        bool exact = s->kind == STRATEGY_ANTISHADOW_EXACT;
+        switch ((enum region)region) {
+        case REGION_OUTSIDE:
+            return TECHNIQUE_NONE;
+        case REGION_ANTI_UMBRA:
+            return TECHNIQUE_LIGHT_SOLID;
+        case REGION_ANTI_ANTUMBRA:
+            return exact ? TECHNIQUE_PORTAL_SOLID : TECHNIQUE_PORTAL_AREA;
+        case REGION_ANTI_PENUMBRA:
+            return exact ? TECHNIQUE_VISIBLE_SOLID : TECHNIQUE_VISIBLE_AREA;
+        }
+        return TECHNIQUE_NONE;
+    }
+    }
+    return TECHNIQUE_NONE;
+}
+
+/* Projected solid angle (cosine-weighted when n is set) of a polygon: the
+   unoccluded irradiance per unit radiance it delivers to p. */
+static double irradiance_factor(const struct polygon *poly, struct vec3 p, struct vec3 n)
+{
+    if (vec3_length2(n) > 0.0) return polygon_projected_solid_angle(poly, p, n);
+    return polygon_solid_angle(poly, p);
+}
+
+/* Weight of a pair at p under the strategy's heuristic; `region` is set. */
+static double pair_weight(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p, struct vec3 n,
+                          unsigned char *region)
+{
+    const struct scene *sc = s->scene;
+    const struct light *l = &sc->lights[pair->light];
+    bool classify = classifies(s->kind);
+    /* The plain portal techniques use the seed heuristic (area) and no
+       classification, as in the original method. */
+    enum portal_weight_kind heuristic = classify ? s->weight : PORTAL_WEIGHT_AREA;
+    *region = REGION_ANTI_PENUMBRA;
+
+    if (pair->portal < 0) {
+        /* A light without portals: facing test, then the heuristic. */
+        struct vec3 to_p = vec3_sub(p, l->target.polygon.v[0]);
+        if (!l->two_sided && vec3_dot(to_p, l->target.normal) <= 0.0) return 0.0;
+        switch (heuristic) {
+        case PORTAL_WEIGHT_AREA:
+            return l->power;
+        case PORTAL_WEIGHT_DISTANCE: {
+            struct vec3 c = polygon_centroid(&l->target.polygon);
+            return l->power / fmax(vec3_length2(vec3_sub(c, p)), 1e-12);
+        }
+        case PORTAL_WEIGHT_IRRADIANCE:
+            return rgb_luminance(l->radiance) * irradiance_factor(&l->target.polygon, p, n);
+        }
+        return 0.0;
+    }
+
+    const struct portal *pt = &sc->portals[pair->portal];
+    if (classify) {
+        *region = (unsigned char)antishadow_classify(&pt->antishadow, p);
+        if (*region == REGION_OUTSIDE) return 0.0;
+    }
+    switch (heuristic) {
+    case PORTAL_WEIGHT_AREA: {
+        double sum = 0.0;
+        for (int k = 0; k < l->n_portals; ++k) sum += sc->portals[l->first_portal + k].target.area;
+        return l->power * pt->target.area / sum;
+    }
+    case PORTAL_WEIGHT_DISTANCE: {
+        /* Each portal's share of its light falls off as area / distance^2. */
+        double sum = 0.0, mine = 0.0;
+        for (int k = 0; k < l->n_portals; ++k) {
+            const struct portal *q = &sc->portals[l->first_portal + k];
+            double w = q->target.area / fmax(vec3_length2(vec3_sub(q->centroid, p)), 1e-12);
+            sum += w;
+            if (l->first_portal + k == pair->portal) mine = w;
+        }
+        return sum > 0.0 ? l->power * mine / sum : 0.0;
+    }
+    case PORTAL_WEIGHT_IRRADIANCE: {
+        struct polygon vis;
+        if (antishadow_visible_polygon(&pt->antishadow, p, &vis) < 3) return 0.0;
+        return rgb_luminance(l->radiance) * irradiance_factor(&vis, p, n);
+    }
+    }
+    return 0.0;
+}
+
+void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch, struct vec3 p, struct vec3 n,
+                      struct strategy_point *pt)
+{
+    pt->p = p;
+    pt->n = n;
+    pt->scratch = scratch;
+    pt->total = 0.0;
+    if (!uses_portals(s->kind)) return;
+    double acc = 0.0;
+    for (int i = 0; i < s->n_pairs; ++i) {
+        double w = pair_weight(s, &s->pairs[i], p, n, &scratch->region[i]);
+        if (!(w > 0.0) || !isfinite(w)) w = 0.0;
+        acc += w;
+        scratch->cdf[i] = acc;
+    }
+    pt->total = acc;
+}
+
+/* The visible part of pair's light through its portal, as a target. */
+static bool visible_target(const struct scene *sc, const struct strategy_pair *pair, struct vec3 p, struct target *t)
+{
+    struct polygon vis;
+    if (antishadow_visible_polygon(&sc->portals[pair->portal].antishadow, p, &vis) < 3) return false;
+    return target_init(t, &vis);
+}
+
+/* Density of wi under one pair's technique (0 when it cannot produce wi). */
+static double technique_pdf(const struct strategy *s, const struct strategy_pair *pair, enum technique t, struct vec3 p,
+                            struct vec3 wi)
+{
+    const struct scene *sc = s->scene;
+    const struct light *l = &sc->lights[pair->light];
+    struct target vis;
+    switch (t) {
+    case TECHNIQUE_NONE:
+        return 0.0;
+    case TECHNIQUE_LIGHT_AREA:
+        return target_pdf_area(&l->target, p, wi);
+    case TECHNIQUE_LIGHT_SOLID:
+        return target_pdf_solid_angle(&l->target, p, wi);
+    case TECHNIQUE_PORTAL_AREA:
+        return target_pdf_area(&sc->portals[pair->portal].target, p, wi);
+    case TECHNIQUE_PORTAL_SOLID:
+        return target_pdf_solid_angle(&sc->portals[pair->portal].target, p, wi);
+    case TECHNIQUE_VISIBLE_AREA:
+        return visible_target(sc, pair, p, &vis) ? target_pdf_area(&vis, p, wi) : 0.0;
+    case TECHNIQUE_VISIBLE_SOLID:
+        return visible_target(sc, pair, p, &vis) ? target_pdf_solid_angle(&vis, p, wi) : 0.0;
+    }
+    return 0.0;
+}
+
+static bool technique_sample(const struct strategy *s, const struct strategy_pair *pair, enum technique t,
+                             struct vec3 p, const double u[3], struct target_point *tp)
+{
+    const struct scene *sc = s->scene;
+    const struct light *l = &sc->lights[pair->light];
+    struct target vis;
+    switch (t) {
+    case TECHNIQUE_NONE:
+        return false;
+    case TECHNIQUE_LIGHT_AREA:
+        return target_sample_area(&l->target, p, u[0], u[1], u[2], tp);
+    case TECHNIQUE_LIGHT_SOLID:
+        return target_sample_solid_angle(&l->target, p, u[0], u[1], u[2], tp);
+    case TECHNIQUE_PORTAL_AREA:
+        return target_sample_area(&sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
+    case TECHNIQUE_PORTAL_SOLID:
+        return target_sample_solid_angle(&sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
+    case TECHNIQUE_VISIBLE_AREA:
+        return visible_target(sc, pair, p, &vis) && target_sample_area(&vis, p, u[0], u[1], u[2], tp);
+    case TECHNIQUE_VISIBLE_SOLID:
+        return visible_target(sc, pair, p, &vis) && target_sample_solid_angle(&vis, p, u[0], u[1], u[2], tp);
+    }
+    return false;
+}
+
+static int region_of(const struct strategy_point *pt, int pair)
+{
+    return pt->scratch ? pt->scratch->region[pair] : REGION_ANTI_PENUMBRA;
+}
+
+static double pair_probability(const struct strategy_point *pt, int i)
+{
+    double lo = i > 0 ? pt->scratch->cdf[i - 1] : 0.0;
+    return (pt->scratch->cdf[i] - lo) / pt->total;
+}
+
+/* Mixture density of wi reaching `light`: the defensive light-sampling
+   share plus every pair of that light that could have produced wi. */
+double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi)
+{
+    const struct light *l = &s->scene->lights[light];
+    if (!uses_portals(s->kind)) {
+        double sel = s->power.prob[light];
+        return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
+                                                     : target_pdf_solid_angle(&l->target, pt->p, wi));
+    }
+    double pdf = 0.0;
+    if (s->defensive > 0.0)
+        pdf += s->defensive * s->power.prob[light] * target_pdf_solid_angle(&l->target, pt->p, wi);
+    if (pt->total > 0.0) {
+        double mix = 0.0;
+        for (int i = s->first_pair[light]; i < s->first_pair[light + 1]; ++i) {
+            double sel = pair_probability(pt, i);
+            if (sel <= 0.0) continue;
+            enum technique t = strategy_technique(s, &s->pairs[i], region_of(pt, i));
+            mix += sel * technique_pdf(s, &s->pairs[i], t, pt->p, wi);
+        }
+        pdf += (1.0 - s->defensive) * mix;
+    }
+    return pdf;
+}
+
+/* First index whose cdf exceeds x (cdf non-decreasing, x < cdf[n-1]). */
+static int cdf_find(const double *cdf, int n, double x)
+{
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (cdf[mid] > x) hi = mid; else lo = mid + 1;
+    }
+    return lo;
+}
+
+bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                     struct light_sample *out)
+{
+    const struct scene *sc = s->scene;
+    double u0 = u[0];
+    struct strategy_pair light_only;
+    const struct strategy_pair *pair;
+    enum technique t;
+
+    if (uses_portals(s->kind) && u0 >= s->defensive) {
+        /* Rescale u0 to [0,1) and pick a pair by the point's weights. */
+        if (!(pt->total > 0.0)) return false;
+        u0 = (u0 - s->defensive) / (1.0 - s->defensive);
+        int i = cdf_find(pt->scratch->cdf, s->n_pairs, u0 * pt->total);
+        pair = &s->pairs[i];
+        t = strategy_technique(s, pair, region_of(pt, i));
+    } else {
+        if (uses_portals(s->kind)) u0 = u0 / s->defensive;
+        light_only.light = alias_sample(&s->power, u0, NULL);
+        light_only.portal = -1;
+        pair = &light_only;
+        t = s->kind == STRATEGY_LIGHT_AREA ? TECHNIQUE_LIGHT_AREA : TECHNIQUE_LIGHT_SOLID;
+    }
+
+    struct target_point tp;
+    if (!technique_sample(s, pair, t, pt->p, u + 1, &tp)) return false;
+    out->wi = tp.wi;
+    const struct light *l = &sc->lights[pair->light];
+    if (pair->portal < 0) {
+        out->light = pair->light;
+        out->dist = tp.dist;
+    } else {
+        /* Through the portal: the direction counts only if it goes on to
+           meet the light (always, up to rounding, for the exact techniques). */
+        double dist;
+        if (polygon_intersect_ray(&l->target.polygon, pt->p, tp.wi, &dist)) {
+            out->light = pair->light;
+            out->dist = dist;
+        } else {
+            out->light = -1;
+            out->dist = 0.0;
+        }
+    }
+    if (out->light < 0) {
+        out->pdf_sa = tp.pdf_sa;
+        out->radiance = rgb_make(0.0, 0.0, 0.0);
+        return true;
+    }
+    out->radiance = light_emitted(l, vec3_neg(tp.wi));
+    /* Light-only strategies know their density already; mixtures must add
+       every other way of producing the same direction. */
+    out->pdf_sa = uses_portals(s->kind) ? strategy_pdf(s, pt, out->light, tp.wi)
+                                        : s->power.prob[pair->light] * tp.pdf_sa;
+    return true;
+}

@@ -1,0 +1,92 @@
+/* strategy.h: light-sampling strategies for next-event estimation: which
+   light (and which of its portals) a shading point samples, with which
+   technique, and the solid-angle pdf of any direction under the same rules,
+   so that every strategy combines with BSDF sampling by MIS.
+
+   A strategy is a mixture over "pairs" (a light with one of its portals, or
+   a light alone). The `light` and `light_area` strategies pick lights by
+   power from a global table; the portal strategies weight pairs per shading
+   point (strategy_prepare) and then sample the pair's technique, which for
+   the antishadow strategies depends on the point's region. */
+#ifndef STRATEGY_H
+#define STRATEGY_H
+
+#include <stdbool.h>
+
+#include "alias.h"
+#include "config.h"
+#include "error.h"
+#include "scene.h"
+#include "vec.h"
+
+enum technique {
+    TECHNIQUE_NONE,           /* no direction can reach the light through this pair */
+    TECHNIQUE_LIGHT_AREA,     /* uniform area on the light */
+    TECHNIQUE_LIGHT_SOLID,    /* uniform solid angle of the light */
+    TECHNIQUE_PORTAL_AREA,    /* uniform area on the portal, continue to the light */
+    TECHNIQUE_PORTAL_SOLID,   /* uniform solid angle of the portal */
+    TECHNIQUE_VISIBLE_AREA,   /* uniform area on the light's projection clipped to the portal */
+    TECHNIQUE_VISIBLE_SOLID   /* uniform solid angle of that clipped projection */
+};
+
+struct strategy_pair {
+    int light;
+    int portal;               /* -1: the light alone */
+};
+
+struct strategy {
+    enum strategy_kind kind;
+    enum portal_weight_kind weight;
+    double defensive;         /* probability of plain `light` sampling */
+    const struct scene *scene;
+    struct alias_table power; /* lights by power */
+    int n_pairs;
+    struct strategy_pair *pairs;
+    int *first_pair;          /* per light: index of its first pair */
+};
+
+bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err);
+void strategy_free(struct strategy *s);
+
+/* Per-thread scratch that strategy_prepare fills (one slot per pair). */
+struct strategy_scratch {
+    double *cdf;              /* cumulative pair weights */
+    unsigned char *region;    /* enum region per pair */
+};
+bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err);
+void strategy_scratch_free(struct strategy_scratch *scratch);
+
+/* A shading point with its pair distribution, prepared once and used for
+   both sampling and pdf evaluation there. */
+struct strategy_point {
+    struct vec3 p;            /* world position (offset origin for rays) */
+    struct vec3 n;            /* unit normal of the receiving side, or zero */
+    double total;             /* sum of pair weights (portal strategies) */
+    const struct strategy_scratch *scratch;
+};
+
+void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch, struct vec3 p, struct vec3 n,
+                      struct strategy_point *pt);
+
+struct light_sample {
+    struct vec3 wi;           /* unit */
+    double pdf_sa;            /* density of wi under the whole strategy */
+    int light;                /* light reached along wi, -1 when wi misses every target light */
+    double dist;              /* distance to the point on that light */
+    struct rgb radiance;      /* emitted towards p (black from the back) */
+};
+
+/* Samples with four uniforms. False when the strategy produced nothing
+   (no pair has weight). A sample with light == -1 is a direction that does
+   not reach the light (portal sampling): it contributes zero. */
+bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                     struct light_sample *out);
+
+/* Density with which strategy_sample generates wi, given that wi reaches
+   light `light` (the first light along wi). */
+double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi);
+
+/* The technique a pair uses at a point in `region` (enum region). */
+enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, int region);
+
+#endif

@@ -1,0 +1,159 @@
+#include "target.h"
+
+#include "spherical.h"
+
+/* Below this solid angle (sr), or this height above the plane relative to
+   the polygon's size, the spherical parametrisations lose precision; area
+   sampling is then safe and nearly optimal (tiny or edge-on polygons). */
+#define TARGET_MIN_SOLID_ANGLE 1e-7
+#define TARGET_MIN_REL_HEIGHT 1e-6
+
+/* Drops vertices that repeat or lie on the segment between their
+   neighbours (relative tolerance), preserving order. */
+static void simplify(const struct polygon *in, struct polygon *out)
+{
+    double scale = 0.0;
+    for (int i = 0; i < in->n; ++i) scale = fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
+    double tol2 = 1e-20 * scale * scale + 1e-300;
+    int n = in->n;
+    struct polygon cur = *in;
+    bool changed = true;
+    while (changed && n >= 3) {
+        changed = false;
+        for (int i = 0; i < n && n >= 3; ++i) {
+            struct vec3 a = cur.v[(i + n - 1) % n], b = cur.v[i], c = cur.v[(i + 1) % n];
+            struct vec3 cr = vec3_cross(vec3_sub(b, a), vec3_sub(c, b));
+            if (vec3_length2(cr) <= tol2 || vec3_length2(vec3_sub(b, a)) <= 1e-24 * scale) {
+                for (int k = i; k + 1 < n; ++k) cur.v[k] = cur.v[k + 1];
+                --n;
+                changed = true;
+                break;
+            }
+        }
+    }
+    cur.n = n;
+    *out = cur;
+}
+
+bool target_init(struct target *t, const struct polygon *poly)
+{
+    simplify(poly, &t->polygon);
+    if (t->polygon.n < 3) return false;
+    t->normal = polygon_normal(&t->polygon);
+    t->area = polygon_area(&t->polygon);
+    if (!(t->area > 0.0)) return false;
+    t->is_rectangle = false;
+    if (t->polygon.n == 4) {
+        const struct vec3 *v = t->polygon.v;
+        struct vec3 e0 = vec3_sub(v[1], v[0]), e1 = vec3_sub(v[2], v[1]);
+        struct vec3 e2 = vec3_sub(v[3], v[2]), e3 = vec3_sub(v[0], v[3]);
+        double tol = 1e-9 * (vec3_length2(e0) + vec3_length2(e1));
+        if (fabs(vec3_dot(e0, e1)) <= tol && vec3_length2(vec3_add(e0, e2)) <= tol &&
+            vec3_length2(vec3_add(e1, e3)) <= tol) {
+            t->is_rectangle = true;
+            t->corner = v[0];
+            t->ex = e0;
+            t->ey = vec3_neg(e3);
+        }
+    }
+    return true;
+}
+
+/* Uniform point on a convex polygon: a fan triangle chosen by area, then a
+   uniform point in it (square-root warp of the barycentrics). */
+static struct vec3 sample_point(const struct target *t, double u_tri, double u, double v)
+{
+    const struct polygon *poly = &t->polygon;
+    double goal = u_tri * t->area, acc = 0.0;
+    int k = 1;
+    for (; k < poly->n - 2; ++k) {
+        double a = 0.5 * vec3_length(vec3_cross(vec3_sub(poly->v[k], poly->v[0]), vec3_sub(poly->v[k + 1], poly->v[0])));
+        if (acc + a > goal) break;
+        acc += a;
+    }
+    double su = sqrt(u), b0 = 1.0 - su, b1 = v * su;
+    return vec3_add(vec3_add(vec3_scale(poly->v[0], b0), vec3_scale(poly->v[k], b1)),
+                    vec3_scale(poly->v[k + 1], 1.0 - b0 - b1));
+}
+
+static bool to_point(struct vec3 p, struct vec3 y, struct target_point *out)
+{
+    struct vec3 d = vec3_sub(y, p);
+    double dist = vec3_length(d);
+    if (!(dist > 0.0)) return false;
+    out->y = y;
+    out->dist = dist;
+    out->wi = vec3_scale(d, 1.0 / dist);
+    return true;
+}
+
+static double area_density(const struct target *t, struct vec3 wi, double dist)
+{
+    double cos_t = fabs(vec3_dot(wi, t->normal));
+    if (!(cos_t > 0.0)) return 0.0;
+    return dist * dist / (t->area * cos_t);
+}
+
+bool target_sample_area(const struct target *t, struct vec3 p, double u_tri, double u, double v,
+                        struct target_point *out)
+{
+    if (!to_point(p, sample_point(t, u_tri, u, v), out)) return false;
+    out->pdf_sa = area_density(t, out->wi, out->dist);
+    return out->pdf_sa > 0.0 && isfinite(out->pdf_sa);
+}
+
+double target_pdf_area(const struct target *t, struct vec3 p, struct vec3 wi)
+{
+    double dist;
+    if (!polygon_intersect_ray(&t->polygon, p, wi, &dist)) return 0.0;
+    return area_density(t, wi, dist);
+}
+
+/* The decision shared by sampling and pdf: the solid angle subtended, or 0
+   when area sampling must be used instead. */
+static double usable_solid_angle(const struct target *t, struct vec3 p, struct sphrect *r, struct sphpoly *sp)
+{
+    double h = fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal));
+    if (h <= TARGET_MIN_REL_HEIGHT * sqrt(t->area)) return 0.0;
+    double omega = 0.0;
+    if (t->is_rectangle) {
+        if (sphrect_init(r, p, t->corner, t->ex, t->ey)) omega = r->solid_angle;
+    } else if (sphpoly_init(sp, &t->polygon, p)) {
+        omega = sp->solid_angle;
+    }
+    return omega >= TARGET_MIN_SOLID_ANGLE ? omega : 0.0;
+}
+
+bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_tri, double u, double v,
+                               struct target_point *out)
+{
+    struct sphrect r;
+    struct sphpoly sp;
+    double omega = usable_solid_angle(t, p, &r, &sp);
+    if (omega == 0.0) return target_sample_area(t, p, u_tri, u, v, out);
+    if (t->is_rectangle) {
+        if (!to_point(p, sphrect_sample(&r, u, v), out)) return false;
+    } else {
+        struct vec3 wi = sphpoly_sample(&sp, u_tri, u, v);
+        double dist;
+        /* The fan's directions lie inside the polygon up to rounding; a
+           direction that grazes past an edge is dropped (measure zero). */
+        if (!polygon_intersect_ray(&t->polygon, p, wi, &dist)) return false;
+        out->wi = wi;
+        out->dist = dist;
+        out->y = vec3_madd(p, wi, dist);
+    }
+    out->pdf_sa = 1.0 / omega;
+    return true;
+}
+
+double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3 wi)
+{
+    double dist;
+    if (!polygon_intersect_ray(&t->polygon, p, wi, &dist)) return 0.0;
+    struct sphrect r;
+    struct sphpoly sp;
+    double omega = usable_solid_angle(t, p, &r, &sp);
+    if (omega == 0.0) return area_density(t, wi, dist);
+    return 1.0 / omega;
+}

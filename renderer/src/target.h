@@ -1,0 +1,47 @@
+/* target.h: a convex planar polygon prepared for sampling directions from a
+   shading point, by area or by solid angle, with the matching pdfs. Lights,
+   portals and the clipped visible part of a light are all targets, so every
+   strategy shares one sampling and one pdf code path per technique. */
+#ifndef TARGET_H
+#define TARGET_H
+
+#include <stdbool.h>
+
+#include "polygon.h"
+#include "vec.h"
+
+struct target {
+    struct polygon polygon;
+    struct vec3 normal;         /* unit, by winding */
+    double area;
+    bool is_rectangle;          /* spherical-rectangle sampling applies */
+    struct vec3 corner, ex, ey; /* rectangle frame when is_rectangle */
+};
+
+/* Prepares poly (convex, planar, >= 3 vertices). Collinear and repeated
+   vertices, as clipping leaves them, are removed first so that a clipped
+   rectangle is recognised as one. False for a degenerate polygon. */
+bool target_init(struct target *t, const struct polygon *poly);
+
+/* A direction towards the target and the point where it meets the target. */
+struct target_point {
+    struct vec3 wi;   /* unit, from p */
+    struct vec3 y;    /* point on the target */
+    double dist;      /* |y - p| */
+    double pdf_sa;    /* solid-angle density of wi */
+};
+
+/* Uniform point by area; pdf dist^2 / (area |cos|). */
+bool target_sample_area(const struct target *t, struct vec3 p, double u_tri, double u, double v,
+                        struct target_point *out);
+/* Density of wi under target_sample_area; 0 when wi misses the target. */
+double target_pdf_area(const struct target *t, struct vec3 p, struct vec3 wi);
+
+/* Uniform in solid angle (spherical rectangle or spherical-triangle fan);
+   falls back to area sampling where solid-angle sampling is numerically
+   unsafe; target_pdf_solid_angle takes the same decision. */
+bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_tri, double u, double v,
+                               struct target_point *out);
+double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3 wi);
+
+#endif
