@@ -128,7 +128,7 @@ class Experiment:
         return tuple(sorted(merged.items()))
 
     def _labels(self, point: Point) -> tuple[tuple[str, float], ...]:
-        return (("axis", point.axis_value),) if self.axis.divide_by is not None else ()
+        return (("ratio", point.axis_value),) if self.axis.divide_by is not None else ()
 
     def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None) -> RunSpec:
         if self.budget is None:
@@ -146,6 +146,28 @@ class Experiment:
             snapshots=self.budget.snapshots,
             labels=self._labels(point),
         )
+
+    def regress_spec(self, point: Point, strategy: str, seed: int) -> RunSpec:
+        """A fixed-seed, fixed-sample run of `regress` (no time limit, no snapshots asked for)."""
+        if self.regress is None:
+            raise ConfigError(str(self.path), "regress", "required by the regress command")
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=sha256_file(self.scene),
+            strategy=strategy,
+            integrator=self.integrator,
+            spp=self.regress.spp,
+            time_s=0.0,
+            seed=seed,
+            threads=self.budget.threads if self.budget else 1,
+            overrides=self._overrides(point),
+            labels=self._labels(point),
+        )
+
+    def baseline_path(self, default_dir: Path) -> Path:
+        if self.regress is not None and self.regress.baseline != Path():
+            return self.regress.baseline
+        return default_dir / f"{self.name}.json"
 
     def reference_spec(self, point: Point) -> RunSpec:
         r = self.reference

@@ -75,18 +75,25 @@ struct snapshot_info {
     uint64_t nonfinite_samples;    /* samples dropped for NaN/Inf */
 };
 
-/* Writes an EXR (ZIP, float channels B, G, R, variance.B/G/R) to
-   "path.tmp-<pid>" then fsyncs and renames it to `path`, so a reader never
-   sees a partial file. On failure nothing is left at `path` or the temporary
-   name and err says why. Header attributes: render_time_s (double),
-   spp (int, saturated), strategy, integrator, seed (string, decimal),
-   config_hash (string, 16 hex digits), renderer_version (string),
-   rays (double), nonfinite_samples (double). */
+/* Writes an EXR (ZIPS: zlib, one scanline per chunk; float channels B, G,
+   R, variance.B/G/R; scanline, increasing Y, data window = display window
+   = (0,0)-(w-1,h-1)) to "path.tmp-<pid>" then fsyncs and renames it to
+   `path`, so a reader never sees a partial file. On failure (including a
+   full disk) the previous file at `path`, if any, is untouched, nothing is
+   left at the temporary name and err names the path and the cause. One
+   writer per path at a time (the temporary name is per process).
+   Header attributes: render_time_s (double), spp (int, saturated),
+   strategy, integrator, seed (string, decimal), config_hash (string,
+   16 hex digits), renderer_version (string), rays (double),
+   nonfinite_samples (double). NULL strings are written as "". */
 bool film_write_exr(const char *path, const struct film_image *img, const struct snapshot_info *info,
                     struct error *err);
 
-/* Reads back what film_write_exr wrote (for tests and tools). Strings in
-   `info` point into `storage`, which the caller frees with free(). */
+/* Reads back what film_write_exr wrote (for tests and tools): channels are
+   found by name, img is allocated here (free with film_image_free). Strings
+   in `info` point into `storage`, which the caller frees with free(). On
+   failure (missing file, not an EXR, missing channel or attribute, damaged
+   data) img and meta are left zeroed and err names the path. */
 struct snapshot_read {
     struct snapshot_info info;
     char *storage;

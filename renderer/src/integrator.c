@@ -56,7 +56,7 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
     if (rgb_is_black(f)) return black;
     ++stats->rays;
     ++stats->shadow_rays;
-    if (scene_occluded(it->scene, origin, ls.wi, ls.dist * (1.0 - SCENE_SHADOW_EPS))) {
+    if (scene_segment_occluded(it->scene, origin, vec3_madd(sp->p, ls.wi, ls.dist))) {
         ++stats->shadow_blocked;
         return black;
     }

@@ -59,11 +59,15 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
 /* True when anything blocks o + t d for t in (0, tmax). */
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
 
+/* True when anything blocks the open segment from `from` to `to` (the end
+   is pulled back by SCENE_SHADOW_EPS so the light it lies on does not count). */
+bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to);
+
 /* Origin for a ray leaving surface point p with geometric normal ng towards
    d: pushed off the surface on d's side, scaled to the scene, so it does not
    re-hit the surface it starts on. */
 struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d);
-/* Relative distance shortening for shadow rays that must stop short of a light. */
-#define SCENE_SHADOW_EPS 1e-5
+/* Relative shortening of shadow segments, well above float ray precision. */
+#define SCENE_SHADOW_EPS 1e-4
 
 #endif

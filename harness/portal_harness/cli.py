@@ -1,0 +1,398 @@
+"""The `portal-harness` command: argument parsing and exit statuses only.
+
+Exit statuses: 0 success; 1 a run failed (or regress found a rise);
+2 bad configuration or usage, found before any render; 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+from typing import Any, Sequence
+
+from tqdm import tqdm
+
+from portal_harness import __version__, exr, index, measure, runs, store
+from portal_harness.config import load_experiment, spec_from_scene
+from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
+from portal_harness.metrics import Region
+from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
+from portal_harness.renderer import renderer_version
+from portal_harness.spec import INTEGRATORS, STRATEGIES
+from portal_harness.sweep import SweepOptions, sweep
+
+
+def _common() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument("--results", type=Path, default=None,
+                   help="results folder (default: $PORTAL_RESULTS or <repo>/results)")
+    p.add_argument("--renderer", type=Path, default=None,
+                   help="renderer binary (default: $PORTAL_RENDERER or <repo>/renderer/build/render)")
+    return p
+
+
+def _render_options(p: argparse.ArgumentParser, default_strategy: str | None) -> None:
+    p.add_argument("config", type=Path, help="scene file (configs/scenes/*.yaml)")
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scalar of the scene, e.g. params.s_L=0.075 (repeatable)")
+    p.add_argument("--strategy", choices=STRATEGIES, default=default_strategy)
+    p.add_argument("--integrator", choices=INTEGRATORS)
+    p.add_argument("--spp", type=int, help="samples per pixel (0: no limit)")
+    p.add_argument("--time", type=float, help="render time limit in seconds (0: no limit)")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--threads", help="renderer threads, N or auto")
+    p.add_argument("--force", action="store_true", help="render even if a finished run exists")
+
+
+def _execution_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--jobs", type=int, default=None,
+                   help="concurrent renders (default and maximum: cores // renderer threads)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run renders on a Dask distributed cluster (e.g. tcp://host:8786) instead of locally")
+    p.add_argument("--skip-failed", action="store_true", help="do not retry runs recorded as failed")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    common = _common()
+    parser = argparse.ArgumentParser(prog="portal-harness",
+                                     description="Experiment harness of portal-lights (see harness/README.md).")
+    parser.add_argument("--version", action="version", version=f"portal-harness {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("run", parents=[common], help="one render with a live progress bar",
+                       description="One render of a scene into results/runs/<key>/, following the renderer's "
+                                   "snapshot stream with a live progress bar. Unset options come from the "
+                                   "scene's render section. A finished run with the same key is not redone.")
+    _render_options(p, None)
+    p.add_argument("--snapshot-every", type=float, help="snapshot period in seconds")
+
+    p = sub.add_parser("reference", parents=[common], help="a cached high-sample reference render",
+                       description="A high-sample reference render of a scene with an unbiased strategy "
+                                   "(light sampling by default), cached in results/references/ by the hash of "
+                                   "the scene, so a second call is free.")
+    _render_options(p, "light")
+
+    p = sub.add_parser("sweep", parents=[common], help="run an experiment's whole sweep",
+                       description="Expand the experiment's cross product, make each point's reference, run "
+                                   "every point and strategy, compute metrics and write a summary. Resumes: "
+                                   "finished runs are not redone. Exit 1 if any run failed.")
+    p.add_argument("experiment", type=Path, help="experiment file (configs/experiments/*.yaml)")
+    _execution_options(p)
+
+    p = sub.add_parser("metrics", parents=[common], help="MSE and relMSE of runs against a reference",
+                       description="MSE and relMSE (per channel, averaged) of every snapshot of each run "
+                                   "against its reference, for the whole image and named insets; written to "
+                                   "the run folder as metrics.csv/metrics.json, indexed, and printed as CSV.")
+    p.add_argument("runs", nargs="+", help="run folders or run keys")
+    p.add_argument("--reference", help="reference run folder or key (default: the run's experiment "
+                                       "reference, else the finished reference of the same scene hash)")
+    p.add_argument("--experiment", type=Path, help="take the insets from this experiment file")
+    p.add_argument("--inset", action="append", default=[], metavar="NAME=X,Y,W,H",
+                   help="an inset rectangle in pixels (repeatable)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of CSV")
+
+    p = sub.add_parser("figures", parents=[common], help="the experiment's three figures",
+                       description="Error-over-time curves, the inset comparison and the efficiency plot of an "
+                                   "experiment that has been swept, as PNG and PDF in results/figures/.")
+    p.add_argument("experiment", type=Path)
+
+    p = sub.add_parser("regress", parents=[common], help="variance regression test against a baseline",
+                       description="Fixed-seed, fixed-sample renders of every point and strategy; their "
+                                   "relative variance is compared with the stored baseline; exit 1 with a table "
+                                   "if a strategy's variance rose beyond noise. --update rewrites the baseline.")
+    p.add_argument("experiment", type=Path)
+    p.add_argument("--update", action="store_true", help="rewrite the baseline from this run")
+    _execution_options(p)
+
+    p = sub.add_parser("query", parents=[common], help="error curves from the index",
+                       description="Print (key, time_s, value) of every indexed run of a strategy whose "
+                                   "parameters match, e.g. --strategy portal --param ratio=0.25.")
+    p.add_argument("--strategy", required=True, choices=STRATEGIES)
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="e.g. ratio=0.25 or params.s_L=0.075 (repeatable)")
+    p.add_argument("--region", default="image")
+    p.add_argument("--metric", default="rel_mse", choices=index.METRIC_COLUMNS)
+
+    sub.add_parser("reindex", parents=[common], help="rebuild the index from the run folders",
+                   description="Re-record every run folder's manifest and metrics in results/index.sqlite.")
+    return parser
+
+
+def _layout(args: argparse.Namespace) -> ResultsLayout:
+    return ResultsLayout((args.results or default_results()).resolve())
+
+
+def _renderer(args: argparse.Namespace) -> tuple[str, str]:
+    path = str((args.renderer or default_renderer()).resolve())
+    return path, renderer_version(path)
+
+
+def _parse_sets(sets: list[str], flag: str = "--set") -> dict[str, str]:
+    out: dict[str, str] = {}
+    for item in sets:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(flag, item, "expected KEY=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+class _RunProgress:
+    """Live bar of one render: render time (or spp) against the target, with
+    spp and the current snapshot as postfix."""
+
+    def __init__(self, time_s: float, spp: int, enabled: bool = True) -> None:
+        self.by_time = time_s > 0
+        total = time_s if self.by_time else float(spp)
+        self.bar = tqdm(total=total, unit="s" if self.by_time else "spp", disable=not enabled, file=sys.stderr,
+                        bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}{postfix}]",
+                        dynamic_ncols=True)
+
+    def __call__(self, event: dict[str, Any]) -> None:
+        kind = event.get("event")
+        if kind == "start":
+            self.bar.set_description(f"{event.get('strategy')} {event.get('width')}x{event.get('height')}")
+            return
+        if kind not in ("snapshot", "final"):
+            return
+        value = float(event.get("time_s", 0.0)) if self.by_time else float(event.get("spp", 0))
+        self.bar.n = min(value, self.bar.total) if kind == "snapshot" else self.bar.total
+        snap = f"snapshot {event.get('index')}" if kind == "snapshot" else "final"
+        self.bar.set_postfix_str(f"t={float(event.get('time_s', 0)):.2f}s spp={event.get('spp')} {snap}",
+                                 refresh=False)
+        self.bar.refresh()
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
+    overrides = _parse_sets(args.sets)
+    snapshots = None
+    if not reference and args.snapshot_every is not None:
+        snapshots = {"every": str(args.snapshot_every)}
+    if reference:
+        snapshots = {"every": "0", "doubling": "0", "every_spp": "0"}
+    spec = spec_from_scene(
+        args.config, overrides, strategy=args.strategy, integrator=args.integrator,
+        spp=args.spp if args.spp is not None else (1024 if reference and args.time is None else None),
+        time_s=args.time if args.time is not None else (0.0 if reference else None), seed=args.seed,
+        threads=args.threads, snapshots=snapshots, reference=reference,
+    )
+    layout = _layout(args)
+    renderer, version = _renderer(args)
+    key = spec.key(version)
+    progress = _RunProgress(spec.time_s, spec.spp, enabled=sys.stderr.isatty() or not reference)
+    try:
+        manifest = runs.execute(spec, layout, renderer, version, on_event=progress, force=args.force)
+    finally:
+        progress.close()
+    run = layout.run(key, reference)
+    conn = index.connect(layout.index_path)
+    try:
+        index.record_run(conn, manifest, run.dir)
+    finally:
+        conn.close()
+    what = "reference" if reference else "run"
+    cached = " (cached: nothing rendered)" if manifest.get("cached") else ""
+    print(f"{what} {key}: {manifest['status']}{cached}")
+    print(f"folder: {run.dir}")
+    if manifest.get("final"):
+        f = manifest["final"]
+        print(f"final: {f['time_s']:.2f} s, {f['spp']} spp, scene hash {manifest['scene_hash']}")
+    if manifest["status"] != store.STATUS_DONE:
+        print(f"error: {manifest.get('error')}", file=sys.stderr)
+        tail = (manifest.get("stderr_tail") or "").strip()
+        if tail:
+            print(f"renderer stderr (tail):\n{tail}", file=sys.stderr)
+        return 3 if manifest["status"] == store.STATUS_INTERRUPTED else 1
+    return 0
+
+
+def _sweep_options(args: argparse.Namespace) -> SweepOptions:
+    renderer, version = _renderer(args)
+    return SweepOptions(layout=_layout(args), renderer=renderer, renderer_version=version, jobs=args.jobs,
+                        scheduler=args.scheduler, retry_failed=not args.skip_failed,
+                        progress=not args.no_progress)
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    experiment = load_experiment(args.experiment)
+    if experiment.budget is None:
+        raise ConfigError(str(args.experiment), "budget", "missing (a sweep needs time_s or spp)")
+    return sweep(experiment, _sweep_options(args))
+
+
+def cmd_regress(args: argparse.Namespace) -> int:
+    from portal_harness.regress import regress
+
+    experiment = load_experiment(args.experiment)
+    if experiment.regress is None:
+        raise ConfigError(str(args.experiment), "regress", "missing (the regress command needs spp and seeds)")
+    return regress(experiment, _sweep_options(args), update=args.update)
+
+
+def cmd_figures(args: argparse.Namespace) -> int:
+    from portal_harness.figures import make_all
+
+    experiment = load_experiment(args.experiment)
+    for path in make_all(experiment, _layout(args)):
+        print(path)
+    return 0
+
+
+def _resolve_run(layout: ResultsLayout, name: str) -> RunLayout:
+    p = Path(name)
+    if p.is_dir():
+        return RunLayout(p.resolve())
+    for reference in (False, True):
+        run = layout.run(name, reference)
+        if run.dir.is_dir():
+            return run
+    raise ConfigError(name, "", "no such run folder or run key")
+
+
+def _parse_insets(items: list[str]) -> tuple[Region, ...]:
+    out = []
+    for item in items:
+        name, sep, rect = item.partition("=")
+        try:
+            x, y, w, h = (int(v) for v in rect.split(","))
+        except ValueError:
+            raise ConfigError("--inset", item, "expected NAME=X,Y,WIDTH,HEIGHT in pixels") from None
+        if not sep or not name:
+            raise ConfigError("--inset", item, "expected NAME=X,Y,WIDTH,HEIGHT in pixels")
+        out.append(Region(name, x, y, w, h))
+    return tuple(out)
+
+
+def cmd_metrics(args: argparse.Namespace) -> int:
+    layout = _layout(args)
+    regions = load_experiment(args.experiment).insets if args.experiment else ()
+    regions += _parse_insets(args.inset)
+    conn = index.connect(layout.index_path)
+    status = 0
+    results: list[dict[str, Any]] = []
+    try:
+        for name in args.runs:
+            run = _resolve_run(layout, name)
+            manifest = store.read_manifest(run)
+            if manifest is None or manifest.get("status") != store.STATUS_DONE:
+                print(f"{run.dir}: not a finished run (status "
+                      f"{(manifest or {}).get('status', 'no manifest')}): skipped", file=sys.stderr)
+                status = 1
+                continue
+            ref_run = _reference_for(layout, conn, manifest, args.reference)
+            ref_manifest = store.read_manifest(ref_run)
+            ref_key = (ref_manifest or {}).get("key", ref_run.dir.name)
+            try:
+                reference = exr.read_snapshot(ref_run.final)
+            except CorruptExrError as e:
+                raise HarnessError(f"reference unusable: {e}") from None
+            for r in regions:
+                if not r.fits(reference.header.width, reference.header.height):
+                    raise ConfigError("--inset", r.name, f"does not fit the {reference.header.width}x"
+                                                         f"{reference.header.height} image")
+            rows = measure.compute(run, manifest, reference, regions)
+            measure.write_files(run, manifest["key"], ref_key, regions, rows)
+            index.record_run(conn, manifest, run.dir)
+            index.record_metrics(conn, manifest["key"], ref_key, rows)
+            for row in rows:
+                if row.error:
+                    print(f"corrupt: {row.error}", file=sys.stderr)
+                    status = 1
+                results.append({"run": manifest["key"], "reference": ref_key, "strategy": manifest["spec"]["strategy"],
+                                **row.__dict__})
+    finally:
+        conn.close()
+    if args.json:
+        json.dump(results, sys.stdout, indent=1)
+        print()
+    elif results:
+        writer = csv.DictWriter(sys.stdout, fieldnames=list(results[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(results)
+    return status
+
+
+def _reference_for(layout: ResultsLayout, conn: Any, manifest: dict[str, Any], given: str | None) -> RunLayout:
+    if given:
+        return _resolve_run(layout, given)
+    row = conn.execute("SELECT reference_key FROM experiment_runs WHERE key = ? AND reference_key IS NOT NULL",
+                       (manifest["key"],)).fetchone()
+    if row is not None and store.is_done(layout.run(row["reference_key"], True)):
+        return layout.run(row["reference_key"], True)
+    found = index.find_reference(conn, manifest["scene_hash"])
+    if found is None:
+        raise HarnessError(f"no reference for run {manifest['key']} (scene hash {manifest['scene_hash']}): "
+                           "make one with `portal-harness reference` or pass --reference")
+    return RunLayout(Path(found["run_dir"]))
+
+
+def cmd_query(args: argparse.Namespace) -> int:
+    params: dict[str, float] = {}
+    for k, v in _parse_sets(args.param, "--param").items():
+        try:
+            params[k] = float(v)
+        except ValueError:
+            raise ConfigError("--param", k, f"expected a number, got {v!r}") from None
+    conn = index.connect(_layout(args).index_path)
+    try:
+        found = index.curves(conn, args.strategy, params, region=args.region, metric=args.metric)
+    finally:
+        conn.close()
+    print(f"key,time_s,{args.metric}")
+    for key, points in found.items():
+        for t, v in points:
+            print(f"{key},{t},{v}")
+    return 0 if found else 1
+
+
+def cmd_reindex(args: argparse.Namespace) -> int:
+    layout = _layout(args)
+    conn = index.connect(layout.index_path)
+    count = 0
+    try:
+        for parent in (layout.runs_dir, layout.references_dir):
+            if not parent.is_dir():
+                continue
+            for folder in sorted(parent.iterdir()):
+                run = RunLayout(folder)
+                manifest = store.read_manifest(run)
+                if manifest is None:
+                    continue
+                index.record_run(conn, manifest, folder)
+                count += 1
+                if run.metrics_json.exists():
+                    data = json.loads(run.metrics_json.read_text())
+                    index.record_metrics(conn, manifest["key"], data["reference_key"], measure.read_rows(run))
+    finally:
+        conn.close()
+    print(f"indexed {count} run folders")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    handlers = {
+        "run": cmd_run,
+        "reference": lambda a: cmd_run(a, reference=True),
+        "sweep": cmd_sweep,
+        "metrics": cmd_metrics,
+        "figures": cmd_figures,
+        "regress": cmd_regress,
+        "query": cmd_query,
+        "reindex": cmd_reindex,
+    }
+    try:
+        return int(handlers[args.command](args))
+    except HarnessError as e:
+        print(f"portal-harness {args.command}: {e}", file=sys.stderr)
+        return e.exit_status
+    except KeyboardInterrupt:
+        print(f"portal-harness {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,30 @@
+"""Display encoding of linear radiance: one exposure per reference image,
+then clipping and the sRGB transfer function of colour-science. Strategies
+are always shown with their reference's exposure, never their own."""
+
+from __future__ import annotations
+
+import colour
+import numpy as np
+
+_SRGB = colour.RGB_COLOURSPACES["sRGB"]
+# Rec.709/sRGB luminance weights: the Y row of the RGB -> XYZ matrix.
+_LUMINANCE_WEIGHTS = np.asarray(_SRGB.matrix_RGB_to_XYZ)[1]
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(rgb, dtype=np.float64) @ _LUMINANCE_WEIGHTS
+
+
+def exposure_from_reference(reference: np.ndarray, percentile: float = 99.0, white: float = 0.9) -> float:
+    """The scale that maps the reference's `percentile` luminance to `white`;
+    1 for a black image. Bright highlights above it clip, as in a photograph."""
+    y = luminance(reference)
+    level = float(np.percentile(y, percentile))
+    return white / level if level > 0 and np.isfinite(level) else 1.0
+
+
+def to_display(rgb: np.ndarray, exposure: float) -> np.ndarray:
+    """Linear radiance -> sRGB-encoded values in [0, 1], shape (H, W, 3)."""
+    linear = np.clip(np.asarray(rgb, dtype=np.float64) * exposure, 0.0, 1.0)
+    return np.clip(np.asarray(colour.cctf_encoding(linear, function="sRGB")), 0.0, 1.0)

@@ -1,0 +1,132 @@
+"""Where renders run: a local process pool (the default) or a Dask
+distributed cluster (--scheduler ADDRESS).
+
+Local: at most cores // threads renders at once, so that renders x renderer
+threads <= cores; workers write straight into the results folder.
+
+Dask: each task runs the renderer on a worker in a private temporary folder
+and *returns the run folder's contents* (bytes); the client writes them into
+its own results folder, manifest last. Workers therefore need the renderer
+binary at the same path (and its libraries), but no shared file system; the
+scene file travels with the task.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import ctypes
+import multiprocessing
+import os
+import signal
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from portal_harness import runs, store
+from portal_harness.paths import ResultsLayout
+from portal_harness.spec import RunSpec
+
+DoneCallback = Callable[[RunSpec, dict[str, Any]], None]
+
+
+def available_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def plan_jobs(threads_per_run: int, requested: int | None = None, cores: int | None = None) -> int:
+    """Concurrent renders: the most that keeps renders x threads <= cores
+    (at least one), or fewer if asked."""
+    limit = max(1, (cores or available_cores()) // max(1, threads_per_run))
+    return limit if requested is None else max(1, min(requested, limit))
+
+
+@dataclass(frozen=True)
+class Target:
+    """What every task needs to know besides its spec."""
+
+    layout: ResultsLayout
+    renderer: str
+    renderer_version: str
+    retry_failed: bool = True
+
+
+def _worker_init() -> None:
+    """Pool workers die with the harness (and their renders with them)."""
+    try:
+        ctypes.CDLL("libc.so.6").prctl(1, int(signal.SIGTERM), 0, 0, 0)
+    except OSError:  # pragma: no cover - not glibc
+        pass
+    # Ctrl-C reaches the whole process group: let the renderer stop itself
+    # (it writes final.exr and exits 3) and the main process decide.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _task(spec: RunSpec, target: Target) -> dict[str, Any]:
+    return runs.execute(spec, target.layout, target.renderer, target.renderer_version,
+                        retry_failed=target.retry_failed)
+
+
+def _failure(spec: RunSpec, target: Target, error: BaseException) -> dict[str, Any]:
+    """A manifest-like record of a task that failed outside the renderer; not installed."""
+    return {"key": spec.key(target.renderer_version), "status": store.STATUS_FAILED, "cached": False,
+            "error": f"harness error: {type(error).__name__}: {error}", "spec": spec.to_dict(), "installed": False}
+
+
+def run_local(specs: list[RunSpec], target: Target, jobs: int, on_done: DoneCallback) -> None:
+    """Runs `specs` with `jobs` renders at a time; calls on_done in the main
+    process as each finishes. One job runs in-process."""
+    if jobs <= 1:
+        for spec in specs:
+            try:
+                manifest = _task(spec, target)
+            except (OSError, ValueError) as e:
+                manifest = _failure(spec, target, e)
+            on_done(spec, manifest)
+        return
+    context = multiprocessing.get_context("spawn")
+    with cf.ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init) as pool:
+        futures = {pool.submit(_task, spec, target): spec for spec in specs}
+        try:
+            for future in cf.as_completed(futures):
+                spec = futures[future]
+                try:
+                    manifest = future.result()
+                except Exception as e:  # a worker crash must not stop the sweep
+                    manifest = _failure(spec, target, e)
+                on_done(spec, manifest)
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+
+
+def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCallback) -> None:
+    """Runs `specs` as tasks of the Dask scheduler at `address`; each returns
+    its run folder's files, installed here as each finishes."""
+    from distributed import Client, as_completed
+
+    scene_bytes: dict[str, bytes] = {}
+    with Client(address, timeout="30s") as client:
+        futures = {}
+        for spec in specs:
+            if spec.scene not in scene_bytes:
+                scene_bytes[spec.scene] = Path(spec.scene).read_bytes()
+            key = spec.key(target.renderer_version)
+            final_dir = str(target.layout.run(key, spec.reference).dir)
+            future = client.submit(
+                runs.execute_packed, spec, scene_bytes[spec.scene], target.renderer, target.renderer_version,
+                final_dir, key=f"render-{key}-{os.getpid()}", pure=False, retries=0,
+            )
+            futures[future] = spec
+        for future in as_completed(list(futures)):
+            spec = futures[future]
+            try:
+                key, files = future.result()
+                run = store.install_files(target.layout, key, spec.reference, files)
+                manifest = store.read_manifest(run) or _failure(spec, target, ValueError("no manifest returned"))
+                manifest = {**manifest, "cached": False}
+            except Exception as e:  # a lost worker or task error must not stop the sweep
+                manifest = _failure(spec, target, e)
+            on_done(spec, manifest)

@@ -1,0 +1,597 @@
+/* Tests of the YAML config loader: the canonical scene, --set overrides, the
+   effective YAML round trip and its hash, the expression language, and the
+   catalogues of good and bad configs in tests/configs/ (each bad file names
+   the exact message it must produce in its first line). */
+#include <dirent.h>
+#include <stdint.h>
+
+#include "config.h"
+#include "expr.h"
+#include "testlib.h"
+
+#define LAMPSHADE "configs/scenes/lampshade.yaml"
+#define GOOD_DIR "tests/configs/good"
+#define BAD_DIR "tests/configs/bad"
+#define COUNT_OF(a) ((int)(sizeof(a) / sizeof((a)[0])))
+
+static bool is_zeroed(const struct config *c)
+{
+    static const struct config zero;
+    return memcmp(c, &zero, sizeof zero) == 0;
+}
+
+static bool vec3_eq(struct vec3 a, struct vec3 b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
+static bool rgb_eq(struct rgb a, struct rgb b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+
+static bool polygon_eq(const struct polygon *a, const struct polygon *b)
+{
+    if (a->n != b->n) return false;
+    for (int i = 0; i < a->n; ++i)
+        if (!vec3_eq(a->v[i], b->v[i])) return false;
+    return true;
+}
+
+/* Field by field, bit-exact; locations and the file name are allowed to differ. */
+static bool config_same(const struct config *a, const struct config *b)
+{
+    if (a->width != b->width || a->height != b->height) return false;
+    if (!vec3_eq(a->camera.position, b->camera.position) || !vec3_eq(a->camera.look_at, b->camera.look_at) ||
+        !vec3_eq(a->camera.up, b->camera.up) || a->camera.fov_y_deg != b->camera.fov_y_deg)
+        return false;
+    if (a->n_materials != b->n_materials || a->n_shapes != b->n_shapes || a->n_lights != b->n_lights ||
+        a->n_portals != b->n_portals)
+        return false;
+    for (int i = 0; i < a->n_materials; ++i) {
+        const struct material_desc *x = &a->materials[i], *y = &b->materials[i];
+        if (strcmp(x->name, y->name) || x->kind != y->kind || !rgb_eq(x->albedo, y->albedo) ||
+            (x->kind == MATERIAL_GGX && x->roughness != y->roughness))
+            return false;
+    }
+    for (int i = 0; i < a->n_shapes; ++i) {
+        const struct shape_desc *x = &a->shapes[i], *y = &b->shapes[i];
+        if (x->material != y->material || x->n_vertices != y->n_vertices || x->n_triangles != y->n_triangles ||
+            x->n_quads != y->n_quads)
+            return false;
+        for (int v = 0; v < x->n_vertices; ++v)
+            if (!vec3_eq(x->vertices[v], y->vertices[v])) return false;
+        if (x->n_triangles && memcmp(x->triangles, y->triangles, (size_t)x->n_triangles * sizeof *x->triangles))
+            return false;
+        if (x->n_quads && memcmp(x->quads, y->quads, (size_t)x->n_quads * sizeof *x->quads)) return false;
+    }
+    for (int i = 0; i < a->n_lights; ++i) {
+        const struct light_desc *x = &a->lights[i], *y = &b->lights[i];
+        if (strcmp(x->name, y->name) || !polygon_eq(&x->polygon, &y->polygon) || !rgb_eq(x->radiance, y->radiance) ||
+            x->two_sided != y->two_sided)
+            return false;
+    }
+    for (int i = 0; i < a->n_portals; ++i) {
+        const struct portal_desc *x = &a->portals[i], *y = &b->portals[i];
+        if (strcmp(x->name, y->name) || x->light != y->light || !polygon_eq(&x->polygon, &y->polygon)) return false;
+    }
+    const struct render_desc *r = &a->render, *s = &b->render;
+    if (r->integrator != s->integrator || r->strategy != s->strategy || r->mis != s->mis ||
+        r->portal_weight != s->portal_weight || r->defensive != s->defensive || r->max_depth != s->max_depth ||
+        r->rr_depth != s->rr_depth || r->spp != s->spp || r->time_s != s->time_s || r->seed != s->seed ||
+        r->threads != s->threads || strcmp(r->output, s->output))
+        return false;
+    const struct snapshot_schedule *p = &r->snapshots, *q = &s->snapshots;
+    if (p->every_s != q->every_s || p->doubling_s != q->doubling_s || p->n_times != q->n_times ||
+        p->every_spp != q->every_spp || p->n_spps != q->n_spps)
+        return false;
+    for (int i = 0; i < p->n_times; ++i)
+        if (p->times_s[i] != q->times_s[i]) return false;
+    for (int i = 0; i < p->n_spps; ++i)
+        if (p->spps[i] != q->spps[i]) return false;
+    return true;
+}
+
+static uint64_t fnv1a64(const char *s)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (; *s; ++s) h = (h ^ (unsigned char)*s) * 0x100000001b3ull;
+    return h;
+}
+
+/* Loads c's effective YAML back and checks it gives the same config, the same
+   text and the same hash. */
+static void check_round_trip(const struct config *c, const char *label)
+{
+    struct config back;
+    struct error err = { "" };
+    bool ok = config_load_string(c->effective_yaml, strlen(c->effective_yaml), "effective", NULL, 0, &back, &err);
+    CHECK_MSG(ok, "%s: effective YAML does not load: %s", label, err.message);
+    if (!ok) return;
+    CHECK_MSG(config_same(c, &back), "%s: reloaded config differs", label);
+    CHECK_MSG(strcmp(c->effective_yaml, back.effective_yaml) == 0, "%s: effective YAML differs after reload", label);
+    CHECK(c->hash == back.hash);
+    CHECK(c->hash == fnv1a64(c->effective_yaml));
+    config_free(&back);
+}
+
+/* ---- the canonical scene ---------------------------------------------- */
+
+static void test_lampshade_defaults(void)
+{
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load(LAMPSHADE, NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK(strcmp(c.path, LAMPSHADE) == 0);
+    CHECK(c.width == 256 && c.height == 256);
+    CHECK(vec3_eq(c.camera.position, vec3_make(0, 2, 8)) && vec3_eq(c.camera.look_at, vec3_make(0, 1.5, 0)));
+    CHECK(c.camera.fov_y_deg == 45.0);
+    CHECK(c.n_materials == 3 && strcmp(c.materials[1].name, "red") == 0);
+    CHECK(rgb_eq(c.materials[1].albedo, rgb_make(0.63, 0.065, 0.05)) && c.materials[1].kind == MATERIAL_DIFFUSE);
+
+    CHECK(c.n_shapes == 15);
+    CHECK(c.shapes[3].material == 1 && c.shapes[4].material == 2 && c.shapes[0].material == 0);
+    CHECK(c.shapes[0].n_vertices == 4 && c.shapes[0].n_quads == 1 && c.shapes[0].n_triangles == 0);
+    /* The box: 8 corners, 6 faces. */
+    CHECK(c.shapes[5].n_vertices == 8 && c.shapes[5].n_quads == 6 && c.shapes[5].n_triangles == 0);
+    /* shade_left's first vertex is (-a, 2.2, -a) with a = max(0.6, 0.3) / 2 + 0.05. */
+    CHECK_NEAR(c.shapes[6].vertices[0].x, -0.35, 1e-15);
+    CHECK_NEAR(c.shapes[6].vertices[0].z, -0.35, 1e-15);
+    CHECK(c.shapes[6].vertices[0].y == 2.2);
+    /* shade_bottom_left's inner edge at -h = -s_P / 2. */
+    CHECK_NEAR(c.shapes[13].vertices[1].x, -0.15, 1e-15);
+
+    CHECK(c.n_lights == 1);
+    const struct light_desc *l = &c.lights[0];
+    CHECK(strcmp(l->name, "lamp") == 0 && !l->two_sided && l->polygon.n == 4);
+    CHECK_NEAR(l->polygon.v[0].x, -0.3, 1e-15);
+    CHECK_NEAR(l->polygon.v[2].z, 0.3, 1e-15);
+    CHECK(l->polygon.v[1].y == 2.6);
+    double k = (0.5 / 0.6) * (0.5 / 0.6);
+    CHECK_NEAR(l->radiance.r, 40 * k, 1e-12);
+    CHECK_NEAR(l->radiance.g, 34 * k, 1e-12);
+    CHECK_NEAR(l->radiance.b, 24 * k, 1e-12);
+    /* One-sided, emitting downwards: the winding must give a -y normal. */
+    CHECK_NEAR(polygon_normal(&l->polygon).y, -1.0, 1e-12);
+    CHECK_NEAR(polygon_area(&l->polygon), 0.36, 1e-12);
+
+    CHECK(c.n_portals == 1 && c.portals[0].light == 0 && strcmp(c.portals[0].name, "opening") == 0);
+    CHECK_NEAR(c.portals[0].polygon.v[0].x, -0.15, 1e-15);
+    CHECK(c.portals[0].polygon.v[0].y == 2.2);
+
+    const struct render_desc *r = &c.render;
+    CHECK(r->integrator == INTEGRATOR_DIRECT && r->strategy == STRATEGY_LIGHT && r->mis == MIS_POWER);
+    CHECK(r->portal_weight == PORTAL_WEIGHT_IRRADIANCE && r->defensive == 0.0);
+    CHECK(r->max_depth == 8 && r->rr_depth == 3 && r->spp == 64 && r->time_s == 0.0);
+    CHECK(r->snapshots.every_s == 0.5 && r->snapshots.n_times == 0 && r->snapshots.doubling_s == 0.0);
+    CHECK(r->seed == 1 && r->threads == 0 && strcmp(r->output, "results/renders/lampshade") == 0);
+    CHECK(c.effective_yaml != NULL && c.hash == fnv1a64(c.effective_yaml));
+    config_free(&c);
+    CHECK(is_zeroed(&c));
+}
+
+/* The ratio sweep: s_L = 1.2 moves the light, scales its radiance by
+   (0.5 / s_L)^2 and widens the shade to a = 1.2 / 2 + 0.05. */
+static void test_lampshade_sweep_override(void)
+{
+    struct config_override o = { "params.s_L", "1.2" };
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load(LAMPSHADE, &o, 1, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK_NEAR(c.lights[0].polygon.v[0].x, -0.6, 1e-15);
+    CHECK_NEAR(c.lights[0].polygon.v[2].x, 0.6, 1e-15);
+    CHECK_NEAR(c.lights[0].radiance.r, 40 * (0.5 / 1.2) * (0.5 / 1.2), 1e-12);
+    CHECK_NEAR(c.lights[0].radiance.b, 24 * (0.5 / 1.2) * (0.5 / 1.2), 1e-12);
+    CHECK_NEAR(c.shapes[6].vertices[0].x, -0.65, 1e-15);
+    CHECK_NEAR(c.portals[0].polygon.v[0].x, -0.15, 1e-15);
+    /* Light power s_L^2 * L stays the same across the sweep. */
+    CHECK_NEAR(polygon_area(&c.lights[0].polygon) * c.lights[0].radiance.r, 0.36 * 40 * (0.5 / 0.6) * (0.5 / 0.6),
+               1e-12);
+    check_round_trip(&c, "s_L=1.2");
+    config_free(&c);
+}
+
+/* ---- overrides ---------------------------------------------------------- */
+
+static void test_overrides_apply(void)
+{
+    const struct config_override o[] = {
+        { "camera.position.1", "3" },         /* a sequence item */
+        { "render.spp", "1" },
+        { "render.spp", "128" },              /* the later one wins */
+        { "render.time", "5" },               /* absent: added */
+        { "shapes.3.material", "white" },     /* index, then key */
+        { "lights.0.two_sided", "true" },
+        { "render.strategy", "portal" },
+        { "render.output", "123" },           /* a plain scalar read as a string */
+        { "params.s_P", "=0.2 * 2" },         /* an expression */
+        { "render.snapshots.every", "2" },
+        { "render.snapshots.every_spp", "8" },
+        { "portals.0.name", "hole" },
+        { "render.seed", "18446744073709551615" },
+        { "render.threads", "8" },
+        { "film.width", "=2^7" },
+    };
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load(LAMPSHADE, o, COUNT_OF(o), &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK(c.camera.position.y == 3.0 && c.camera.position.z == 8.0);
+    CHECK(c.render.spp == 128 && c.render.time_s == 5.0);
+    CHECK(c.shapes[3].material == 0);
+    CHECK(c.lights[0].two_sided);
+    CHECK(c.render.strategy == STRATEGY_PORTAL);
+    CHECK(strcmp(c.render.output, "123") == 0);
+    CHECK_NEAR(c.portals[0].polygon.v[0].x, -0.2, 1e-15);
+    CHECK_NEAR(c.shapes[6].vertices[0].x, -0.35, 1e-15); /* a = max(0.6, 0.4) / 2 + 0.05 */
+    CHECK(c.render.snapshots.every_s == 2.0 && c.render.snapshots.every_spp == 8);
+    CHECK(strcmp(c.portals[0].name, "hole") == 0);
+    CHECK(c.render.seed == UINT64_MAX);
+    CHECK(c.render.threads == 8);
+    CHECK(c.width == 128 && c.height == 256);
+    check_round_trip(&c, "overrides");
+    config_free(&c);
+}
+
+static void test_override_errors(void)
+{
+    static const struct {
+        const char *path, *value, *expect;
+    } cases[] = {
+        { "camera.pos.1", "0", "--set camera.pos.1: no key \"pos\" in camera" },
+        { "nothing.x", "0", "--set nothing.x: no key \"nothing\" in the top level" },
+        { "shapes.99.material", "white", "--set shapes.99.material: index 99 out of range in shapes (expected 0 to 14)" },
+        { "shapes.x.material", "white", "--set shapes.x.material: \"x\" is not an index (shapes is a sequence)" },
+        { "camera.position", "1", "--set camera.position: camera.position is a sequence (only scalars can be overridden)" },
+        { "camera", "1", "--set camera: camera is a mapping (only scalars can be overridden)" },
+        { "camera.fov_y.x", "1", "--set camera.fov_y.x: camera.fov_y is a scalar" },
+        { "camera..x", "1", "--set camera..x: empty key in the path" },
+        { "render.spp", "abc", "--set render.spp=abc: expected a non-negative integer, got \"abc\"" },
+        { "render.spp", "-3", "--set render.spp=-3: expected a non-negative integer, got -3" },
+        { "render.tme", "5", "--set render.tme=5: unknown key \"tme\" in render (expected integrator," },
+        { "render.strategy", "prtal", "--set render.strategy=prtal: unknown strategy \"prtal\" (expected one of: light_area, light, portal, projection, antishadow, antishadow_exact)" },
+        { "lights.0.two_sided", "yes", "--set lights.0.two_sided=yes: expected true or false, got \"yes\"" },
+        { "params.s_L", "=s_Q", "--set params.s_L==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: pi)" },
+        { "params.h", "=s_Q", "--set params.h==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: s_L, s_P, a, pi)" },
+        { "camera.fov_y", ".nan", "--set camera.fov_y=.nan: expected a finite number, got .nan" },
+        { "render.output", "\xff", "--set render.output=\xff: not valid UTF-8" },
+        /* An override can make a value in the file fail: reported in the file. */
+        { "params.s_L", "0", "lampshade.yaml:71:15: light \"lamp\" is degenerate (expected a polygon with non-zero area)" },
+        { "lights.0.vertices.0.1", "2.7", "lampshade.yaml:71:15: light \"lamp\" is not planar" },
+        { "render.spp", "0", "lampshade.yaml:83:3: spp and time are both 0" },
+        { "portals.0.light", "lmp", "portal \"opening\" refers to unknown light \"lmp\" (expected one of: lamp)" },
+    };
+    for (int i = 0; i < COUNT_OF(cases); ++i) {
+        struct config_override o = { cases[i].path, cases[i].value };
+        struct config c;
+        struct error err = { "" };
+        bool ok = config_load(LAMPSHADE, &o, 1, &c, &err);
+        CHECK_MSG(!ok, "--set %s=%s loaded", cases[i].path, cases[i].value);
+        CHECK_MSG(strstr(err.message, cases[i].expect) != NULL, "got: %s\n    expected: %s", err.message,
+                  cases[i].expect);
+        CHECK(is_zeroed(&c));
+        if (ok) config_free(&c);
+    }
+    struct config_override missing = { NULL, "1" };
+    struct config c;
+    struct error err = { "" };
+    CHECK(!config_load(LAMPSHADE, &missing, 1, &c, &err) && strstr(err.message, "--set") != NULL);
+}
+
+/* ---- effective YAML and hash ------------------------------------------ */
+
+static void test_effective_round_trip_and_hash(void)
+{
+    struct config a, b, c;
+    struct error err = { "" };
+    bool ok = config_load(LAMPSHADE, NULL, 0, &a, &err) && config_load(LAMPSHADE, NULL, 0, &b, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    check_round_trip(&a, "lampshade");
+    CHECK(a.hash == b.hash && strcmp(a.effective_yaml, b.effective_yaml) == 0);
+    /* Params are substituted, defaults are filled in. */
+    CHECK(strstr(a.effective_yaml, "\nparams:") == NULL && strchr(a.effective_yaml, '=') == NULL);
+    CHECK(strstr(a.effective_yaml, "portal_weight: irradiance") != NULL);
+    CHECK(strstr(a.effective_yaml, "rr_depth: 3") != NULL);
+
+    /* The smallest change to any value changes the hash: one ulp of fov_y. */
+    static const struct config_override changes[][1] = {
+        { { "render.spp", "65" } },
+        { { "camera.fov_y", "45.000000000000007" } },
+        { { "params.s_L", "0.6000000000000001" } },
+        { { "shapes.0.material", "red" } },
+        { { "render.seed", "2" } },
+        { { "render.defensive", "0.1" } },
+    };
+    for (int i = 0; i < COUNT_OF(changes); ++i) {
+        ok = config_load(LAMPSHADE, changes[i], 1, &c, &err);
+        CHECK_MSG(ok, "%s", err.message);
+        if (!ok) continue;
+        CHECK_MSG(c.hash != a.hash, "--set %s=%s kept the hash", changes[i][0].path, changes[i][0].value);
+        check_round_trip(&c, changes[i][0].path);
+        config_free(&c);
+    }
+    ok = config_load(LAMPSHADE, changes[1], 1, &c, &err);
+    CHECK(ok && c.camera.fov_y_deg == nextafter(45.0, 90.0));
+    if (ok) config_free(&c);
+
+    /* Overriding a value with the value it already has keeps the hash. */
+    struct config_override same = { "params.s_L", "=1.2 / 2" };
+    ok = config_load(LAMPSHADE, &same, 1, &c, &err);
+    CHECK(ok && c.hash == a.hash);
+    if (ok) config_free(&c);
+    config_free(&a);
+    config_free(&b);
+}
+
+/* ---- catalogues --------------------------------------------------------- */
+
+static int compare_names(const void *a, const void *b)
+{
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* Sorted *.yaml names in dir; returns the count (names freed by the caller). */
+static int list_yaml(const char *dir, char **names, int max)
+{
+    DIR *d = opendir(dir);
+    int n = 0;
+    if (!d) return 0;
+    for (struct dirent *e; (e = readdir(d)) != NULL && n < max;) {
+        size_t len = strlen(e->d_name);
+        if (len > 5 && strcmp(e->d_name + len - 5, ".yaml") == 0) {
+            names[n] = malloc(len + 1);
+            memcpy(names[n], e->d_name, len + 1);
+            ++n;
+        }
+    }
+    closedir(d);
+    qsort(names, (size_t)n, sizeof *names, compare_names);
+    return n;
+}
+
+static void test_bad_catalogue(void)
+{
+    char *names[512];
+    int n = list_yaml(BAD_DIR, names, 512);
+    CHECK_MSG(n >= 45, "only %d bad configs", n);
+    for (int i = 0; i < n; ++i) {
+        char path[512], line[ERROR_MESSAGE_MAX];
+        snprintf(path, sizeof path, "%s/%s", BAD_DIR, names[i]);
+        FILE *f = fopen(path, "r");
+        bool have = f && fgets(line, sizeof line, f) && strncmp(line, "# expect: ", 10) == 0;
+        if (f) fclose(f);
+        CHECK_MSG(have, "%s: no \"# expect: \" first line", path);
+        if (have) {
+            line[strcspn(line, "\n")] = '\0';
+            const char *expect = line + 10;
+            char location[300];
+            snprintf(location, sizeof location, "bad/%s:", names[i]);
+            CHECK_MSG(strncmp(expect, location, strlen(location)) == 0, "%s: expectation must start with %s", path,
+                      location);
+            struct config c;
+            struct error err = { "" };
+            bool ok = config_load(path, NULL, 0, &c, &err);
+            CHECK_MSG(!ok, "%s loaded", path);
+            CHECK_MSG(strstr(err.message, expect) != NULL, "\n    got:      %s\n    expected: %s", err.message, expect);
+            CHECK_MSG(is_zeroed(&c), "%s: config not left empty", path);
+            if (ok) config_free(&c);
+        }
+        free(names[i]);
+    }
+}
+
+static void test_good_catalogue(void)
+{
+    char *names[128];
+    int n = list_yaml(GOOD_DIR, names, 128);
+    CHECK_MSG(n >= 6, "only %d good configs", n);
+    for (int i = 0; i < n; ++i) {
+        char path[512];
+        snprintf(path, sizeof path, "%s/%s", GOOD_DIR, names[i]);
+        struct config c;
+        struct error err = { "" };
+        bool ok = config_load(path, NULL, 0, &c, &err);
+        CHECK_MSG(ok, "%s: %s", path, err.message);
+        if (ok) {
+            check_round_trip(&c, path);
+            config_free(&c);
+        }
+        free(names[i]);
+    }
+}
+
+/* Spot checks of values only the good files exercise. */
+static void test_good_values(void)
+{
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load(GOOD_DIR "/render_all_fields.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        const struct render_desc *r = &c.render;
+        CHECK(c.width == 32 && c.height == 16 && c.camera.fov_y_deg == 45.0);
+        CHECK(vec3_eq(c.camera.position, vec3_make(0, 1, 5)));
+        CHECK(r->integrator == INTEGRATOR_PATH && r->strategy == STRATEGY_ANTISHADOW && r->mis == MIS_NONE);
+        CHECK(r->portal_weight == PORTAL_WEIGHT_DISTANCE && r->defensive == 0.25);
+        CHECK(r->max_depth == 12 && r->rr_depth == 5 && r->spp == 0 && r->time_s == 2.5);
+        CHECK(r->snapshots.every_s == 1.0 && r->snapshots.doubling_s == 0.125 && r->snapshots.every_spp == 16);
+        CHECK(r->snapshots.n_times == 3 && r->snapshots.times_s[2] == 2.0);
+        CHECK(r->snapshots.n_spps == 3 && r->snapshots.spps[2] == 64);
+        CHECK(r->seed == UINT64_MAX && r->threads == 4);
+        CHECK(strcmp(r->output, "results/renders/all fields \"quoted\"") == 0);
+        CHECK(c.n_shapes == 0 && c.n_materials == 0 && c.shapes == NULL);
+        config_free(&c);
+    }
+    ok = config_load(GOOD_DIR "/pentagon_tilted_portal.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        const struct polygon *p = &c.lights[0].polygon;
+        CHECK(p->n == 5);
+        /* Area of a regular pentagon of circumradius r: (5/2) r^2 sin(72 deg). */
+        CHECK_NEAR(polygon_area(p), 2.5 * 0.16 * sin(2 * M_PI / 5), 1e-12);
+        CHECK_NEAR(polygon_normal(p).y, -1.0, 1e-12);
+        CHECK(c.portals[0].light == 0 && c.render.strategy == STRATEGY_ANTISHADOW_EXACT);
+        config_free(&c);
+    }
+    ok = config_load(GOOD_DIR "/triangle_light.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        CHECK(c.lights[0].polygon.n == 3 && strcmp(c.portals[0].name, "portal0") == 0);
+        config_free(&c);
+    }
+    ok = config_load(GOOD_DIR "/mesh_scene.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        CHECK(c.n_shapes == 3 && c.shapes[0].n_quads == 1 && c.shapes[0].n_triangles == 1);
+        CHECK(c.shapes[1].n_triangles == 4 && c.shapes[1].quads == NULL);
+        CHECK(c.shapes[0].triangles[0][1] == 4 && c.shapes[0].quads[0][3] == 1);
+        config_free(&c);
+    }
+}
+
+/* ---- from memory -------------------------------------------------------- */
+
+/* A light whose last vertex is lifted out of the plane by eps times the
+   light's size, in a scene scaled by `scale`. */
+static bool load_scaled_light(double scale, double eps, struct error *err)
+{
+    char text[1024];
+    snprintf(text, sizeof text,
+             "params: {k: %.17g, e: %.17g}\n"
+             "camera: {position: [0, 0, \"=5*k\"], look_at: [0, 0, 0], up: [0, 1, 0], fov_y: 30}\n"
+             "film: {width: 1, height: 1}\n"
+             "lights:\n"
+             "  - name: l\n"
+             "    vertices: [[0, 0, 0], [\"=k\", 0, 0], [\"=k\", \"=k\", 0], [0, \"=k\", \"=e * k\"]]\n"
+             "    radiance: [1, 1, 1]\n"
+             "render: {spp: 1}\n",
+             scale, eps);
+    struct config c;
+    bool ok = config_load_string(text, strlen(text), "scaled", NULL, 0, &c, err);
+    if (ok) config_free(&c);
+    return ok;
+}
+
+/* Tolerances are relative: the verdict does not depend on the units. */
+static void test_tolerances_are_relative(void)
+{
+    static const double scales[] = { 1e-3, 1.0, 1e3 };
+    for (int i = 0; i < 3; ++i) {
+        struct error err = { "" };
+        CHECK_MSG(load_scaled_light(scales[i], 0.0, &err), "scale %g: %s", scales[i], err.message);
+        CHECK_MSG(load_scaled_light(scales[i], 1e-9, &err), "scale %g: %s", scales[i], err.message);
+        CHECK(!load_scaled_light(scales[i], 1e-4, &err) && strstr(err.message, "is not planar") != NULL);
+    }
+}
+
+static void test_load_string_and_files(void)
+{
+    const char *text = "camera: {position: [0, 0, 1], look_at: [0, 0, 0], up: [0, 1, 0], fov_y: 30}\n"
+                       "film: {width: 1, height: 1}\n"
+                       "lights: [{name: a, vertices: [[0, 0, 0], [1, 0, 0], [0, 1, 0]], radiance: [1, 1, 1]}]\n"
+                       "render: {spp: 1, seed: 12345678901234567890}\n";
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load_string(text, strlen(text), "memory", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        CHECK(c.render.seed == 12345678901234567890ull); /* above 2^53: read exactly */
+        CHECK(strcmp(c.path, "memory") == 0 && c.n_portals == 0 && c.portals == NULL);
+        check_round_trip(&c, "memory");
+        config_free(&c);
+    }
+    /* Only `length` bytes are read: the text is cut before "render". */
+    ok = config_load_string(text, (size_t)(strstr(text, "render") - text), "cut", NULL, 0, &c, &err);
+    CHECK(!ok && strstr(err.message, "cut:1:1: missing key \"render\" in the top level") != NULL);
+
+    ok = config_load("tests/configs/no_such_file.yaml", NULL, 0, &c, &err);
+    CHECK(!ok && strstr(err.message, "tests/configs/no_such_file.yaml: No such file or directory") != NULL);
+    CHECK(is_zeroed(&c));
+
+    /* Invalid UTF-8 in the file is a reader error with a position. */
+    const char bad[] = "camera: {position: [0, 0, 1]}\nfilm: \xff\n";
+    ok = config_load_string(bad, sizeof bad - 1, "bytes", NULL, 0, &c, &err);
+    CHECK_MSG(!ok && strstr(err.message, "bytes:2:7: invalid") != NULL, "%s", err.message);
+
+    config_free(&c); /* freeing an empty config is harmless */
+    CHECK(is_zeroed(&c));
+}
+
+/* ---- expressions -------------------------------------------------------- */
+
+static void test_expressions(void)
+{
+    const struct expr_var vars[] = { { "a", 2.0 }, { "b_2", 3.0 } };
+    static const struct {
+        const char *text;
+        double value;
+    } ok_cases[] = {
+        { "1 + 2 * 3", 7.0 },       { "(1 + 2) * 3", 9.0 },     { "2 ^ 3 ^ 2", 512.0 }, /* right-assoc */
+        { "-2 ^ 2", -4.0 },         { "2 ^ -1", 0.5 },          { "a * b_2 - 1", 5.0 },
+        { "8 / 4 / 2", 1.0 },       { "1 - 2 - 3", -4.0 },      { "--a", 2.0 },
+        { "min(3, a, 7)", 2.0 },    { "max(1, b_2)", 3.0 },     { "abs(-a)", 2.0 },
+        { "sqrt(16)", 4.0 },        { "cos(pi)", -1.0 },        { "sin(0)", 0.0 },
+        { "tan(0)", 0.0 },          { ".5e1 + 1.5E-1", 5.15 },  { " 7 ", 7.0 },
+    };
+    for (int i = 0; i < COUNT_OF(ok_cases); ++i) {
+        double v = NAN;
+        struct error err = { "" };
+        bool ok = expr_eval(ok_cases[i].text, vars, 2, &v, &err);
+        CHECK_MSG(ok, "%s: %s", ok_cases[i].text, err.message);
+        CHECK_NEAR(v, ok_cases[i].value, 1e-15 * fabs(ok_cases[i].value) + 1e-15);
+    }
+    static const struct {
+        const char *text, *expect;
+    } bad_cases[] = {
+        { "c + 1", "unknown name \"c\" (expected one of: a, b_2, pi)" },
+        { "1 +", "unexpected end of expression" },
+        { "1 + * 2", "syntax error at \"* 2\"" },
+        { "(1", "expected \")\"" },
+        { "1 2", "syntax error at \"2\" (expected an operator or the end)" },
+        { "1 / 0", "division by zero" },
+        { "1 / (a - 2)", "division by zero" },
+        { "10 ^ 400", "power is not finite" },
+        { "1e400", "number is not finite" },
+        { "sqrt(-1)", "sqrt of a negative number" },
+        { "min(1)", "min takes at least 2 arguments, got 1" },
+        { "abs(1, 2)", "abs takes 1 argument, got 2" },
+        { "foo(1)", "unknown function \"foo\"" },
+        { "sqrt 4", "expected \"(\" after a function name" },
+        { "", "unexpected end of expression" },
+        { "1e", "expected an exponent" },
+        { "inf", "unknown name \"inf\"" },
+        { "((((((((((((((((((((((((((((((((((((((((((((((((((((((((((((((((((((1))))))))))))))))))))))"
+          "))))))))))))))))))))))))))))))))))))))))))))))",
+          "nested too deeply" },
+    };
+    for (int i = 0; i < COUNT_OF(bad_cases); ++i) {
+        double v = 0.0;
+        struct error err = { "" };
+        CHECK_MSG(!expr_eval(bad_cases[i].text, vars, 2, &v, &err), "\"%s\" evaluated", bad_cases[i].text);
+        CHECK_MSG(strstr(err.message, bad_cases[i].expect) != NULL, "\"%s\": got %s", bad_cases[i].text, err.message);
+    }
+    /* A long chain of powers recurses too; it must be bounded as well. */
+    char chain[400] = "2";
+    for (int i = 0; i < 100; ++i) strcat(chain, "^1");
+    double v;
+    struct error err;
+    CHECK(!expr_eval(chain, vars, 2, &v, &err) && strstr(err.message, "nested too deeply") != NULL);
+    CHECK(expr_is_identifier("s_L") && expr_is_identifier("_x1") && !expr_is_identifier("1x") &&
+          !expr_is_identifier("s-L") && !expr_is_identifier(""));
+    CHECK(expr_is_reserved("pi") && expr_is_reserved("sqrt") && !expr_is_reserved("s_L"));
+}
+
+/* Not named `tests`: TEST_MAIN's parameter of that name would shadow it. */
+static const struct test_case config_tests[] = {
+    { "lampshade_defaults", test_lampshade_defaults },
+    { "lampshade_sweep_override", test_lampshade_sweep_override },
+    { "overrides_apply", test_overrides_apply },
+    { "override_errors", test_override_errors },
+    { "effective_round_trip_and_hash", test_effective_round_trip_and_hash },
+    { "bad_catalogue", test_bad_catalogue },
+    { "good_catalogue", test_good_catalogue },
+    { "good_values", test_good_values },
+    { "tolerances_are_relative", test_tolerances_are_relative },
+    { "load_string_and_files", test_load_string_and_files },
+    { "expressions", test_expressions },
+};
+TEST_MAIN(config_tests)

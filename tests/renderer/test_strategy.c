@@ -1,0 +1,172 @@
+/* Light-sampling strategies: every strategy's sampled directions follow the
+   density strategy_pdf reports (chi-square), at points in every antishadow
+   region, with several lights and portals, and with defensive mixing. */
+#include "strategy_util.h"
+
+#define N_CHI2_TESTS 64
+#define SIGNIFICANCE (0.01 / N_CHI2_TESTS)
+
+static const struct rgb warm = { 40, 34, 24 };
+
+/* Lampshade geometry: light of side s_l at y = 2.6 facing down, portal of
+   side 0.3 at y = 2.2. */
+static void lampshade(struct test_scene *ts, double s_l)
+{
+    ts_init(ts);
+    int l = ts_add_light(ts, square_y(0, 2.6, 0, s_l, true), warm, false);
+    ts_add_portal(ts, l, square_y(0, 2.2, 0, 0.3, true));
+}
+
+static int aim_at(const struct test_scene *ts, struct vec3 *aim)
+{
+    int n = 0;
+    for (int i = 0; i < ts->scene.n_lights; ++i)
+        for (int k = 0; k < ts->lights[i].target.polygon.n; ++k) aim[n++] = ts->lights[i].target.polygon.v[k];
+    return n;
+}
+
+static void check_all_strategies(const struct test_scene *ts, struct vec3 p, const char *what, uint64_t seed)
+{
+    struct vec3 aim[4 * TS_MAX * 2];
+    int n_aim = aim_at(ts, aim);
+    struct vec3 up = vec3_make(0, 1, 0);
+    for (int k = 0; k < STRATEGY_COUNT; ++k) {
+        double pv;
+        char report[512];
+        bool ok = strategy_chi2_run(ts, (enum strategy_kind)k, 0.0, PORTAL_WEIGHT_IRRADIANCE, p, up, aim, n_aim,
+                                    SIGNIFICANCE, seed + (uint64_t)k, &pv, report, sizeof report);
+        CHECK_MSG(ok, "%s, strategy %s: p = %.3g: %s", what, strategy_names[k], pv, report);
+    }
+}
+
+/* Points on the floor in each region of the lampshade, for both a light
+   larger and a light smaller than the portal. */
+static void test_lampshade_regions(void)
+{
+    struct test_scene ts;
+    lampshade(&ts, 0.6); /* projected light 0.51 > 0.3: anti-antumbra below */
+    check_all_strategies(&ts, vec3_make(0, 0, 0), "s_L=0.6 below (anti-antumbra)", 100);
+    check_all_strategies(&ts, vec3_make(1.0, 0, 0.4), "s_L=0.6 penumbra", 200);
+    lampshade(&ts, 0.15); /* projected light 0.127 < 0.3: anti-umbra below */
+    check_all_strategies(&ts, vec3_make(0.1, 0, -0.1), "s_L=0.15 below (anti-umbra)", 300);
+    check_all_strategies(&ts, vec3_make(0.9, 0, 0.3), "s_L=0.15 penumbra", 400);
+}
+
+/* A pentagon light behind a tilted portal: general polygons. */
+static void test_tilted_pentagon(void)
+{
+    struct test_scene ts;
+    ts_init(&ts);
+    struct polygon penta = { 5, { { 0 } } };
+    for (int i = 0; i < 5; ++i) {
+        double a = -2.0 * M_PI * i / 5.0; /* clockwise seen from above: faces down */
+        penta.v[i] = vec3_make(0.25 * cos(a), 2.6, 0.25 * sin(a));
+    }
+    int l = ts_add_light(&ts, penta, warm, false);
+    /* Portal tilted by ~18 degrees about the x axis. */
+    struct polygon tilted = { 4, { { -0.2, 2.15, -0.2 }, { 0.2, 2.15, -0.2 }, { 0.2, 2.28, 0.2 }, { -0.2, 2.28, 0.2 } } };
+    ts_add_portal(&ts, l, tilted);
+    check_all_strategies(&ts, vec3_make(0.05, 0, 0.1), "pentagon/tilted below", 500);
+    check_all_strategies(&ts, vec3_make(0.9, 0.3, -0.5), "pentagon/tilted side", 600);
+}
+
+/* Several lights: one with two portals (two-sided light in a tube), one
+   with a portal, one without; and defensive mixing. */
+static void test_many_lights(void)
+{
+    struct test_scene ts;
+    ts_init(&ts);
+    int a = ts_add_light(&ts, square_y(0, 2.6, 0, 0.4, true), warm, true);
+    ts_add_portal(&ts, a, square_y(0, 2.3, 0, 0.3, true));
+    ts_add_portal(&ts, a, square_y(0, 2.9, 0, 0.3, true));
+    int b = ts_add_light(&ts, square_y(1.0, 2.5, 0.5, 0.3, true), rgb_make(10, 10, 10), false);
+    ts_add_portal(&ts, b, square_y(1.0, 2.3, 0.5, 0.2, true));
+    ts_add_light(&ts, square_y(-1.0, 3.0, -0.5, 0.2, true), rgb_make(5, 5, 5), false);
+    struct vec3 aim[4 * TS_MAX * 2];
+    int n_aim = aim_at(&ts, aim);
+    struct vec3 points[] = { { 0.3, 0, 0.2 }, { 0.2, 3.9, 0.1 } }; /* below, and above (top portal) */
+    struct vec3 normals[] = { { 0, 1, 0 }, { 0, -1, 0 } };
+    const enum portal_weight_kind weights[] = { PORTAL_WEIGHT_AREA, PORTAL_WEIGHT_DISTANCE, PORTAL_WEIGHT_IRRADIANCE };
+    for (int i = 0; i < 2; ++i)
+        for (int w = 0; w < 3; ++w)
+            for (int def = 0; def < 2; ++def) {
+                enum strategy_kind kinds[] = { STRATEGY_ANTISHADOW_EXACT, STRATEGY_ANTISHADOW, STRATEGY_PORTAL };
+                for (int k = 0; k < 3; ++k) {
+                    if (k > 0 && (w != 2 || i > 0)) continue;
+                    double pv;
+                    char report[512];
+                    bool ok = strategy_chi2_run(&ts, kinds[k], def ? 0.2 : 0.0, weights[w], points[i], normals[i], aim,
+                                                n_aim, SIGNIFICANCE, 700 + (uint64_t)(100 * i + 10 * w + def + 3 * k),
+                                                &pv, report, sizeof report);
+                    CHECK_MSG(ok, "point %d, %s, weight %s, defensive %d: p = %.3g: %s", i, strategy_names[kinds[k]],
+                              portal_weight_names[weights[w]], def, pv, report);
+                }
+            }
+}
+
+/* Selection by power: a light with twice the power is picked twice as often. */
+static void test_power_selection(void)
+{
+    struct test_scene ts;
+    ts_init(&ts);
+    ts_add_light(&ts, square_y(-1, 2, 0, 0.5, true), rgb_make(2, 2, 2), false);
+    ts_add_light(&ts, square_y(1, 2, 0, 0.5, true), rgb_make(4, 4, 4), false);
+    struct render_desc rd;
+    memset(&rd, 0, sizeof rd);
+    rd.strategy = STRATEGY_LIGHT;
+    struct strategy s;
+    struct strategy_scratch scratch;
+    struct error err;
+    CHECK(strategy_init(&s, &ts.scene, &rd, &err) && strategy_scratch_init(&s, &scratch, &err));
+    struct strategy_point pt;
+    strategy_prepare(&s, &scratch, vec3_make(0, 0, 0), vec3_make(0, 1, 0), &pt);
+    struct rng r;
+    rng_seed(&r, 1, 2, 3);
+    int n = 30000, second = 0;
+    for (int i = 0; i < n; ++i) {
+        double u[4] = { rng_uniform(&r), rng_uniform(&r), rng_uniform(&r), rng_uniform(&r) };
+        struct light_sample ls;
+        CHECK(strategy_sample(&s, &pt, u, &ls));
+        second += ls.light == 1;
+    }
+    /* Binomial(n, 2/3): 5 sigma. */
+    double sigma = sqrt(n * (2.0 / 3.0) * (1.0 / 3.0));
+    CHECK_NEAR(second, n * 2.0 / 3.0, 5 * sigma);
+    strategy_scratch_free(&scratch);
+    strategy_free(&s);
+}
+
+/* Outside the antishadow the antishadow strategies produce nothing (no ray
+   is traced); `portal` still tries and misses. */
+static void test_outside_returns_nothing(void)
+{
+    struct test_scene ts;
+    lampshade(&ts, 0.6);
+    struct render_desc rd;
+    memset(&rd, 0, sizeof rd);
+    struct vec3 p = vec3_make(2.9, 0, 0.5); /* beyond the penumbra (half-width 2.6 at y = 0) */
+    for (int k = STRATEGY_ANTISHADOW; k <= STRATEGY_ANTISHADOW_EXACT; ++k) {
+        rd.strategy = (enum strategy_kind)k;
+        struct strategy s;
+        struct strategy_scratch scratch;
+        struct error err;
+        CHECK(strategy_init(&s, &ts.scene, &rd, &err) && strategy_scratch_init(&s, &scratch, &err));
+        struct strategy_point pt;
+        strategy_prepare(&s, &scratch, p, vec3_make(0, 1, 0), &pt);
+        double u[4] = { 0.3, 0.4, 0.5, 0.6 };
+        struct light_sample ls;
+        CHECK(!strategy_sample(&s, &pt, u, &ls));
+        CHECK(strategy_pdf(&s, &pt, 0, vec3_normalize(vec3_sub(vec3_make(0, 2.6, 0), p))) == 0.0);
+        strategy_scratch_free(&scratch);
+        strategy_free(&s);
+    }
+}
+
+static const struct test_case tests[] = {
+    { "lampshade_regions", test_lampshade_regions },
+    { "tilted_pentagon", test_tilted_pentagon },
+    { "many_lights", test_many_lights },
+    { "power_selection", test_power_selection },
+    { "outside_returns_nothing", test_outside_returns_nothing },
+};
+TEST_MAIN(tests)
