@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -21,8 +22,10 @@ from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
 from portal_harness.metrics import Region
 from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
 from portal_harness.renderer import renderer_version
-from portal_harness.spec import INTEGRATORS, STRATEGIES
+from portal_harness.spec import INTEGRATORS, NO_SNAPSHOTS, STRATEGIES
 from portal_harness.sweep import SweepOptions, sweep
+
+REFERENCE_SPP = 1024
 
 
 def _common() -> argparse.ArgumentParser:
@@ -143,31 +146,35 @@ def _parse_sets(sets: list[str], flag: str = "--set") -> dict[str, str]:
 
 class _RunProgress:
     """Live bar of one render: render time (or spp) against the target, with
-    spp and the current snapshot as postfix."""
+    spp and the current snapshot as postfix. Created on the renderer's start
+    event, so a cached run shows no bar."""
 
     def __init__(self, time_s: float, spp: int, enabled: bool = True) -> None:
         self.by_time = time_s > 0
-        total = time_s if self.by_time else float(spp)
-        self.bar = tqdm(total=total, unit="s" if self.by_time else "spp", disable=not enabled, file=sys.stderr,
-                        bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}{postfix}]",
-                        dynamic_ncols=True)
+        self.total = time_s if self.by_time else float(spp)
+        self.enabled = enabled
+        self.bar: tqdm | None = None
 
     def __call__(self, event: dict[str, Any]) -> None:
         kind = event.get("event")
         if kind == "start":
+            self.bar = tqdm(total=self.total, unit="s" if self.by_time else "spp", disable=not self.enabled,
+                            file=sys.stderr, dynamic_ncols=True,
+                            bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}{postfix}]")
             self.bar.set_description(f"{event.get('strategy')} {event.get('width')}x{event.get('height')}")
             return
-        if kind not in ("snapshot", "final"):
+        if kind not in ("snapshot", "final") or self.bar is None:
             return
         value = float(event.get("time_s", 0.0)) if self.by_time else float(event.get("spp", 0))
-        self.bar.n = min(value, self.bar.total) if kind == "snapshot" else self.bar.total
+        self.bar.n = min(value, self.total) if kind == "snapshot" else self.total
         snap = f"snapshot {event.get('index')}" if kind == "snapshot" else "final"
         self.bar.set_postfix_str(f"t={float(event.get('time_s', 0)):.2f}s spp={event.get('spp')} {snap}",
                                  refresh=False)
         self.bar.refresh()
 
     def close(self) -> None:
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()
 
 
 def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
@@ -176,17 +183,20 @@ def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
     if not reference and args.snapshot_every is not None:
         snapshots = {"every": str(args.snapshot_every)}
     if reference:
-        snapshots = {"every": "0", "doubling": "0", "every_spp": "0"}
+        snapshots = dict(NO_SNAPSHOTS)
+    spp, time_s = args.spp, args.time
+    if reference:
+        # A reference has exactly the limits asked for: 1024 spp unless told otherwise.
+        spp = spp if spp is not None else (0 if time_s else REFERENCE_SPP)
+        time_s = time_s if time_s is not None else 0.0
     spec = spec_from_scene(
-        args.config, overrides, strategy=args.strategy, integrator=args.integrator,
-        spp=args.spp if args.spp is not None else (1024 if reference and args.time is None else None),
-        time_s=args.time if args.time is not None else (0.0 if reference else None), seed=args.seed,
-        threads=args.threads, snapshots=snapshots, reference=reference,
+        args.config, overrides, strategy=args.strategy, integrator=args.integrator, spp=spp, time_s=time_s,
+        seed=args.seed, threads=args.threads, snapshots=snapshots, reference=reference,
     )
     layout = _layout(args)
     renderer, version = _renderer(args)
     key = spec.key(version)
-    progress = _RunProgress(spec.time_s, spec.spp, enabled=sys.stderr.isatty() or not reference)
+    progress = _RunProgress(spec.time_s, spec.spp)
     try:
         manifest = runs.execute(spec, layout, renderer, version, on_event=progress, force=args.force)
     finally:
@@ -396,3 +406,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"portal-harness {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader of our stdout went away (e.g. `| head`): not an error.
+        sys.stdout = open(os.devnull, "w")
+        return 0

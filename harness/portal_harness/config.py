@@ -20,6 +20,7 @@ from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
     INTEGRATORS,
+    NO_SNAPSHOTS,
     SNAPSHOT_KEYS,
     STRATEGIES,
     Overrides,
@@ -161,6 +162,7 @@ class Experiment:
             seed=seed,
             threads=self.budget.threads if self.budget else 1,
             overrides=self._overrides(point),
+            snapshots=NO_SNAPSHOTS,
             labels=self._labels(point),
         )
 
@@ -181,7 +183,7 @@ class Experiment:
             seed=r.seed,
             threads=r.threads,
             overrides=self._overrides(point),
-            snapshots=tuple((k, "0") for k in SNAPSHOT_KEYS),
+            snapshots=NO_SNAPSHOTS,
             reference=True,
             labels=self._labels(point),
         )
@@ -411,8 +413,8 @@ def load_experiment(path: Path | str) -> Experiment:
             raise r.fail("budget", "expected time_s > 0 or spp > 0 (a run needs a limit)")
         snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
         snapshots = tuple(
-            (k, format_value(r.integer(v, f"budget.snapshots.{k}") if k == "every_spp"
-                             else r.number(v, f"budget.snapshots.{k}")))
+            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if k == "every_spp"
+                             else r.number(v, f"budget.snapshots.{k}", positive=True)))
             for k, v in sorted(snaps_node.items())
         )
         budget = Budget(time_s=time_s, spp=spp, threads=parse_threads(b.get("threads", 1), r, "budget.threads"),

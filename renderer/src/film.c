@@ -213,6 +213,30 @@ static bool exr_fail(struct error *err, const char *path, const char *call, exr_
     return error_set(err, "%s: %s: %s", path, call, exr_get_default_error_message(rc));
 }
 
+/* OpenEXRCore 3.1.5 keeps zlib's output when it is exactly as long as the
+   raw chunk, but every reader takes a chunk whose packed size equals its
+   raw size to be stored uncompressed, so such a chunk reads back as garbage
+   (upstream issue AcademySoftwareFoundation/openexr#2306, fixed in 3.4).
+   Noisy float rows hit this every few dozen chunks. This wrapper around the
+   library's compressor stores the raw bytes in that case, as the format
+   requires for chunks that do not shrink. */
+struct compress_hook {
+    exr_result_t (*inner)(exr_encode_pipeline_t *enc);
+};
+
+static exr_result_t compress_unambiguous(exr_encode_pipeline_t *enc)
+{
+    const struct compress_hook *hook = enc->encoding_user_data;
+    exr_result_t rc = hook->inner(enc);
+    if (rc == EXR_ERR_SUCCESS && enc->compressed_bytes >= enc->packed_bytes &&
+        enc->compressed_buffer != enc->packed_buffer) {
+        if (enc->compressed_alloc_size < enc->packed_bytes) return EXR_ERR_OUT_OF_MEMORY;
+        memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+        enc->compressed_bytes = enc->packed_bytes;
+    }
+    return rc;
+}
+
 /* Header definition and pixel chunks, into an open context. */
 static bool write_exr_content(exr_context_t ctx, const char *path, const struct film_image *img,
                               const struct snapshot_info *info, struct exr_stream *s,
@@ -252,6 +276,7 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
     if ((rc = exr_get_scanlines_per_chunk(ctx, part, &lines)))
         return exr_fail(err, path, "exr_get_scanlines_per_chunk", rc, s);
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    struct compress_hook hook = { NULL };
     bool ok = true;
     size_t row = 3 * (size_t)img->width;
     for (int y = 0; ok && y < img->height; y += lines) {
@@ -279,7 +304,12 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
                 ch->user_data_type = EXR_PIXEL_FLOAT;
             }
             call = "exr_encoding_choose_default_routines";
-            rc = y == 0 ? exr_encoding_choose_default_routines(ctx, part, &enc) : EXR_ERR_SUCCESS;
+            if (y == 0 && !(rc = exr_encoding_choose_default_routines(ctx, part, &enc)) &&
+                enc.compress_fn) {
+                hook.inner = enc.compress_fn;
+                enc.compress_fn = compress_unambiguous;
+                enc.encoding_user_data = &hook;
+            }
         }
         if (!rc) {
             call = "exr_encoding_run";

@@ -37,7 +37,7 @@ static double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
 /* Next-event estimation at a surface point: one strategy sample, one shadow
    ray, weighted against BSDF sampling. */
 static struct rgb sample_direct(const struct integrator *it, const struct strategy_point *sp, const struct material *m,
-                                const struct frame *fr, struct vec3 wo_local, struct vec3 origin, struct rng *rng,
+                                const struct frame *fr, struct vec3 wo_local, struct rng *rng,
                                 struct integrator_stats *stats)
 {
     struct rgb black = rgb_make(0.0, 0.0, 0.0);
@@ -56,12 +56,65 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
     if (rgb_is_black(f)) return black;
     ++stats->rays;
     ++stats->shadow_rays;
+    struct vec3 origin = scene_offset_origin(it->scene, sp->p, sp->n, ls.wi);
     if (scene_segment_occluded(it->scene, origin, vec3_madd(sp->p, ls.wi, ls.dist))) {
         ++stats->shadow_blocked;
         return black;
     }
     double w = it->mis == MIS_NONE ? 1.0 : mis_weight(it->mis, ls.pdf_sa, bsdf_pdf(m, wo_local, wi_local));
     return rgb_scale(rgb_mul(f, ls.radiance), wi_local.z * w / ls.pdf_sa);
+}
+
+/* The shading context of a surface hit: side, frame, ray origin. */
+struct vertex {
+    const struct material *m;
+    struct vec3 n;           /* geometric normal on the side of wo */
+    struct frame frame;
+    struct vec3 wo_local;
+    struct vec3 p;           /* the surface point */
+};
+
+static bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
+                        struct vertex *v)
+{
+    v->m = &sc->materials[material];
+    /* Two-sided surfaces: shade the side wo leaves from. */
+    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
+    v->frame = frame_from_normal(v->n);
+    v->wo_local = frame_to_local(&v->frame, wo);
+    v->p = p;
+    return v->wo_local.z > 0.0;
+}
+
+/* Emission found by a BSDF-sampled ray, weighted against the strategy. */
+static struct rgb bsdf_hit_light(const struct integrator *it, const struct strategy_point *sp, const struct hit *h,
+                                 struct vec3 d, double bsdf_pdf_value)
+{
+    struct rgb le = light_emitted(&it->scene->lights[h->light], vec3_neg(d));
+    if (it->mis == MIS_NONE || rgb_is_black(le)) return rgb_make(0.0, 0.0, 0.0);
+    double pdf_light = strategy_pdf(it->strategy, sp, h->light, d);
+    return rgb_scale(le, mis_weight(it->mis, bsdf_pdf_value, pdf_light));
+}
+
+struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
+                                struct vec3 ng, int material, struct vec3 wo, struct rng *rng,
+                                struct integrator_stats *stats)
+{
+    struct rgb L = rgb_make(0.0, 0.0, 0.0);
+    struct vertex v;
+    if (!vertex_init(it->scene, p, ng, material, wo, &v)) return L;
+    struct strategy_point sp;
+    strategy_prepare(it->strategy, scratch, p, v.n, &sp);
+    L = sample_direct(it, &sp, v.m, &v.frame, v.wo_local, rng, stats);
+    if (it->mis == MIS_NONE) return L;
+    struct bsdf_sample bs;
+    if (!bsdf_sample(v.m, v.wo_local, rng_uniform(rng), rng_uniform(rng), &bs)) return L;
+    struct vec3 d = frame_to_world(&v.frame, bs.wi);
+    struct hit h;
+    ++stats->rays;
+    if (scene_intersect(it->scene, scene_offset_origin(it->scene, p, v.n, d), d, INFINITY, &h) && h.light >= 0)
+        L = rgb_add(L, rgb_mul(rgb_scale(bs.f, bs.wi.z / bs.pdf), bsdf_hit_light(it, &sp, &h, d, bs.pdf)));
+    return L;
 }
 
 struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
@@ -77,45 +130,34 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
         struct hit h;
         ++stats->rays;
         if (!scene_intersect(sc, ray_o, ray_d, INFINITY, &h)) break;
-
         if (h.light >= 0) {
             /* Lights emit and reflect nothing. Seen directly: full weight;
                reached by BSDF sampling: weighted against the strategy. */
-            struct rgb le = light_emitted(&sc->lights[h.light], vec3_neg(ray_d));
-            if (depth == 0) {
-                L = rgb_add(L, rgb_mul(beta, le));
-            } else if (it->mis != MIS_NONE && !rgb_is_black(le)) {
-                double pdf_light = strategy_pdf(it->strategy, &sp, h.light, ray_d);
-                double w = mis_weight(it->mis, bsdf_pdf_prev, pdf_light);
-                L = rgb_add(L, rgb_scale(rgb_mul(beta, le), w));
-            }
+            if (depth == 0) L = rgb_add(L, light_emitted(&sc->lights[h.light], vec3_neg(ray_d)));
+            else L = rgb_add(L, rgb_mul(beta, bsdf_hit_light(it, &sp, &h, ray_d, bsdf_pdf_prev)));
             break;
         }
         if (depth >= it->max_depth) break;
+        if (it->kind == INTEGRATOR_DIRECT) {
+            L = rgb_add(L, integrator_direct_at(it, scratch, h.p, h.ng, h.material, vec3_neg(ray_d), rng, stats));
+            break;
+        }
 
-        const struct material *m = &sc->materials[h.material];
-        /* Two-sided surfaces: shade the side the ray arrives from. */
-        struct vec3 n = vec3_dot(h.ng, ray_d) < 0.0 ? h.ng : vec3_neg(h.ng);
-        struct frame fr = frame_from_normal(n);
-        struct vec3 wo_local = frame_to_local(&fr, vec3_neg(ray_d));
-        if (wo_local.z <= 0.0) break;
-        struct vec3 origin = scene_offset_origin(sc, h.p, n, n);
+        struct vertex v;
+        if (!vertex_init(sc, h.p, h.ng, h.material, vec3_neg(ray_d), &v)) break;
+        strategy_prepare(it->strategy, scratch, h.p, v.n, &sp);
+        L = rgb_add(L, rgb_mul(beta, sample_direct(it, &sp, v.m, &v.frame, v.wo_local, rng, stats)));
 
-        strategy_prepare(it->strategy, scratch, h.p, n, &sp);
-        L = rgb_add(L, rgb_mul(beta, sample_direct(it, &sp, m, &fr, wo_local, origin, rng, stats)));
-
-        /* Continue by BSDF sampling: this direction also gathers direct light
-           (MIS) at the next vertex. Without MIS, direct light comes from the
-           strategy alone, so the path still continues for indirect light. */
-        if (it->kind == INTEGRATOR_DIRECT && it->mis == MIS_NONE) break;
+        /* Continue by BSDF sampling; the same direction gathers direct light
+           at the next vertex, weighted by MIS (or not at all without MIS). */
         struct bsdf_sample bs;
-        if (!bsdf_sample(m, wo_local, rng_uniform(rng), rng_uniform(rng), &bs)) break;
+        if (!bsdf_sample(v.m, v.wo_local, rng_uniform(rng), rng_uniform(rng), &bs)) break;
         beta = rgb_mul(beta, rgb_scale(bs.f, bs.wi.z / bs.pdf));
         bsdf_pdf_prev = bs.pdf;
-        ray_d = frame_to_world(&fr, bs.wi);
-        ray_o = origin;
+        ray_d = frame_to_world(&v.frame, bs.wi);
+        ray_o = scene_offset_origin(sc, v.p, v.n, ray_d);
 
-        if (depth + 1 >= it->rr_depth && it->kind == INTEGRATOR_PATH) {
+        if (depth + 1 >= it->rr_depth) {
             double q = fmax(0.05, 1.0 - rgb_max(beta));
             if (rng_uniform(rng) < q) break;
             beta = rgb_scale(beta, 1.0 / (1.0 - q));

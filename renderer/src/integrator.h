@@ -33,6 +33,14 @@ struct integrator {
 void integrator_init(struct integrator *it, const struct render_desc *rd, const struct scene *scene,
                      const struct strategy *strategy);
 
+/* One sample of the radiance that direct lighting reflects towards wo from
+   surface point p (geometric normal ng, either side), material m: next-event
+   estimation plus BSDF sampling, combined by MIS. This is the `direct`
+   integrator's estimator at its first hit. */
+struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
+                                struct vec3 ng, int material, struct vec3 wo, struct rng *rng,
+                                struct integrator_stats *stats);
+
 /* Radiance arriving at the camera along o + t d (d unit). */
 struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
                                struct vec3 d, struct rng *rng, struct integrator_stats *stats);

@@ -63,9 +63,9 @@ bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double 
    is pulled back by SCENE_SHADOW_EPS so the light it lies on does not count). */
 bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to);
 
-/* Origin for a ray leaving surface point p with geometric normal ng towards
-   d: pushed off the surface on d's side, scaled to the scene, so it does not
-   re-hit the surface it starts on. */
+/* Origin for a ray leaving surface point p (geometric normal ng) along the
+   unit direction d: moved along d itself until it clears the surface, so the
+   ray stays on the line that was sampled and does not re-hit its surface. */
 struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d);
 /* Relative shortening of shadow segments, well above float ray precision. */
 #define SCENE_SHADOW_EPS 1e-4

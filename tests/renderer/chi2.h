@@ -16,17 +16,22 @@
    fitted to it. Two more cells: every direction outside the cap, and the
    sampler's failures (it returned false).
 
-   Expected counts. N times the integral of the pdf over each bin, computed
-   by an adaptive midpoint rule in (1 - cos(theta), phi), where the measure is
-   exactly d(omega) = d(1 - cos theta) d(phi): a cell is evaluated on a 4x4
-   grid and split in 2x2 while its values differ by more than 1% and the
-   depth is below cfg.max_depth. For pdfs that are piecewise constant (uniform
-   solid-angle samplers) this resolves a shape's outline to 1/(4 * 2^depth) of
-   a bin; a feature smaller than the 4x4 grid of a bin (a corner poking into
-   it) can be missed, which biases that bin's expectation slightly. The
-   outside region (1 - cos theta in [1 - cos(cap), 2]) is integrated the same
-   way on 8 x 16 cells. The expected failure count is N (1 - integral of the
-   pdf over the sphere): a sampler may fail exactly as often as its pdf is
+   Expected counts. N times the integral of the pdf over each bin. Each bin
+   is split into sub x sub cells uniform in theta and phi (so that cells stay
+   compact near the axis), each cell's exact solid angle times its pdf. A
+   cell is checked on its 3 x 3 lattice of corners, edge midpoints and centre:
+   when the centre value times the area disagrees by more than 0.1% with the
+   sum over its four quarters of the mean of their corners, the cell is split
+   in 2 x 2, recursively down to max_depth levels, where that quarter-corner
+   estimate is kept. Cells next to a split cell are split once too, which
+   catches a shape's corner poking into a cell between lattice points. With
+   the defaults (8 x 8 cells, depth 3) a shape's outline is resolved to 1/64
+   of a bin: the bias of a bin on the outline is ~0.1/64 of its mass, far
+   below the statistical error; a piece of the pdf narrower than 1/8 of a bin
+   that misses every lattice point is lost (fit the cap, or raise sub, for
+   slivers). The region outside the cap is integrated the same way on 8 x 16
+   bins uniform in theta. The expected failure count is N (1 - integral of
+   the pdf over the sphere): a sampler may fail exactly as often as its pdf is
    defective. An integral above 1 + CHI2_NORM_TOL fails the test outright.
 
    Statistic. Cells with expected counts below 5 are pooled, smallest first,
@@ -64,14 +69,16 @@ struct chi2_config {
     long samples;
     uint64_t seed;
     double significance; /* reject when p < significance */
-    int max_depth;       /* adaptive integration depth per bin */
+    int sub;             /* integration cells per bin side */
+    int max_depth;       /* adaptive splits of a cell */
 };
 
 #define CHI2_NORM_TOL 1e-3
 #define CHI2_MIN_EXPECTED 5.0
+#define CHI2_MAX_RINGS 1024
 
 /* Defaults: 20 x 40 bins, 200000 samples, seed 1, significance 0.01,
-   depth 5. */
+   8 x 8 integration cells per bin, depth 3. */
 static inline void chi2_config_init(struct chi2_config *cfg, struct vec3 axis, double cap_angle)
 {
     cfg->frame = frame_from_normal(vec3_normalize(axis));
@@ -81,7 +88,8 @@ static inline void chi2_config_init(struct chi2_config *cfg, struct vec3 axis, d
     cfg->samples = 200000;
     cfg->seed = 1;
     cfg->significance = 0.01;
-    cfg->max_depth = 5;
+    cfg->sub = 8;
+    cfg->max_depth = 3;
 }
 
 /* Fits the cap to a convex spherical shape given by its n unit vertex
@@ -153,30 +161,95 @@ static inline int chi2_cell_compare_(const void *pa, const void *pb)
     return (a > b) - (a < b);
 }
 
-/* Integral of the pdf over t = 1 - cos(theta) in [t0, t1], phi in [p0, p1]. */
-static inline double chi2_integrate_(const struct chi2_config *cfg, chi2_pdf_fn pdf, void *ctx, double t0,
-                                     double t1, double p0, double p1, int depth)
+struct chi2_integrand_ {
+    const struct chi2_config *cfg;
+    chi2_pdf_fn pdf;
+    void *ctx;
+};
+
+static inline double chi2_pdf_at_(const struct chi2_integrand_ *f, double theta, double phi)
 {
-    double f[16], lo = INFINITY, hi = -INFINITY, sum = 0.0;
-    for (int i = 0; i < 4; ++i) {
-        double t = t0 + (t1 - t0) * (i + 0.5) / 4.0;
-        double s = sqrt(fmax(0.0, t * (2.0 - t)));
-        for (int j = 0; j < 4; ++j) {
-            double phi = p0 + (p1 - p0) * (j + 0.5) / 4.0;
-            struct vec3 local = vec3_make(s * cos(phi), s * sin(phi), 1.0 - t);
-            double v = pdf(ctx, frame_to_world(&cfg->frame, local));
-            f[4 * i + j] = v;
-            lo = fmin(lo, v);
-            hi = fmax(hi, v);
-            sum += v;
+    double st = sin(theta);
+    struct vec3 local = vec3_make(st * cos(phi), st * sin(phi), cos(theta));
+    return f->pdf(f->ctx, frame_to_world(&f->cfg->frame, local));
+}
+
+/* Solid angle of theta in [th0, th1], phi in [ph0, ph1]:
+   (cos th0 - cos th1) (ph1 - ph0), the difference of cosines written as a
+   product so that it keeps its precision in tiny caps. */
+static inline double chi2_cell_area_(double th0, double th1, double ph0, double ph1)
+{
+    return 2.0 * sin(0.5 * (th0 + th1)) * sin(0.5 * (th1 - th0)) * (ph1 - ph0);
+}
+
+/* Integral of the pdf over one cell (see the top of this file). *split
+   reports whether the cell was subdivided; force subdivides it regardless. */
+static inline double chi2_cell_(const struct chi2_integrand_ *f, double th0, double th1, double ph0, double ph1,
+                                int depth, bool force, bool *split)
+{
+    double th[3] = { th0, 0.5 * (th0 + th1), th1 }, ph[3] = { ph0, 0.5 * (ph0 + ph1), ph1 };
+    double v[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) v[i][j] = chi2_pdf_at_(f, th[i], ph[j]);
+    double coarse = v[1][1] * chi2_cell_area_(th0, th1, ph0, ph1), fine = 0.0;
+    for (int i = 0; i < 2; ++i)
+        for (int j = 0; j < 2; ++j)
+            fine += 0.25 * (v[i][j] + v[i + 1][j] + v[i][j + 1] + v[i + 1][j + 1]) *
+                    chi2_cell_area_(th[i], th[i + 1], ph[j], ph[j + 1]);
+    *split = false;
+    if (!force && fabs(coarse - fine) <= 1e-3 * fmax(fabs(coarse), fabs(fine))) return fine;
+    if (depth >= f->cfg->max_depth) return fine;
+    *split = true;
+    double sum = 0.0;
+    bool ignored;
+    for (int i = 0; i < 2; ++i)
+        for (int j = 0; j < 2; ++j) sum += chi2_cell_(f, th[i], th[i + 1], ph[j], ph[j + 1], depth + 1, false, &ignored);
+    return sum;
+}
+
+/* Masses of the nr x ns bins between the theta boundaries theta[0..nr] and
+   ns equal phi sectors: sub x sub cells per bin, then a second pass splits
+   the unsplit neighbours (8-neighbourhood, phi wrapping) of split cells. */
+static inline bool chi2_masses_(const struct chi2_integrand_ *f, const double *theta, int nr, int ns, double *mass)
+{
+    int sub = f->cfg->sub, rows = nr * sub, cols = ns * sub;
+    double *val = malloc((size_t)rows * (size_t)cols * sizeof *val);
+    unsigned char *split = calloc((size_t)rows * (size_t)cols, 1);
+    if (!val || !split) {
+        free(val);
+        free(split);
+        return false;
+    }
+    for (int pass = 0; pass < 2; ++pass) {
+        for (int r = 0; r < rows; ++r) {
+            int ring = r / sub, k = r % sub;
+            double th0 = theta[ring] + (theta[ring + 1] - theta[ring]) * k / sub;
+            double th1 = theta[ring] + (theta[ring + 1] - theta[ring]) * (k + 1) / sub;
+            for (int c = 0; c < cols; ++c) {
+                size_t at = (size_t)r * (size_t)cols + (size_t)c;
+                bool force = false;
+                if (pass == 1) {
+                    if (split[at]) continue;
+                    for (int dr = -1; dr <= 1 && !force; ++dr)
+                        for (int dc = -1; dc <= 1 && !force; ++dc) {
+                            int rr = r + dr, cc = (c + dc + cols) % cols;
+                            if (rr >= 0 && rr < rows && split[(size_t)rr * (size_t)cols + (size_t)cc] == 1) force = true;
+                        }
+                    if (!force) continue;
+                }
+                bool did = false;
+                val[at] = chi2_cell_(f, th0, th1, 2.0 * M_PI * c / cols, 2.0 * M_PI * (c + 1) / cols, 0, force, &did);
+                /* 2 marks cells split in the second pass: they do not spread. */
+                if (did) split[at] = (unsigned char)(pass == 0 ? 1 : 2);
+            }
         }
     }
-    if (depth >= cfg->max_depth || hi - lo <= 0.01 * fabs(hi)) return sum / 16.0 * (t1 - t0) * (p1 - p0);
-    double tm = 0.5 * (t0 + t1), pm = 0.5 * (p0 + p1);
-    return chi2_integrate_(cfg, pdf, ctx, t0, tm, p0, pm, depth + 1) +
-           chi2_integrate_(cfg, pdf, ctx, t0, tm, pm, p1, depth + 1) +
-           chi2_integrate_(cfg, pdf, ctx, tm, t1, p0, pm, depth + 1) +
-           chi2_integrate_(cfg, pdf, ctx, tm, t1, pm, p1, depth + 1);
+    for (int b = 0; b < nr * ns; ++b) mass[b] = 0.0;
+    for (int r = 0; r < rows; ++r)
+        for (int c = 0; c < cols; ++c) mass[(r / sub) * ns + c / sub] += val[(size_t)r * (size_t)cols + (size_t)c];
+    free(val);
+    free(split);
+    return true;
 }
 
 /* Runs the test (see the top of this file). *p_value receives p (0 when the
@@ -188,7 +261,8 @@ static inline bool chi2_test(const struct chi2_config *cfg, chi2_sample_fn sampl
     int nt = cfg->theta_bins, np = cfg->phi_bins, nbins = nt * np;
     double cap_t = 2.0 * pow(sin(0.5 * cfg->cap_angle), 2.0); /* 1 - cos(cap) */
     *p_value = 0.0;
-    if (nt < 1 || np < 1 || cfg->samples < 1 || !(cfg->cap_angle > 0.0) || !(cfg->cap_angle <= M_PI)) {
+    if (nt < 1 || nt > CHI2_MAX_RINGS || np < 1 || cfg->sub < 1 || cfg->max_depth < 0 || cfg->samples < 1 ||
+        !(cfg->cap_angle > 0.0) || !(cfg->cap_angle <= M_PI)) {
         if (report && report_len) snprintf(report, report_len, "chi2: invalid configuration");
         return false;
     }
@@ -198,23 +272,32 @@ static inline bool chi2_test(const struct chi2_config *cfg, chi2_sample_fn sampl
         return false;
     }
 
-    /* Expected probabilities. */
+    /* Expected probabilities: the cap's rings are equal in 1 - cos(theta),
+       i.e. theta_i = 2 asin(sqrt(t_i / 2)); outside, 8 rings uniform in
+       theta by 16 sectors. */
+    struct chi2_integrand_ f = { cfg, pdf, ctx };
+    double theta[CHI2_MAX_RINGS + 1], out_theta[9], out_bins[8 * 16];
+    for (int i = 0; i <= nt; ++i) theta[i] = 2.0 * asin(sqrt(0.5 * cap_t * i / nt));
+    theta[nt] = cfg->cap_angle;
+    double *bins = malloc((size_t)nbins * sizeof *bins);
+    bool ok_alloc = bins && chi2_masses_(&f, theta, nt, np, bins);
     double cap_mass = 0.0, out_mass = 0.0;
-    for (int i = 0; i < nt; ++i) {
-        for (int j = 0; j < np; ++j) {
-            double m = chi2_integrate_(cfg, pdf, ctx, cap_t * i / nt, cap_t * (i + 1) / nt, 2.0 * M_PI * j / np,
-                                       2.0 * M_PI * (j + 1) / np, 0);
-            cells[i * np + j].expected = m;
-            cap_mass += m;
-        }
+    if (ok_alloc && cfg->cap_angle < M_PI) {
+        for (int i = 0; i <= 8; ++i) out_theta[i] = cfg->cap_angle + (M_PI - cfg->cap_angle) * i / 8.0;
+        ok_alloc = chi2_masses_(&f, out_theta, 8, 16, out_bins);
+        for (int b = 0; ok_alloc && b < 8 * 16; ++b) out_mass += out_bins[b];
     }
-    if (cap_t < 2.0) {
-        for (int i = 0; i < 8; ++i)
-            for (int j = 0; j < 16; ++j)
-                out_mass += chi2_integrate_(cfg, pdf, ctx, cap_t + (2.0 - cap_t) * i / 8.0,
-                                            cap_t + (2.0 - cap_t) * (i + 1) / 8.0, 2.0 * M_PI * j / 16.0,
-                                            2.0 * M_PI * (j + 1) / 16.0, 0);
+    if (!ok_alloc) {
+        free(bins);
+        free(cells);
+        if (report && report_len) snprintf(report, report_len, "chi2: out of memory");
+        return false;
     }
+    for (int b = 0; b < nbins; ++b) {
+        cells[b].expected = bins[b];
+        cap_mass += bins[b];
+    }
+    free(bins);
     double total = cap_mass + out_mass;
     cells[nbins].expected = out_mass;
     cells[nbins + 1].expected = fmax(0.0, 1.0 - total);

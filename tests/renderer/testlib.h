@@ -44,7 +44,7 @@ extern int test_failures_; /* failures within the running test */
         }                                                                                  \
     } while (0)
 
-int test_main(const struct test_case *tests, int n, int argc, char **argv);
+int test_main(const struct test_case *cases, int n, int argc, char **argv);
 
 #define TEST_MAIN(table)                                                          \
     int test_failures_ = 0;                                                        \
@@ -52,19 +52,19 @@ int test_main(const struct test_case *tests, int n, int argc, char **argv);
     {                                                                              \
         return test_main(table, (int)(sizeof(table) / sizeof((table)[0])), argc, argv); \
     }                                                                              \
-    int test_main(const struct test_case *tests, int n, int argc, char **argv)      \
+    int test_main(const struct test_case *cases, int n, int argc, char **argv)      \
     {                                                                              \
         int passed = 0, failed = 0;                                                \
         for (int i = 0; i < n; ++i) {                                              \
-            if (argc > 1 && !strstr(tests[i].name, argv[1])) continue;             \
+            if (argc > 1 && !strstr(cases[i].name, argv[1])) continue;             \
             test_failures_ = 0;                                                    \
-            tests[i].run();                                                        \
+            cases[i].run();                                                        \
             if (test_failures_) {                                                  \
                 ++failed;                                                          \
-                printf("FAIL %s\n", tests[i].name);                                \
+                printf("FAIL %s\n", cases[i].name);                                \
             } else {                                                               \
                 ++passed;                                                          \
-                printf("ok   %s\n", tests[i].name);                                \
+                printf("ok   %s\n", cases[i].name);                                \
             }                                                                      \
             fflush(stdout);                                                        \
         }                                                                          \

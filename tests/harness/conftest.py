@@ -1,0 +1,141 @@
+"""Shared, seeded fixtures of the harness tests.
+
+Most tests drive the harness with tests/harness/fake_render.py (the renderer
+contract in milliseconds); tests marked `real` use renderer/build/render at a
+tiny resolution and are skipped until it exists.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pytest
+import yaml
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent.parent
+REAL_RENDERER = REPO / "renderer" / "build" / "render"
+sys.path.insert(0, str(HERE))
+
+from exrwrite import write_snapshot  # noqa: E402
+
+SEED = 20240611
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "real: needs the real renderer (renderer/build/render)")
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(SEED)
+
+
+@pytest.fixture
+def write_exr() -> Callable[..., None]:
+    return write_snapshot
+
+
+@pytest.fixture(scope="session")
+def fake_renderer(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An executable that runs fake_render.py with this interpreter."""
+    folder = tmp_path_factory.mktemp("fake-renderer")
+    path = folder / "render"
+    path.write_text(f'#!/bin/sh\nexec "{sys.executable}" "{HERE / "fake_render.py"}" "$@"\n')
+    path.chmod(path.stat().st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
+    return path
+
+
+@pytest.fixture
+def render_log(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Callable[[], list[str]]:
+    """Makes the fake renderer log each render; returns a reader of the log."""
+    log = tmp_path / "renders.log"
+    monkeypatch.setenv("FAKE_RENDER_LOG", str(log))
+    for name in ("FAKE_RENDER_CRASH", "FAKE_RENDER_UNIMPLEMENTED", "FAKE_RENDER_SLEEP"):
+        monkeypatch.delenv(name, raising=False)
+
+    def read() -> list[str]:
+        return log.read_text().splitlines() if log.exists() else []
+
+    return read
+
+
+@pytest.fixture
+def results(tmp_path: Path) -> Path:
+    return tmp_path / "results"
+
+
+@pytest.fixture
+def fake_scene(tmp_path: Path) -> Path:
+    """A scene file the fake renderer understands (16x16)."""
+    path = tmp_path / "scenes" / "tiny.yaml"
+    path.parent.mkdir(parents=True)
+    path.write_text(yaml.safe_dump({
+        "params": {"s_L": 0.6, "s_P": 0.3},
+        "film": {"width": 16, "height": 16},
+        "render": {"integrator": "direct", "strategy": "light", "spp": 16, "seed": 1, "threads": 1,
+                   "snapshots": {"every": 0.5}, "output": "unused"},
+    }))
+    return path
+
+
+@pytest.fixture
+def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
+    """Writes an experiment file next to the fake scene; keyword arguments
+    replace top-level sections of a small default."""
+
+    def write(name: str = "tiny", **sections: Any) -> Path:
+        doc: dict[str, Any] = {
+            "name": name,
+            "scene": "../scenes/tiny.yaml",
+            "integrator": "direct",
+            "strategies": ["light", "portal"],
+            "sweep": {"params.s_L": [0.15, 0.6]},
+            "fixed": {"params.s_P": 0.3},
+            "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
+            "reference": {"strategy": "light", "spp": 400, "seed": 99},
+            "insets": [{"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
+                       {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5}],
+            "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
+        }
+        for key, value in sections.items():
+            if value is None:
+                doc.pop(key, None)
+            else:
+                doc[key] = value
+        path = tmp_path / "experiments" / f"{name}.yaml"
+        path.parent.mkdir(exist_ok=True)
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        return path
+
+    return write
+
+
+@pytest.fixture(scope="session")
+def real_renderer() -> Path:
+    if not (REAL_RENDERER.is_file() and os.access(REAL_RENDERER, os.X_OK)):
+        pytest.skip("renderer/build/render not built yet")
+    return REAL_RENDERER
+
+
+@pytest.fixture
+def cli(results: Path, fake_renderer: Path, capsys: pytest.CaptureFixture[str]) -> Callable[..., tuple[int, str, str]]:
+    """Runs `portal-harness ARGS --results <tmp> --renderer <fake>` in-process;
+    returns (status, stdout, stderr)."""
+    from portal_harness.cli import main
+
+    def run(*args: str, renderer: Path | None = None) -> tuple[int, str, str]:
+        argv = [*args, "--results", str(results), "--renderer", str(renderer or fake_renderer)]
+        if args and args[0] in ("query", "reindex", "figures", "metrics"):
+            argv = [*args, "--results", str(results)]
+        capsys.readouterr()
+        status = main(argv)
+        out, err = capsys.readouterr()
+        return status, out, err
+
+    return run

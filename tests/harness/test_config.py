@@ -1,0 +1,92 @@
+"""Experiment configs: a good one expands as documented; every bad one fails
+before any render with the file and the key in the message."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+import pytest
+
+from portal_harness.config import load_experiment, spec_from_scene
+from portal_harness.errors import ConfigError
+
+REPO = Path(__file__).resolve().parent.parent.parent
+
+
+def test_01_expands_the_cross_product(write_experiment: Callable[..., Path]) -> None:
+    path = write_experiment(sweep={"params.s_L": [0.15, 0.6], "params.s_P": [0.3, 0.6]},
+                            fixed={"film.width": 16}, axis={"param": "params.s_L", "divide_by": "params.s_P"})
+    exp = load_experiment(path)
+    points = exp.points()
+    assert [p.id for p in points] == ["s_L=0.15,s_P=0.3", "s_L=0.15,s_P=0.6", "s_L=0.6,s_P=0.3", "s_L=0.6,s_P=0.6"]
+    assert [p.axis_value for p in points] == pytest.approx([0.5, 0.25, 2.0, 1.0])
+    spec = exp.run_spec(points[0], "portal")
+    assert dict(spec.overrides) == {"film.width": "16", "params.s_L": "0.15", "params.s_P": "0.3"}
+    assert spec.time_s == 0.2 and spec.strategy == "portal" and spec.threads == 1
+    ref = exp.reference_spec(points[0])
+    assert ref.reference and ref.strategy == "light" and ref.spp == 400
+
+
+def test_02_shipped_experiments_load() -> None:
+    for name in ("lampshade_ratio", "lampshade_ratio_full", "lampshade_regress"):
+        exp = load_experiment(REPO / "configs" / "experiments" / f"{name}.yaml")
+        assert len(exp.points()) >= 1
+        assert exp.scene == (REPO / "configs" / "scenes" / "lampshade.yaml").resolve()
+    ratio = load_experiment(REPO / "configs" / "experiments" / "lampshade_ratio.yaml")
+    assert [p.axis_value for p in ratio.points()] == pytest.approx([0.25, 0.5, 1, 2, 4])
+
+
+BAD: list[tuple[dict[str, Any], str, str]] = [
+    ({"strategies": ["light", "prtal"]}, "strategies.1", "unknown strategy 'prtal'"),
+    ({"scene": "../scenes/nope.yaml"}, "scene", "not found"),
+    ({"sweep": {}}, "sweep", "empty sweep"),
+    ({"sweep": {"params.s_L": []}}, "sweep.params.s_L", "non-empty list"),
+    ({"sweep": {"params.s_L": "0.3"}}, "sweep.params.s_L", "expected a list"),
+    ({"budget": {"time_s": "fast"}}, "budget.time_s", "expected a number"),
+    ({"budget": {"time_s": 0, "spp": 0}}, "budget", "needs a limit"),
+    ({"budget": {"time_s": 1, "threads": 1.5}}, "budget.threads", "expected an integer"),
+    ({"budget": {"time_s": 1, "snapshots": {"every": 0}}}, "budget.snapshots.every", "> 0"),
+    ({"budget": {"time_s": 1, "tim_s": 2}}, "budget.tim_s", "unknown key"),
+    ({"insets": [{"name": "a", "x": 10, "y": 10, "width": 10, "height": 2}]}, "insets.0", "does not fit"),
+    ({"insets": [{"name": "image", "x": 0, "y": 0, "width": 1, "height": 1}]}, "insets.0.name", "reserved"),
+    ({"fixed": {"render.spp": 4}}, "fixed.render.spp", "set by the harness"),
+    ({"integrator": "bidir"}, "integrator", "unknown integrator"),
+    ({"axis": {"param": "params.s_P"}}, "axis.param", "not swept"),
+    ({"regress": {"spp": 8, "seeds": [1]}}, "regress.seeds", "two different seeds"),
+    ({"colour": "blue"}, "colour", "unknown key"),
+]
+
+
+@pytest.mark.parametrize("change,key,message", BAD, ids=[b[1] for b in BAD])
+def test_03_bad_configs_name_file_and_key(write_experiment: Callable[..., Path], change: dict[str, Any], key: str,
+                                          message: str) -> None:
+    path = write_experiment(**change)
+    with pytest.raises(ConfigError) as info:
+        load_experiment(path)
+    assert info.value.file == str(path)
+    assert info.value.key == key
+    assert message in info.value.message
+    assert str(path) in str(info.value) and key in str(info.value)
+
+
+def test_04_yaml_syntax_error_has_line_and_column(tmp_path: Path) -> None:
+    path = tmp_path / "broken.yaml"
+    path.write_text("name: x\nsweep: {params.s_L: [1, 2}\n")
+    with pytest.raises(ConfigError, match=r"broken\.yaml:2:\d+: .*YAML syntax error"):
+        load_experiment(path)
+
+
+def test_05_missing_experiment_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="experiment file not found"):
+        load_experiment(tmp_path / "nothing.yaml")
+
+
+def test_06_run_spec_from_scene_defaults(fake_scene: Path) -> None:
+    spec = spec_from_scene(fake_scene, {"params.s_L": "0.3", "render.mis": "balance"})
+    assert (spec.strategy, spec.integrator, spec.spp, spec.time_s, spec.seed, spec.threads) == (
+        "light", "direct", 16, 0.0, 1, 1)
+    assert dict(spec.overrides) == {"params.s_L": "0.3", "render.mis": "balance"}
+    assert dict(spec.snapshots) == {"every": "0.5"}
+    with pytest.raises(ConfigError, match="unknown strategy"):
+        spec_from_scene(fake_scene, {"render.strategy": "nope"})

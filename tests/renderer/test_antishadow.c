@@ -1,0 +1,805 @@
+/* test_antishadow.c: the antishadow classifier and visible polygon against
+   hand-derived values (the lampshade) and against a brute force that knows
+   nothing of the planes: it projects light points from p onto the portal
+   plane and measures how far inside the portal they land, and traces rays
+   from p through portal points to the light's plane. */
+#include <time.h>
+
+#include "antishadow.h"
+#include "polygon.h"
+#include "rng.h"
+#include "testlib.h"
+
+/* ---- scene helpers ---- */
+
+/* Rotation of v about the unit axis by angle (Rodrigues). */
+static struct vec3 rotate_axis(struct vec3 v, struct vec3 axis, double angle)
+{
+    double c = cos(angle), s = sin(angle);
+    return vec3_add(vec3_add(vec3_scale(v, c), vec3_scale(vec3_cross(axis, v), s)),
+                    vec3_scale(axis, vec3_dot(axis, v) * (1.0 - c)));
+}
+
+/* Regular n-gon of circumradius r centred at c in the plane spanned by the
+   unit vectors u, v (counter-clockwise about cross(u, v)). */
+static struct polygon ngon(struct vec3 c, struct vec3 u, struct vec3 v, double r, int n, double phase)
+{
+    struct polygon p;
+    p.n = n;
+    for (int i = 0; i < n; ++i) {
+        double a = phase + 2.0 * M_PI * i / n;
+        p.v[i] = vec3_add(c, vec3_add(vec3_scale(u, r * cos(a)), vec3_scale(v, r * sin(a))));
+    }
+    return p;
+}
+
+/* Square of the given side, edges along u and v. */
+static struct polygon square(struct vec3 c, struct vec3 u, struct vec3 v, double side)
+{
+    return ngon(c, vec3_scale(vec3_add(u, v), sqrt(0.5)), vec3_scale(vec3_sub(v, u), sqrt(0.5)),
+                side * sqrt(0.5), 4, 0.0);
+}
+
+static struct polygon reversed(const struct polygon *p)
+{
+    struct polygon r;
+    r.n = p->n;
+    for (int i = 0; i < p->n; ++i) r.v[i] = p->v[p->n - 1 - i];
+    return r;
+}
+
+static struct polygon rotated(const struct polygon *p, struct vec3 centre, struct vec3 axis, double angle)
+{
+    struct polygon r = *p;
+    for (int i = 0; i < p->n; ++i) r.v[i] = vec3_add(centre, rotate_axis(vec3_sub(p->v[i], centre), axis, angle));
+    return r;
+}
+
+static const struct vec3 X = { 1, 0, 0 }, Y = { 0, 1, 0 }, Z = { 0, 0, 1 };
+
+/* The lampshade pair: light square side s_L at y = 2.6, portal square side
+   0.3 at y = 2.2, both centred on the y axis. */
+static void lampshade(double s_light, struct polygon *light, struct polygon *portal)
+{
+    *light = square(vec3_make(0, 2.6, 0), X, Z, s_light); /* winding normal -y: faces the room */
+    *portal = square(vec3_make(0, 2.2, 0), X, Z, 0.3);
+}
+
+/* ---- brute force ---- */
+
+/* A polygon as a flat region: Newell normal and inward edge normals, so that
+   inside_margin is the smallest distance (in its plane) to an edge line,
+   positive inside. 1-Lipschitz in x. */
+struct flat {
+    int n;
+    struct vec3 normal;
+    double offset;
+    struct vec3 edge_normal[POLYGON_MAX];
+    double edge_offset[POLYGON_MAX];
+};
+
+static bool flat_init(struct flat *f, const struct polygon *poly)
+{
+    struct vec3 nrm = vec3_make(0, 0, 0), mean = vec3_make(0, 0, 0);
+    for (int i = 0; i < poly->n; ++i) {
+        nrm = vec3_add(nrm, vec3_cross(poly->v[i], poly->v[(i + 1) % poly->n]));
+        mean = vec3_add(mean, vec3_scale(poly->v[i], 1.0 / poly->n));
+    }
+    if (!(vec3_length(nrm) > 1e-14)) return false;
+    f->normal = vec3_normalize(nrm);
+    f->offset = vec3_dot(f->normal, mean);
+    f->n = 0;
+    for (int i = 0; i < poly->n; ++i) {
+        struct vec3 a = poly->v[i], e = vec3_sub(poly->v[(i + 1) % poly->n], a);
+        if (!(vec3_length(e) > 1e-12)) continue;
+        f->edge_normal[f->n] = vec3_normalize(vec3_cross(f->normal, e));
+        f->edge_offset[f->n] = vec3_dot(f->edge_normal[f->n], a);
+        ++f->n;
+    }
+    return f->n >= 3;
+}
+
+static double flat_inside(const struct flat *f, struct vec3 x)
+{
+    double m = INFINITY;
+    for (int i = 0; i < f->n; ++i) m = fmin(m, vec3_dot(f->edge_normal[i], x) - f->edge_offset[i]);
+    return m;
+}
+
+/* Uniform point in a convex polygon: a fan triangle by area, then uniform
+   barycentrics. */
+static struct vec3 polygon_uniform(const struct polygon *poly, struct rng *r)
+{
+    double area[POLYGON_MAX], total = 0.0;
+    for (int i = 1; i + 1 < poly->n; ++i) {
+        area[i] = vec3_length(vec3_cross(vec3_sub(poly->v[i], poly->v[0]), vec3_sub(poly->v[i + 1], poly->v[0])));
+        total += area[i];
+    }
+    double u = rng_uniform(r) * total;
+    int k = 1;
+    while (k + 2 < poly->n && u > area[k]) u -= area[k++];
+    double b1 = rng_uniform(r), b2 = rng_uniform(r);
+    if (b1 + b2 > 1.0) {
+        b1 = 1.0 - b1;
+        b2 = 1.0 - b2;
+    }
+    return vec3_add(poly->v[0], vec3_add(vec3_scale(vec3_sub(poly->v[k], poly->v[0]), b1),
+                                         vec3_scale(vec3_sub(poly->v[k + 1], poly->v[0]), b2)));
+}
+
+#define BF_LIGHT_SAMPLES 24
+#define BF_PORTAL_SAMPLES 24
+/* Margin (metres) under which a brute-force decision counts as ambiguous. */
+#define BF_DELTA 1e-4
+#define BF_MAX_DEPTH 14
+#define BF_MAX_EVALS 3000
+
+struct brute {
+    struct polygon light, portal;
+    struct flat light_flat, portal_flat;
+    struct vec3 beyond;     /* unit normal of the portal plane, away from the light */
+    double beyond_offset;
+    struct vec3 light_samples[BF_LIGHT_SAMPLES + POLYGON_INPUT_MAX];
+    struct vec3 portal_samples[BF_PORTAL_SAMPLES + POLYGON_INPUT_MAX];
+    int n_light_samples, n_portal_samples;
+};
+
+static void brute_init(struct brute *b, const struct polygon *light, const struct polygon *portal, uint64_t seed)
+{
+    b->light = *light;
+    b->portal = *portal;
+    CHECK(flat_init(&b->light_flat, light));
+    CHECK(flat_init(&b->portal_flat, portal));
+    b->beyond = b->portal_flat.normal;
+    b->beyond_offset = b->portal_flat.offset;
+    if (vec3_dot(b->beyond, light->v[0]) - b->beyond_offset > 0.0) {
+        b->beyond = vec3_neg(b->beyond);
+        b->beyond_offset = -b->beyond_offset;
+    }
+    struct rng r;
+    rng_seed(&r, seed, 1, 0);
+    b->n_light_samples = 0;
+    for (int i = 0; i < light->n; ++i) b->light_samples[b->n_light_samples++] = light->v[i];
+    for (int i = 0; i < BF_LIGHT_SAMPLES; ++i) b->light_samples[b->n_light_samples++] = polygon_uniform(light, &r);
+    b->n_portal_samples = 0;
+    for (int i = 0; i < portal->n; ++i) b->portal_samples[b->n_portal_samples++] = portal->v[i];
+    for (int i = 0; i < BF_PORTAL_SAMPLES; ++i) b->portal_samples[b->n_portal_samples++] = polygon_uniform(portal, &r);
+}
+
+static double beyond_distance(const struct brute *b, struct vec3 x)
+{
+    return vec3_dot(b->beyond, x) - b->beyond_offset;
+}
+
+/* How far inside the portal the segment from p (beyond, at distance dp) to
+   the light point l crosses the portal plane. */
+static double light_point_margin(const struct brute *b, struct vec3 p, double dp, struct vec3 l)
+{
+    double dl = beyond_distance(b, l);
+    struct vec3 x = vec3_madd(p, vec3_sub(l, p), dp / (dp - dl));
+    return flat_inside(&b->portal_flat, x);
+}
+
+/* How far inside the light the ray from p through q meets the light's plane;
+   -infinity when it never does. */
+static double portal_point_margin(const struct brute *b, struct vec3 p, struct vec3 q)
+{
+    struct vec3 w = vec3_sub(q, p);
+    double denom = vec3_dot(b->light_flat.normal, w);
+    double num = b->light_flat.offset - vec3_dot(b->light_flat.normal, p);
+    if (denom == 0.0) return -INFINITY;
+    double t = num / denom;
+    if (!(t > 0.0)) return -INFINITY;
+    return flat_inside(&b->light_flat, vec3_madd(p, w, t));
+}
+
+enum tri_state { NO, YES, UNSURE };
+
+/* Does any light point reach p through the portal (margin BF_DELTA)? A yes
+   is a witness; a no is a proof by branch and bound over a subdivision of
+   the light: on a triangle T of diameter h the margin is at most its largest
+   vertex margin + K_T h, with K_T a bound on the Lipschitz constant of the
+   projection l -> x(l) = p + t (l - p), t = dp / (dp - d(l)), over T: its
+   Jacobian t I + (l - p) grad(t)^T has norm <= t + |l - p| t^2 / dp, where t
+   is largest at T's vertex nearest the portal plane and |l - p| at T's
+   farthest vertex (d is affine and |l - p| convex on T). */
+static double triangle_lipschitz(const struct brute *b, struct vec3 p, double dp, const struct vec3 *v)
+{
+    double d_near = INFINITY, far = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        d_near = fmin(d_near, -beyond_distance(b, v[i]));
+        far = fmax(far, vec3_length(vec3_sub(v[i], p)));
+    }
+    double t_max = dp / (dp + d_near);
+    return t_max + far * t_max * t_max / dp;
+}
+
+static enum tri_state brute_any_visible(const struct brute *b, struct vec3 p, double dp)
+{
+    struct node {
+        struct vec3 v[3];
+        double m[3];
+        int depth;
+    } stack[256];
+    int top = 0, evals = 0;
+    bool unsure = false;
+    double m0 = light_point_margin(b, p, dp, b->light.v[0]);
+    for (int i = 1; i + 1 < b->light.n; ++i) {
+        struct node nd = { { b->light.v[0], b->light.v[i], b->light.v[i + 1] }, { m0, 0, 0 }, 0 };
+        nd.m[1] = light_point_margin(b, p, dp, nd.v[1]);
+        nd.m[2] = light_point_margin(b, p, dp, nd.v[2]);
+        stack[top++] = nd;
+    }
+    while (top > 0) {
+        struct node nd = stack[--top];
+        double mmax = fmax(nd.m[0], fmax(nd.m[1], nd.m[2]));
+        if (mmax >= BF_DELTA) return YES;
+        double diam = fmax(vec3_length(vec3_sub(nd.v[0], nd.v[1])),
+                           fmax(vec3_length(vec3_sub(nd.v[1], nd.v[2])), vec3_length(vec3_sub(nd.v[2], nd.v[0]))));
+        if (mmax + triangle_lipschitz(b, p, dp, nd.v) * diam < -BF_DELTA) continue;
+        if (nd.depth >= BF_MAX_DEPTH || evals >= BF_MAX_EVALS || top + 4 > 256) {
+            unsure = true;
+            continue;
+        }
+        struct vec3 mid[3];
+        double mm[3];
+        for (int e = 0; e < 3; ++e) {
+            mid[e] = vec3_scale(vec3_add(nd.v[e], nd.v[(e + 1) % 3]), 0.5);
+            mm[e] = light_point_margin(b, p, dp, mid[e]);
+        }
+        evals += 3;
+        struct node kids[4] = {
+            { { nd.v[0], mid[0], mid[2] }, { nd.m[0], mm[0], mm[2] }, nd.depth + 1 },
+            { { mid[0], nd.v[1], mid[1] }, { mm[0], nd.m[1], mm[1] }, nd.depth + 1 },
+            { { mid[2], mid[1], nd.v[2] }, { mm[2], mm[1], nd.m[2] }, nd.depth + 1 },
+            { { mid[0], mid[1], mid[2] }, { mm[0], mm[1], mm[2] }, nd.depth + 1 },
+        };
+        for (int c = 0; c < 4; ++c) stack[top++] = kids[c];
+    }
+    return unsure ? UNSURE : NO;
+}
+
+/* A region, or -1 when the brute force cannot decide with margin. */
+static int brute_region(const struct brute *b, struct vec3 p)
+{
+    double dp = beyond_distance(b, p);
+    if (dp < -BF_DELTA) return REGION_OUTSIDE;
+    if (dp <= BF_DELTA) return -1;
+
+    /* Whole light seen: every light sample crosses inside the portal. */
+    double m_min = INFINITY;
+    for (int i = 0; i < b->n_light_samples; ++i)
+        m_min = fmin(m_min, light_point_margin(b, p, dp, b->light_samples[i]));
+    enum tri_state umbra = m_min >= BF_DELTA ? YES : m_min <= -BF_DELTA ? NO : UNSURE;
+
+    /* Whole portal filled: every ray through a portal sample hits the light. */
+    double u_min = INFINITY;
+    for (int i = 0; i < b->n_portal_samples; ++i)
+        u_min = fmin(u_min, portal_point_margin(b, p, b->portal_samples[i]));
+    enum tri_state antumbra = u_min >= BF_DELTA ? YES : u_min <= -BF_DELTA ? NO : UNSURE;
+
+    if (umbra == YES) return antumbra == YES ? -1 : REGION_ANTI_UMBRA;
+    if (antumbra == YES) return REGION_ANTI_ANTUMBRA;
+    if (umbra == UNSURE || antumbra == UNSURE) return -1;
+    switch (brute_any_visible(b, p, dp)) {
+    case YES:
+        return REGION_ANTI_PENUMBRA;
+    case NO:
+        return REGION_OUTSIDE;
+    case UNSURE:
+        return -1;
+    }
+    return -1;
+}
+
+/* ---- configurations ---- */
+
+struct config {
+    const char *name;
+    struct polygon light, portal;
+    struct vec3 box_lo, box_hi; /* the room */
+    struct vec3 focus_lo, focus_hi; /* around and below the portal */
+    struct vec3 near_lo, near_hi;   /* just beyond the portal, where the anti-umbra is */
+    struct vec3 axis;               /* unit, from the light's centroid through the portal's */
+    bool expect_antumbra;
+};
+
+static struct config config_make(const char *name, struct polygon light, struct polygon portal, bool antumbra)
+{
+    struct config c;
+    c.name = name;
+    c.light = light;
+    c.portal = portal;
+    c.box_lo = vec3_make(-3, 0, -3);
+    c.box_hi = vec3_make(3, 4, 3);
+    c.focus_lo = vec3_make(-1, 0, -1);
+    c.focus_hi = vec3_make(1, 2.8, 1);
+    struct vec3 cp = polygon_centroid(&portal);
+    c.near_lo = vec3_add(cp, vec3_make(-0.25, -0.35, -0.25));
+    c.near_hi = vec3_add(cp, vec3_make(0.25, 0.05, 0.25));
+    c.axis = vec3_normalize(vec3_sub(cp, polygon_centroid(&light)));
+    c.expect_antumbra = antumbra;
+    return c;
+}
+
+#define N_FIXED 9
+
+static void fixed_configs(struct config *c)
+{
+    static const double s_light[5] = { 0.075, 0.15, 0.3, 0.6, 1.2 };
+    static const char *names[5] = { "lampshade s_L=0.075", "lampshade s_L=0.15", "lampshade s_L=0.3",
+                                    "lampshade s_L=0.6", "lampshade s_L=1.2" };
+    for (int i = 0; i < 5; ++i) {
+        struct polygon l, p;
+        lampshade(s_light[i], &l, &p);
+        /* Alternate the windings: the classifier must not depend on them. */
+        if (i % 2) p = reversed(&p);
+        if (i == 4) l = reversed(&l);
+        c[i] = config_make(names[i], l, p, s_light[i] > 0.3);
+    }
+    struct polygon l, p;
+    lampshade(0.6, &l, &p);
+    c[5] = config_make("portal tilted 30 deg", l, rotated(&p, vec3_make(0, 2.2, 0), X, M_PI / 6.0), true);
+    c[6] = config_make("portal turned 20 deg about y", l, rotated(&p, vec3_make(0, 2.2, 0), Y, 20.0 * M_PI / 180.0),
+                       true);
+    /* Triangle light, slightly tilted, over a pentagon portal. */
+    struct polygon tri = ngon(vec3_make(0.05, 2.6, 0), X, Z, 0.45, 3, 0.3);
+    tri = rotated(&tri, vec3_make(0.05, 2.6, 0), vec3_normalize(vec3_make(1, 0, 1)), 0.2);
+    c[7] = config_make("triangle light, pentagon portal", tri, ngon(vec3_make(0, 2.2, 0), Z, X, 0.16, 5, 0.1), true);
+    /* Portal offset sideways and tilted 25 deg about z, about an oblique
+       axis as well, under a light tilted the other way. */
+    struct polygon side = square(vec3_make(0.35, 2.0, -0.1), X, Z, 0.25);
+    side = rotated(&side, vec3_make(0.35, 2.0, -0.1), Z, 25.0 * M_PI / 180.0);
+    side = rotated(&side, vec3_make(0.35, 2.0, -0.1), vec3_normalize(vec3_make(1, 1, 1)), 0.15);
+    struct polygon tl = rotated(&l, vec3_make(0, 2.6, 0), X, -0.15);
+    c[8] = config_make("tilted light, non-parallel portal offset sideways", tl, side, true);
+}
+
+static struct vec3 random_in_box(struct rng *r, struct vec3 lo, struct vec3 hi)
+{
+    return vec3_make(lo.x + (hi.x - lo.x) * rng_uniform(r), lo.y + (hi.y - lo.y) * rng_uniform(r),
+                     lo.z + (hi.z - lo.z) * rng_uniform(r));
+}
+
+/* A random point of the config: a quarter each in the room, the focus box,
+   the near box and a column along the axis (where the anti-antumbra is),
+   none within 1 cm of the portal plane. */
+static struct vec3 config_point(const struct config *c, const struct brute *b, struct rng *r, int i)
+{
+    for (;;) {
+        struct vec3 p;
+        switch (i % 4) {
+        case 0:
+            p = random_in_box(r, c->box_lo, c->box_hi);
+            break;
+        case 1:
+            p = random_in_box(r, c->focus_lo, c->focus_hi);
+            break;
+        case 2:
+            p = random_in_box(r, c->near_lo, c->near_hi);
+            break;
+        default:
+            p = vec3_madd(random_in_box(r, vec3_make(-0.35, -0.35, -0.35), vec3_make(0.35, 0.35, 0.35)), c->axis,
+                          0.2 + 2.3 * rng_uniform(r));
+            p = vec3_add(p, polygon_centroid(&c->portal));
+            break;
+        }
+        if (fabs(beyond_distance(b, p)) > 0.01) return p;
+    }
+}
+
+struct agreement {
+    int compared, skipped, disagreements;
+    int count[4];
+};
+
+/* Compares the classifier with the brute force at n points; prints the first
+   few disagreements. */
+static struct agreement agree(const struct antishadow *a, const struct brute *b, const struct config *c, int n,
+                              uint64_t seed)
+{
+    struct agreement g = { 0, 0, 0, { 0, 0, 0, 0 } };
+    struct rng r;
+    rng_seed(&r, seed, 2, 0);
+    for (int i = 0; i < n; ++i) {
+        struct vec3 p = config_point(c, b, &r, i);
+        int want = brute_region(b, p);
+        if (want < 0) {
+            ++g.skipped;
+            continue;
+        }
+        ++g.compared;
+        ++g.count[want];
+        enum region got = antishadow_classify(a, p);
+        if ((int)got != want) {
+            if (++g.disagreements <= 5)
+                fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g): classifier %d, brute force %d\n", c->name, p.x, p.y, p.z,
+                        (int)got, want);
+        }
+    }
+    return g;
+}
+
+/* ---- tests ---- */
+
+static void test_build_plane_counts(void)
+{
+    /* Parallel aligned squares: each separating plane arises twice (through a
+       portal edge and through the parallel light edge) and is kept once. */
+    struct config c[N_FIXED];
+    fixed_configs(c);
+    for (int i = 0; i < N_FIXED; ++i) {
+        struct antishadow a;
+        struct error err = { { 0 } };
+        bool ok = antishadow_build(&c[i].light, &c[i].portal, &a, &err);
+        CHECK_MSG(ok, "%s: %s", c[i].name, err.message);
+        if (!ok) continue;
+        printf("  %-50s separating %2d  umbra %d  antumbra %d%s\n", c[i].name, a.n_separating, a.n_umbra,
+               a.n_antumbra, a.has_antumbra ? "" : " (empty)");
+        CHECK(a.n_umbra == c[i].portal.n);
+        CHECK(a.has_antumbra && a.n_antumbra == c[i].light.n);
+        CHECK(a.n_separating >= c[i].portal.n && a.n_separating <= c[i].portal.n + 2 * c[i].light.n);
+        if (i < 5) CHECK(a.n_separating == 4);
+        /* Beyond the portal is away from the light. */
+        for (int k = 0; k < c[i].light.n; ++k) CHECK(plane_distance(&a.portal_plane, c[i].light.v[k]) < 0.0);
+    }
+}
+
+static void test_lampshade_hand_checked(void)
+{
+    static const double s_light[5] = { 0.075, 0.15, 0.3, 0.6, 1.2 };
+    for (int i = 0; i < 5; ++i) {
+        double s = s_light[i];
+        struct polygon light, portal;
+        lampshade(s, &light, &portal);
+        struct antishadow a;
+        struct error err;
+        CHECK(antishadow_build(&light, &portal, &a, &err));
+
+        /* Straight below: the light projects to a centred square of side
+           s * dp / (dp + 0.4) (similar triangles, dp the depth below the
+           portal); smaller than the portal -> anti-umbra, larger ->
+           anti-antumbra. On the floor that is s * 2.2 / 2.6. */
+        static const double heights[5] = { 0.0, 0.5, 1.0, 1.5, 2.0 };
+        for (int h = 0; h < 5; ++h) {
+            double dp = 2.2 - heights[h];
+            double side = s * dp / (dp + 0.4);
+            if (fabs(side - 0.3) < 1e-3) continue;
+            enum region want = side < 0.3 ? REGION_ANTI_UMBRA : REGION_ANTI_ANTUMBRA;
+            enum region got = antishadow_classify(&a, vec3_make(0, heights[h], 0));
+            CHECK_MSG(got == want, "s_L %g, y %g: region %d, want %d", s, heights[h], (int)got, (int)want);
+        }
+        CHECK(antishadow_classify(&a, vec3_make(0, 0, 0)) ==
+              (s * 2.2 / 2.6 < 0.3 ? REGION_ANTI_UMBRA : REGION_ANTI_ANTUMBRA));
+
+        /* Near the walls and on the ceiling, between portal and light: outside.
+           (From (2.9, 1, 0) the segment to the farthest light corner,
+           x = -0.6, meets y = 2.2 at x = 2.9 - 0.75 * 3.5 = 0.275 > 0.15.) */
+        static const double outside[][3] = { { 2.9, 1.0, 0.0 }, { -2.9, 2.0, 1.0 }, { 0.5, 1.5, -2.9 }, { 0.0, 4.0, 0.0 },
+                                             { 1.0, 4.0, -1.0 }, { 0.0, 2.4, 0.0 }, { 0.05, 2.25, 0.0 } };
+        for (size_t k = 0; k < sizeof outside / sizeof outside[0]; ++k) {
+            struct vec3 p = vec3_make(outside[k][0], outside[k][1], outside[k][2]);
+            CHECK_MSG(antishadow_classify(&a, p) == REGION_OUTSIDE, "s_L %g, p (%g, %g, %g)", s, p.x, p.y, p.z);
+        }
+
+        /* Just below a portal edge or corner, on the line from the light's
+           centre through it, 0.1 below the portal: the projected light
+           (side 0.2 s < 0.3) is centred on the edge, so it straddles it. */
+        static const double rim[][2] = { { 0.15, 0 }, { -0.15, 0 }, { 0, 0.15 }, { 0, -0.15 }, { 0.15, 0.15 } };
+        for (size_t k = 0; k < sizeof rim / sizeof rim[0]; ++k) {
+            struct vec3 c = vec3_make(0, 2.6, 0), e = vec3_make(rim[k][0], 2.2, rim[k][1]);
+            struct vec3 p = vec3_madd(c, vec3_sub(e, c), 1.25);
+            CHECK_MSG(antishadow_classify(&a, p) == REGION_ANTI_PENUMBRA, "s_L %g, p (%g, %g, %g)", s, p.x, p.y, p.z);
+        }
+    }
+}
+
+static void test_brute_force_fixed(void)
+{
+    struct config c[N_FIXED];
+    fixed_configs(c);
+    int total_compared = 0, total_disagree = 0;
+    for (int i = 0; i < N_FIXED; ++i) {
+        struct antishadow a;
+        struct error err;
+        if (!antishadow_build(&c[i].light, &c[i].portal, &a, &err)) {
+            CHECK_MSG(false, "%s: %s", c[i].name, err.message);
+            continue;
+        }
+        struct brute b;
+        brute_init(&b, &c[i].light, &c[i].portal, 100 + (uint64_t)i);
+        const int n = 20000;
+        struct agreement g = agree(&a, &b, &c[i], n, 200 + (uint64_t)i);
+        printf("  %-50s compared %5d skipped %3d disagree %d  (out %d umbra %d pen %d antumbra %d)\n", c[i].name,
+               g.compared, g.skipped, g.disagreements, g.count[REGION_OUTSIDE], g.count[REGION_ANTI_UMBRA],
+               g.count[REGION_ANTI_PENUMBRA], g.count[REGION_ANTI_ANTUMBRA]);
+        CHECK(g.disagreements == 0);
+        /* The comparison must be nearly exhaustive and see every region. */
+        CHECK(g.skipped < n / 50);
+        CHECK(g.count[REGION_OUTSIDE] > 100 && g.count[REGION_ANTI_UMBRA] > 50 && g.count[REGION_ANTI_PENUMBRA] > 100);
+        if (c[i].expect_antumbra)
+            CHECK(g.count[REGION_ANTI_ANTUMBRA] > 100);
+        else
+            CHECK(g.count[REGION_ANTI_ANTUMBRA] == 0);
+        total_compared += g.compared;
+        total_disagree += g.disagreements;
+    }
+    printf("  fixed configurations: %d points compared, %d disagreements\n", total_compared, total_disagree);
+}
+
+/* A random strictly convex polygon: n points at sorted random angles on an
+   ellipse, in a random orientation. */
+static struct polygon random_polygon(struct rng *r, struct vec3 centre, double size)
+{
+    int n = 3 + (int)(rng_uniform(r) * (POLYGON_INPUT_MAX - 2));
+    if (n > POLYGON_INPUT_MAX) n = POLYGON_INPUT_MAX;
+    double ang[POLYGON_INPUT_MAX] = { 0 };
+    for (;;) {
+        for (int i = 0; i < n; ++i) ang[i] = 2.0 * M_PI * rng_uniform(r);
+        for (int i = 1; i < n; ++i)
+            for (int j = i; j > 0 && ang[j] < ang[j - 1]; --j) {
+                double t = ang[j];
+                ang[j] = ang[j - 1];
+                ang[j - 1] = t;
+            }
+        double gap = 2.0 * M_PI - ang[n - 1] + ang[0];
+        for (int i = 1; i < n; ++i) gap = fmin(gap, ang[i] - ang[i - 1]);
+        if (gap > 0.15) break;
+    }
+    struct vec3 axis = vec3_normalize(vec3_make(rng_uniform(r) - 0.5, rng_uniform(r) - 0.5, rng_uniform(r) - 0.5));
+    struct frame f = frame_from_normal(axis);
+    double rx = size * (0.5 + rng_uniform(r)), ry = size * (0.5 + rng_uniform(r));
+    struct polygon p;
+    p.n = n;
+    for (int i = 0; i < n; ++i)
+        p.v[i] = vec3_add(centre, vec3_add(vec3_scale(f.x, rx * cos(ang[i])), vec3_scale(f.y, ry * sin(ang[i]))));
+    return p;
+}
+
+static void test_brute_force_random_pairs(void)
+{
+    /* Random pairs in any orientation, including portals that cross the
+       light's plane (no anti-antumbra) and lights seen edge-on. */
+    struct rng r;
+    rng_seed(&r, 77, 0, 0);
+    int configs = 0, compared = 0, skipped = 0, disagree = 0, with_antumbra = 0, count[4] = { 0, 0, 0, 0 };
+    while (configs < 40) {
+        struct polygon light = random_polygon(&r, vec3_make(0, 0, 0), 0.1 + 0.4 * rng_uniform(&r));
+        struct vec3 dir = vec3_normalize(vec3_make(rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5));
+        struct vec3 centre = vec3_scale(dir, 0.3 + 0.9 * rng_uniform(&r));
+        struct polygon portal = random_polygon(&r, centre, 0.08 + 0.3 * rng_uniform(&r));
+        if (rng_uniform(&r) < 0.5) portal = reversed(&portal);
+        struct antishadow a;
+        if (!antishadow_build(&light, &portal, &a, NULL)) continue;
+        /* Keep a clearance so that the brute force's margins are meaningful. */
+        double clearance = INFINITY;
+        for (int i = 0; i < light.n; ++i) clearance = fmin(clearance, -plane_distance(&a.portal_plane, light.v[i]));
+        if (clearance < 0.02) continue;
+        with_antumbra += a.has_antumbra;
+        struct config c;
+        c.name = "random pair";
+        c.light = light;
+        c.portal = portal;
+        /* The room: a cube around the pair; the focus: the side beyond the
+           portal, close to it. */
+        c.box_lo = vec3_make(-2.5, -2.5, -2.5);
+        c.box_hi = vec3_make(2.5, 2.5, 2.5);
+        struct vec3 fc = vec3_madd(centre, a.portal_plane.normal, 0.8);
+        c.focus_lo = vec3_sub(fc, vec3_make(0.9, 0.9, 0.9));
+        c.focus_hi = vec3_add(fc, vec3_make(0.9, 0.9, 0.9));
+        struct vec3 nc = vec3_madd(centre, a.portal_plane.normal, 0.25);
+        c.near_lo = vec3_sub(nc, vec3_make(0.3, 0.3, 0.3));
+        c.near_hi = vec3_add(nc, vec3_make(0.3, 0.3, 0.3));
+        c.axis = vec3_normalize(vec3_sub(polygon_centroid(&portal), polygon_centroid(&light)));
+        struct brute b;
+        brute_init(&b, &light, &portal, 300 + (uint64_t)configs);
+        struct agreement g = agree(&a, &b, &c, 2000, 400 + (uint64_t)configs);
+        compared += g.compared;
+        skipped += g.skipped;
+        disagree += g.disagreements;
+        for (int k = 0; k < 4; ++k) count[k] += g.count[k];
+        ++configs;
+    }
+    printf("  %d random pairs (%d with an anti-antumbra): compared %d skipped %d disagree %d"
+           "  (out %d umbra %d pen %d antumbra %d)\n",
+           configs, with_antumbra, compared, skipped, disagree, count[0], count[1], count[2], count[3]);
+    CHECK(disagree == 0);
+    CHECK(skipped < compared / 50);
+    CHECK(count[REGION_ANTI_UMBRA] > 1000 && count[REGION_ANTI_PENUMBRA] > 1000 && count[REGION_ANTI_ANTUMBRA] > 50);
+    CHECK(with_antumbra > 5 && with_antumbra < configs);
+}
+
+/* The visible polygon is the part of the portal whose rays reach the light:
+   its solid angle is the light's in the anti-umbra and the portal's in the
+   anti-antumbra; the clip without the region shortcut agrees; random points
+   of it lie on the portal and lead to the light, and random portal points
+   whose rays hit the light lie in it (and those that miss lie outside it). */
+static void test_visible_polygon(void)
+{
+    struct config c[N_FIXED];
+    fixed_configs(c);
+    int checked[4] = { 0, 0, 0, 0 }, rays = 0;
+    for (int i = 0; i < N_FIXED; ++i) {
+        struct antishadow a;
+        struct error err;
+        if (!antishadow_build(&c[i].light, &c[i].portal, &a, &err)) {
+            CHECK_MSG(false, "%s: %s", c[i].name, err.message);
+            continue;
+        }
+        struct brute b;
+        brute_init(&b, &c[i].light, &c[i].portal, 500 + (uint64_t)i);
+        struct rng r;
+        rng_seed(&r, 600 + (uint64_t)i, 0, 0);
+        int fails = 0;
+        for (int k = 0; k < 600; ++k) {
+            struct vec3 p = config_point(&c[i], &b, &r, k);
+            enum region reg = antishadow_classify(&a, p);
+            struct polygon vis, clip;
+            int n = antishadow_visible_polygon(&a, p, &vis);
+            int n_clip = antishadow_visible_polygon_in(&a, p, REGION_ANTI_PENUMBRA, &clip);
+            double om = n >= 3 ? polygon_solid_angle(&vis, p) : 0.0;
+            double om_clip = n_clip >= 3 ? polygon_solid_angle(&clip, p) : 0.0;
+            double om_light = polygon_solid_angle(&c[i].light, p), om_portal = polygon_solid_angle(&c[i].portal, p);
+            ++checked[reg];
+            int before = test_failures_;
+            switch (reg) {
+            case REGION_OUTSIDE:
+                CHECK(n == 0);
+                CHECK(om_clip <= 1e-9 * om_portal);
+                break;
+            case REGION_ANTI_UMBRA:
+                CHECK_NEAR(om, om_light, 1e-9 * om_light);
+                CHECK_NEAR(om_clip, om_light, 1e-9 * om_light);
+                break;
+            case REGION_ANTI_ANTUMBRA:
+                CHECK_NEAR(om, om_portal, 1e-9 * om_portal);
+                CHECK_NEAR(om_clip, om_portal, 1e-9 * om_portal);
+                break;
+            case REGION_ANTI_PENUMBRA:
+                CHECK(om > 0.0 && om <= fmin(om_light, om_portal) * (1.0 + 1e-9));
+                CHECK_NEAR(om_clip, om, 1e-12);
+                break;
+            }
+            /* Rays: points of the visible polygon lie on the portal and their
+               rays from p hit the light. */
+            struct flat vf;
+            bool has_vis = n >= 3 && flat_init(&vf, &vis);
+            for (int s = 0; has_vis && s < 16; ++s) {
+                struct vec3 y = polygon_uniform(&vis, &r);
+                CHECK(flat_inside(&b.portal_flat, y) >= -1e-9);
+                CHECK(portal_point_margin(&b, p, y) >= -1e-9);
+                double t;
+                CHECK(polygon_intersect_ray(&c[i].light, p, vec3_sub(y, p), &t) || portal_point_margin(&b, p, y) < 1e-7);
+                ++rays;
+            }
+            /* Portal points: a ray that hits the light passes through the
+               visible polygon; one that misses does not. */
+            for (int s = 0; s < 16; ++s) {
+                struct vec3 q = polygon_uniform(&c[i].portal, &r);
+                double u = portal_point_margin(&b, p, q);
+                if (beyond_distance(&b, p) <= 0.0) u = -INFINITY; /* the ray p -> q never goes on to the light */
+                if (u > 1e-9) {
+                    CHECK(has_vis && flat_inside(&vf, q) >= -1e-9);
+                } else if (u < -1e-9 && has_vis) {
+                    CHECK(flat_inside(&vf, q) <= 1e-9);
+                }
+                ++rays;
+            }
+            if (test_failures_ != before && ++fails <= 3)
+                fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g) region %d, %d vertices\n", c[i].name, p.x, p.y, p.z,
+                        (int)reg, n);
+        }
+    }
+    printf("  visible polygon at %d outside, %d umbra, %d penumbra, %d antumbra points; %d ray checks\n",
+           checked[0], checked[1], checked[2], checked[3], rays);
+    CHECK(checked[REGION_ANTI_UMBRA] > 100 && checked[REGION_ANTI_PENUMBRA] > 100 &&
+          checked[REGION_ANTI_ANTUMBRA] > 100);
+}
+
+static void test_build_errors(void)
+{
+    struct polygon light, portal;
+    lampshade(0.6, &light, &portal);
+    struct antishadow a;
+    struct error err;
+
+    /* Tilted 45 degrees about x, the 0.6 light reaches y = 2.6 -+ 0.21: it
+       crosses the plane y = 2.4 of a raised portal. */
+    struct polygon raised = square(vec3_make(0, 2.4, 0), X, Z, 0.3);
+    struct polygon tilted = rotated(&light, vec3_make(0, 2.6, 0), X, M_PI / 4.0);
+    err.message[0] = 0;
+    CHECK(!antishadow_build(&tilted, &raised, &a, &err));
+    CHECK_MSG(strstr(err.message, "crosses") != NULL, "%s", err.message);
+
+    /* One light corner exactly on the portal plane. */
+    struct polygon touching = light;
+    touching.v[0].y = 2.2;
+    touching.v[1].y = 2.4;
+    touching.v[3].y = 2.4;
+    touching.v[2].y = 2.6;
+    CHECK(polygon_is_planar(&touching, 1e-9));
+    err.message[0] = 0;
+    CHECK(!antishadow_build(&touching, &portal, &a, &err));
+    CHECK_MSG(strstr(err.message, "touches") != NULL, "%s", err.message);
+
+    /* The light in the portal's plane. */
+    struct polygon flat = square(vec3_make(1, 2.2, 0), X, Z, 0.3);
+    err.message[0] = 0;
+    CHECK(!antishadow_build(&flat, &portal, &a, &err));
+    CHECK_MSG(strstr(err.message, "touches") != NULL, "%s", err.message);
+
+    /* Degenerate inputs. */
+    struct polygon collinear = { 3, { { 0, 2.6, 0 }, { 0.1, 2.6, 0 }, { 0.2, 2.6, 0 } } };
+    err.message[0] = 0;
+    CHECK(!antishadow_build(&collinear, &portal, &a, &err));
+    CHECK(strstr(err.message, "light") != NULL);
+    struct polygon too_many = ngon(vec3_make(0, 2.2, 0), X, Z, 0.2, POLYGON_INPUT_MAX + 1, 0.0);
+    err.message[0] = 0;
+    CHECK(!antishadow_build(&light, &too_many, &a, &err));
+    CHECK(strstr(err.message, "portal") != NULL);
+    struct polygon bowtie = portal;
+    bowtie.v[1] = portal.v[2];
+    bowtie.v[2] = portal.v[1];
+    CHECK(!antishadow_build(&light, &bowtie, &a, &err));
+    struct polygon nan_light = light;
+    nan_light.v[2].x = NAN;
+    CHECK(!antishadow_build(&nan_light, &portal, &a, &err));
+    CHECK(antishadow_build(&light, &portal, &a, NULL));
+
+    /* A light below its portal is fine: the regions mirror. */
+    struct polygon below = square(vec3_make(0, 1.8, 0), X, Z, 0.6);
+    CHECK(antishadow_build(&below, &portal, &a, &err));
+    CHECK(antishadow_classify(&a, vec3_make(0, 4.4, 0)) == REGION_ANTI_ANTUMBRA);
+    CHECK(antishadow_classify(&a, vec3_make(0, 0.0, 0)) == REGION_OUTSIDE);
+    CHECK(antishadow_classify(&a, vec3_make(0, 2.3, 0)) == REGION_ANTI_UMBRA);
+    CHECK(antishadow_classify(&a, vec3_make(NAN, 0, 0)) == REGION_OUTSIDE);
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Cost of one classification (printed, not asserted), and of one visible
+   polygon, on points of the focus box. */
+static void test_timing(void)
+{
+    struct config c[N_FIXED];
+    fixed_configs(c);
+    static const int which[3] = { 3, 6, 8 };
+    enum { N_POINTS = 4096, REPEAT = 100 };
+    struct vec3 pts[N_POINTS];
+    for (int w = 0; w < 3; ++w) {
+        const struct config *cf = &c[which[w]];
+        struct antishadow a;
+        struct error err;
+        CHECK(antishadow_build(&cf->light, &cf->portal, &a, &err));
+        struct rng r;
+        rng_seed(&r, 900, (uint64_t)w, 0);
+        for (int i = 0; i < N_POINTS; ++i)
+            pts[i] = i % 2 ? random_in_box(&r, cf->box_lo, cf->box_hi) : random_in_box(&r, cf->focus_lo, cf->focus_hi);
+        unsigned sink = 0;
+        double t0 = now_s();
+        for (int k = 0; k < REPEAT; ++k)
+            for (int i = 0; i < N_POINTS; ++i) sink += (unsigned)antishadow_classify(&a, pts[i]);
+        double t1 = now_s();
+        struct polygon vis;
+        for (int i = 0; i < N_POINTS; ++i) sink += (unsigned)antishadow_visible_polygon(&a, pts[i], &vis);
+        double t2 = now_s();
+        printf("  %-50s classify %.1f ns, visible polygon %.0f ns (checksum %u)\n", cf->name,
+               1e9 * (t1 - t0) / (REPEAT * N_POINTS), 1e9 * (t2 - t1) / N_POINTS, sink);
+    }
+}
+
+static const struct test_case antishadow_tests[] = {
+    { "build_plane_counts", test_build_plane_counts },
+    { "lampshade_hand_checked", test_lampshade_hand_checked },
+    { "brute_force_fixed", test_brute_force_fixed },
+    { "brute_force_random_pairs", test_brute_force_random_pairs },
+    { "visible_polygon", test_visible_polygon },
+    { "build_errors", test_build_errors },
+    { "timing", test_timing },
+};
+TEST_MAIN(antishadow_tests)
