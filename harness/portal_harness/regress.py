@@ -98,8 +98,9 @@ def print_table(verdicts: list[Verdict], z_max: float, out: TextIO) -> None:
           f"i.e. ratio > bound)", file=out)
 
 
-def regress(experiment: Experiment, options: SweepOptions, update: bool, out: TextIO = sys.stdout) -> int:
+def regress(experiment: Experiment, options: SweepOptions, update: bool, out: TextIO | None = None) -> int:
     """Renders, compares (or rewrites the baseline with --update); returns the exit status."""
+    out = out or sys.stdout
     settings = experiment.regress
     if settings is None:
         raise ConfigError(str(experiment.path), "regress", "missing (the regress command needs spp and seeds)")

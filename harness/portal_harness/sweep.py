@@ -261,8 +261,9 @@ def _last_line(text: str | None) -> str:
     return f"(stderr: {lines[-1][:160]})" if lines else ""
 
 
-def sweep(experiment: Experiment, options: SweepOptions, out: TextIO = sys.stdout) -> int:
+def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = None) -> int:
     """Runs the whole sweep; returns the exit status (0 all done, 1 failures)."""
+    out = out or sys.stdout
     layout = options.layout
     layout.root.mkdir(parents=True, exist_ok=True)
     store.clean_stale_attempts(layout)

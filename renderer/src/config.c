@@ -94,7 +94,6 @@ static const char *join_names(struct line *l, const char *const *names, int n)
     return l->s;
 }
 
-/* ---- nodes ------------------------------------------------------------ */
 
 static yaml_node_t *node_get(struct loader *L, int id)
 {
@@ -237,7 +236,6 @@ static bool get_optional(struct loader *L, const yaml_node_t *map, const char *k
     return expect_type(L, *out, type, type == YAML_MAPPING_NODE ? "a mapping" : "a sequence");
 }
 
-/* ---- scalars ----------------------------------------------------------- */
 
 /* YAML 1.2 core-schema floats and decimal integers. The non-finite spellings
    are recognised too, so that they are rejected by name. */
@@ -342,8 +340,12 @@ static bool get_bool(struct loader *L, const yaml_node_t *n, bool *out)
     char buf[64];
     if (n->type == YAML_SCALAR_NODE && n->data.scalar.style == YAML_PLAIN_SCALAR_STYLE) {
         const char *s = text_of(n);
-        if (!strcmp(s, "true") || !strcmp(s, "True") || !strcmp(s, "TRUE")) return *out = true, true;
-        if (!strcmp(s, "false") || !strcmp(s, "False") || !strcmp(s, "FALSE")) return *out = false, true;
+        bool yes = !strcmp(s, "true") || !strcmp(s, "True") || !strcmp(s, "TRUE");
+        bool no = !strcmp(s, "false") || !strcmp(s, "False") || !strcmp(s, "FALSE");
+        if (yes || no) {
+            *out = yes;
+            return true;
+        }
     }
     return fail(L, n, "expected true or false, got %s", describe(n, buf, sizeof buf));
 }
@@ -365,7 +367,10 @@ static bool get_enum(struct loader *L, const yaml_node_t *n, const char *what, c
 {
     if (!expect_type(L, n, YAML_SCALAR_NODE, "a string")) return false;
     for (int i = 0; i < count; ++i)
-        if (strcmp(text_of(n), names[i]) == 0) return *out = i, true;
+        if (strcmp(text_of(n), names[i]) == 0) {
+            *out = i;
+            return true;
+        }
     struct line list;
     return fail(L, n, "unknown %s \"%.64s\" (expected one of: %s)", what, text_of(n), join_names(&list, names, count));
 }
@@ -399,7 +404,6 @@ static bool get_rgb(struct loader *L, const yaml_node_t *n, double lo, double hi
     return true;
 }
 
-/* ---- geometry checks --------------------------------------------------- */
 
 static double points_diameter(const struct vec3 *v, int n)
 {
@@ -445,13 +449,13 @@ static bool get_polygon(struct loader *L, const yaml_node_t *n, const char *what
     return check_polygon(L, n, what, out);
 }
 
-/* ---- sections ---------------------------------------------------------- */
 
 static bool load_params(struct loader *L, const yaml_node_t *root)
 {
     yaml_node_t *map;
     if (!get_optional(L, root, "params", YAML_MAPPING_NODE, &map)) return false;
-    if (!map || !check_keys(L, map, "params", NULL, 0)) return map == NULL;
+    if (!map) return true;
+    if (!check_keys(L, map, "params", NULL, 0)) return false;
     int n = map_count(map);
     L->params = calloc((size_t)n, sizeof *L->params);
     if (!L->params) return error_set(L->err, "%s: out of memory", L->file);
@@ -532,7 +536,8 @@ static bool load_materials(struct loader *L, const yaml_node_t *root, struct con
 {
     yaml_node_t *map;
     if (!get_optional(L, root, "materials", YAML_MAPPING_NODE, &map)) return false;
-    if (!map || !check_keys(L, map, "materials", NULL, 0)) return map == NULL;
+    if (!map) return true;
+    if (!check_keys(L, map, "materials", NULL, 0)) return false;
     int n = map_count(map);
     if (n == 0) return true;
     c->materials = calloc((size_t)n, sizeof *c->materials);
@@ -897,13 +902,18 @@ static bool get_seed(struct loader *L, const yaml_node_t *n, uint64_t *out)
 
 static bool get_threads(struct loader *L, const yaml_node_t *n, int *out)
 {
-    char buf[64];
+    char expected[64], buf[64];
     double v;
-    if (n->type == YAML_SCALAR_NODE && strcmp(text_of(n), "auto") == 0) return *out = 0, true;
-    if (n->type == YAML_SCALAR_NODE && n->data.scalar.style == YAML_PLAIN_SCALAR_STYLE && parse_literal(text_of(n), &v) &&
-        v == floor(v) && v >= 1 && v <= THREADS_MAX)
-        return *out = (int)v, true;
-    return fail(L, n, "expected \"auto\" or an integer in [1, %d], got %s", THREADS_MAX, describe(n, buf, sizeof buf));
+    if (n->type == YAML_SCALAR_NODE && strcmp(text_of(n), "auto") == 0) {
+        *out = 0;
+        return true;
+    }
+    snprintf(expected, sizeof expected, "\"auto\" or an integer in [1, %d]", THREADS_MAX);
+    if (!get_number_as(L, n, expected, &v)) return false;
+    if (v != floor(v) || v < 1 || v > THREADS_MAX)
+        return fail(L, n, "expected %s, got %s", expected, value_text(n, v, buf, sizeof buf));
+    *out = (int)v;
+    return true;
 }
 
 static bool load_render(struct loader *L, const yaml_node_t *root, struct render_desc *r)
@@ -966,7 +976,6 @@ static bool load_sections(struct loader *L, struct config *c)
            load_render(L, root, &c->render);
 }
 
-/* ---- overrides --------------------------------------------------------- */
 
 static bool mark_override(struct loader *L, int node, int k)
 {
@@ -1045,7 +1054,6 @@ static bool apply_override(struct loader *L, int k)
     }
 }
 
-/* ---- effective YAML ---------------------------------------------------- */
 
 struct text {
     char *s;
@@ -1116,14 +1124,17 @@ static void emit_rgb(struct text *t, struct rgb c)
     emit_vec3(t, vec3_make(c.r, c.g, c.b));
 }
 
-/* Decodes one UTF-8 sequence; returns its length (1 for a stray byte). */
+/* Decodes one UTF-8 sequence; returns its length (1 for a stray byte, which
+   cannot occur: libyaml and yaml_document_add_scalar validate UTF-8). */
 static int utf8_decode(const unsigned char *s, unsigned long *cp)
 {
-    int len = s[0] < 0x80 ? 1 : (s[0] & 0xE0) == 0xC0 ? 2 : (s[0] & 0xF0) == 0xE0 ? 3 : (s[0] & 0xF8) == 0xF0 ? 4 : 0;
-    if (len == 0) return *cp = s[0], 1;
-    unsigned long c = len == 1 ? s[0] : s[0] & (0x7F >> len);
+    int len = s[0] < 0x80 ? 1 : (s[0] & 0xE0) == 0xC0 ? 2 : (s[0] & 0xF0) == 0xE0 ? 3 : (s[0] & 0xF8) == 0xF0 ? 4 : 1;
+    unsigned long c = len == 1 ? s[0] : s[0] & (0x7Fu >> len);
     for (int i = 1; i < len; ++i) {
-        if ((s[i] & 0xC0) != 0x80) return *cp = s[0], 1;
+        if ((s[i] & 0xC0) != 0x80) { /* also stops at the terminator */
+            *cp = s[0];
+            return 1;
+        }
         c = (c << 6) | (s[i] & 0x3F);
     }
     *cp = c;
@@ -1323,7 +1334,6 @@ static bool emit_effective(struct loader *L, struct config *c)
     return true;
 }
 
-/* ---- entry points ------------------------------------------------------ */
 
 /* libyaml reader errors carry a byte offset, not a mark. */
 static void offset_to_mark(const char *text, size_t offset, int *line, int *column)

@@ -108,7 +108,6 @@ static void check_round_trip(const struct config *c, const char *label)
     config_free(&back);
 }
 
-/* ---- the canonical scene ---------------------------------------------- */
 
 static void test_lampshade_defaults(void)
 {
@@ -188,7 +187,6 @@ static void test_lampshade_sweep_override(void)
     config_free(&c);
 }
 
-/* ---- overrides ---------------------------------------------------------- */
 
 static void test_overrides_apply(void)
 {
@@ -276,7 +274,6 @@ static void test_override_errors(void)
     CHECK(!config_load(LAMPSHADE, &missing, 1, &c, &err) && strstr(err.message, "--set") != NULL);
 }
 
-/* ---- effective YAML and hash ------------------------------------------ */
 
 static void test_effective_round_trip_and_hash(void)
 {
@@ -322,7 +319,6 @@ static void test_effective_round_trip_and_hash(void)
     config_free(&b);
 }
 
-/* ---- catalogues --------------------------------------------------------- */
 
 static int compare_names(const void *a, const void *b)
 {
@@ -448,7 +444,6 @@ static void test_good_values(void)
     }
 }
 
-/* ---- from memory -------------------------------------------------------- */
 
 /* A light whose last vertex is lifted out of the plane by eps times the
    light's size, in a scene scaled by `scale`. */
@@ -516,7 +511,6 @@ static void test_load_string_and_files(void)
     CHECK(is_zeroed(&c));
 }
 
-/* ---- expressions -------------------------------------------------------- */
 
 static void test_expressions(void)
 {

@@ -1,0 +1,169 @@
+"""End-to-end sweeps with the fake renderer: runs, references, metrics,
+figures, index rows; resuming after completion, after failures and after
+the harness was killed."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+CliRunner = Callable[..., tuple[int, str, str]]
+
+
+def _keys_rendered(log: list[str]) -> list[str]:
+    """Run keys of the logged renders (the attempt folder starts with the key)."""
+    return [Path(line.split()[2]).name.split("-")[0] for line in log]
+
+
+def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experiment: Callable[..., Path],
+                                                   results: Path, render_log: Callable[[], list[str]]) -> None:
+    exp = write_experiment()
+    status, out, err = cli("sweep", str(exp), "--no-progress")
+    assert status == 0, out + err
+    assert len(render_log()) == 2 + 4  # two references, two points x two strategies
+    assert "6 rendered now, 0 cached" in out
+
+    summary = json.loads((results / "experiments" / "tiny" / "summary.json").read_text())
+    assert len(summary["rows"]) == 4 and not summary["failures"]
+    for row in summary["rows"]:
+        assert row["status"] == "done" and row["rel_mse"] > 0 and row["rel_mse_left"] > 0
+    # the fake's portal strategy has a lower sigma at about the same cost: more efficient
+    portal = [r for r in summary["rows"] if r["strategy"] == "portal"]
+    assert all(r["efficiency_vs_light"] > 1.5 for r in portal)
+    assert (results / "experiments" / "tiny" / "summary.csv").read_text().startswith("point,")
+
+    conn = sqlite3.connect(results / "index.sqlite")
+    assert conn.execute("SELECT count(*) FROM runs WHERE status = 'done'").fetchone()[0] == 6
+    assert conn.execute("SELECT count(*) FROM runs WHERE kind = 'reference'").fetchone()[0] == 2
+    assert conn.execute("SELECT count(*) FROM experiment_runs WHERE experiment = 'tiny'").fetchone()[0] == 6
+    n_metrics = conn.execute("SELECT count(*) FROM metrics WHERE region = 'image'").fetchone()[0]
+    assert n_metrics >= 4 * 4  # several snapshots per run
+    conn.close()
+
+    status, out, _ = cli("query", "--strategy", "portal", "--param", "ratio=0.5")
+    assert status == 0
+    lines = out.strip().splitlines()
+    assert lines[0] == "key,time_s,rel_mse" and len(lines) >= 4
+    times = [float(line.split(",")[1]) for line in lines[1:]]
+    assert times == sorted(times)
+
+    status, out, err = cli("figures", str(exp))
+    assert status == 0, err
+    for name in ("error_time", "insets", "efficiency"):
+        for ext in ("png", "pdf"):
+            path = results / "figures" / f"tiny_{name}.{ext}"
+            assert path.stat().st_size > 5000, path
+            assert str(path) in out
+
+    before = len(render_log())
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0 and len(render_log()) == before  # nothing rendered again
+    assert "0 rendered now, 6 cached" in out
+
+
+def test_02_failed_runs_are_recorded_and_the_sweep_goes_on(cli: CliRunner, write_experiment: Callable[..., Path],
+                                                           results: Path, render_log: Callable[[], list[str]],
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("FAKE_RENDER_CRASH", "portal")
+    monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "projection")
+    exp = write_experiment(strategies=["light", "portal", "projection"])
+    status, out, _ = cli("sweep", str(exp), "--no-progress", "--jobs", "1")
+    assert status == 1
+    assert "4 failed:" in out
+    assert "killed by SIGSEGV" in out and "simulated crash" in out and "not implemented" in out
+    summary = json.loads((results / "experiments" / "tiny" / "summary.json").read_text())
+    by = {(r["point"], r["strategy"]): r for r in summary["rows"]}
+    assert by[("s_L=0.15", "light")]["status"] == "done" and by[("s_L=0.15", "light")]["rel_mse"] > 0
+    assert by[("s_L=0.15", "portal")]["status"] == "failed"
+    assert len(summary["failures"]) == 4
+    conn = sqlite3.connect(results / "index.sqlite")
+    assert conn.execute("SELECT count(*) FROM runs WHERE status = 'failed'").fetchone()[0] == 4
+    conn.close()
+    # figures still work with holes
+    status, _, err = cli("figures", str(exp))
+    assert status == 0, err
+    # fixed renderer: only the failed runs are rendered again
+    monkeypatch.delenv("FAKE_RENDER_CRASH")
+    monkeypatch.delenv("FAKE_RENDER_UNIMPLEMENTED")
+    before = len(render_log())
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0
+    assert sorted(line.split()[0] for line in render_log()[before:]) == ["portal", "portal", "projection",
+                                                                          "projection"]
+
+
+def test_03_killed_sweep_resumes_without_redoing_finished_runs(write_experiment: Callable[..., Path], results: Path,
+                                                               fake_renderer: Path,
+                                                               render_log: Callable[[], list[str]]) -> None:
+    exp = write_experiment(strategies=["light", "portal", "projection"])
+    env = {**os.environ, "FAKE_RENDER_SLEEP": "2.0"}  # each render takes about 0.4 s (refs 8 s)
+    exp_doc = exp.read_text().replace("spp: 400", "spp: 20")
+    exp.write_text(exp_doc)
+    cmd = [sys.executable, "-m", "portal_harness", "sweep", str(exp), "--results", str(results),
+           "--renderer", str(fake_renderer), "--no-progress", "--jobs", "1"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while len(render_log()) < 4 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.15)  # the fourth render is under way
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    started = _keys_rendered(render_log())
+    assert len(started) >= 4
+    finished = {p.name for p in (results / "runs").iterdir() if (p / "manifest.json").exists()}
+    finished |= {p.name for p in (results / "references").iterdir() if (p / "manifest.json").exists()}
+    assert 2 <= len(finished) < 8
+    time.sleep(0.5)  # the orphaned render got SIGTERM from the kernel and is gone
+
+    status = subprocess.run(cmd, env={**os.environ}, capture_output=True, text=True, timeout=120)
+    assert status.returncode == 0, status.stdout + status.stderr
+    again = _keys_rendered(render_log())[len(started):]
+    assert not set(again) & finished  # nothing finished was redone
+    assert len(again) == 8 - len(finished)
+    assert "cached" in status.stdout
+    assert not any((results / "runs" / ".attempts").iterdir())
+
+
+def test_04_bad_config_fails_before_any_render(cli: CliRunner, write_experiment: Callable[..., Path],
+                                               render_log: Callable[[], list[str]]) -> None:
+    exp = write_experiment(strategies=["light", "portl"])
+    status, _, err = cli("sweep", str(exp))
+    assert status == 2
+    assert f"{exp}: strategies.1: unknown strategy 'portl'" in err
+    exp = write_experiment(scene="../scenes/missing.yaml")
+    status, _, err = cli("sweep", str(exp))
+    assert status == 2 and "scene: scene file" in err and "not found" in err
+    assert render_log() == []
+
+
+def test_05_metrics_command(cli: CliRunner, fake_scene: Path, results: Path,
+                            render_log: Callable[[], list[str]]) -> None:
+    status, out, err = cli("run", str(fake_scene), "--strategy", "portal", "--time", "0.2", "--spp", "0",
+                           "--snapshot-every", "0.05")
+    assert status == 0, err
+    key = out.split()[1].rstrip(":")
+    status, out, err = cli("reference", str(fake_scene), "--spp", "256")
+    assert status == 0 and "reference" in out
+    status, out2, _ = cli("reference", str(fake_scene), "--spp", "256")
+    assert "cached: nothing rendered" in out2 and len(render_log()) == 2
+    status, out, err = cli("metrics", key, "--inset", "corner=0,0,4,4")
+    assert status == 0, err
+    lines = out.strip().splitlines()
+    assert lines[0].startswith("run,reference,strategy,image,is_final,time_s,spp,region,mse,rel_mse")
+    assert any(",corner," in line for line in lines) and any(",image," in line for line in lines)
+    run_dir = results / "runs" / key
+    assert (run_dir / "metrics.csv").exists() and (run_dir / "metrics.json").exists()
+    status, out, _ = cli("metrics", str(run_dir), "--json")
+    rows = json.loads(out)
+    assert rows and all(r["region"] == "image" for r in rows)
+    status, out, err = cli("metrics", key, "--inset", "huge=0,0,99,99")
+    assert status == 2 and "does not fit" in err
