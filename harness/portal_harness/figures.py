@@ -26,7 +26,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
-from matplotlib.ticker import NullFormatter  # noqa: E402
+from matplotlib.axis import Axis as MplAxis  # noqa: E402
+from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
 from portal_harness import display, exr, index  # noqa: E402
 from portal_harness.config import Experiment, Point  # noqa: E402
@@ -92,6 +93,15 @@ def _save(fig: Figure, layout: ResultsLayout, experiment: Experiment, name: str)
     return paths
 
 
+def _plain_log_ticks(axis: MplAxis) -> None:
+    """Log axis labelled with plain numbers (0.05, 1, 20); minor ticks are
+    labelled too when the axis spans less than a decade."""
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    axis.set_major_formatter(plain)
+    lo, hi = sorted(axis.get_view_interval())
+    axis.set_minor_formatter(plain if lo > 0 and hi / lo < 10 else NullFormatter())
+
+
 def _done(cell: Cell | None) -> bool:
     return cell is not None and cell.status == "done" and cell.run_dir is not None
 
@@ -128,10 +138,13 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
         ax.set_xlabel("render time (s)", fontsize=8)
         if i % cols == 0:
             ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
-        ax.tick_params(labelsize=7)
         ax.grid(True, which="both", alpha=0.2)
     for j in range(n, rows * cols):
         axes[j // cols][j % cols].set_visible(False)
+    for ax in axes.flat[:n]:
+        _plain_log_ticks(ax.xaxis)
+        _plain_log_ticks(ax.yaxis)
+        ax.tick_params(which="both", labelsize=7)
     handles, labels = [], []
     for ax in axes.flat:
         for h, lab in zip(*ax.get_legend_handles_labels()):
@@ -189,14 +202,21 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
         Region(WHOLE_IMAGE, 0, 0, experiment.width, experiment.height),)
     n_sub = len(regions)
     columns = ["reference", *experiment.strategies]
-    n_rows = len(data.points) * n_sub
-    cell_in = 1.25
-    fig = plt.figure(figsize=(cell_in * (n_sub + len(columns)) + 0.6, cell_in * 1.18 * n_rows + 0.5))
-    grid = fig.add_gridspec(n_rows, n_sub + len(columns), wspace=0.06, hspace=0.32)
+    # Sizes in inches: every inset column is cell_in wide; a block (one sweep
+    # point) is as tall as its insets plus their labels, and the reference
+    # beside it keeps the image's aspect ratio.
+    cell_in, label_in = 1.25, 0.24
+    inset_h = cell_in * max(r.height / r.width for r in regions)
+    block_h = n_sub * (inset_h + label_in)
+    ref_w = block_h * experiment.width / experiment.height
+    height = len(data.points) * block_h * 1.1 + 0.8
+    fig = plt.figure(figsize=(ref_w + cell_in * len(columns) * 1.08 + 0.5, height))
+    outer = fig.add_gridspec(len(data.points), 1, hspace=0.1, top=1 - 0.55 / height, bottom=0.25 / height)
     for p_i, point in enumerate(data.points):
         ref_cell = data.references.get(point.id)
-        top = p_i * n_sub
-        ref_ax = fig.add_subplot(grid[top: top + n_sub, 0:n_sub])
+        grid = outer[p_i].subgridspec(n_sub, 1 + len(columns), width_ratios=[ref_w / cell_in] + [1] * len(columns),
+                                      wspace=0.06, hspace=label_in / inset_h * 1.1)
+        ref_ax = fig.add_subplot(grid[:, 0])
         ref_ax.set_xticks([])
         ref_ax.set_yticks([])
         ref_ax.set_ylabel(_point_title(experiment, point), fontsize=8)
@@ -218,6 +238,8 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
         if p_i == 0:
             ref_ax.set_title("reference", fontsize=8)
         t_eq = equal_time(experiment, conn, data, point)
+        if math.isfinite(t_eq):
+            ref_ax.set_ylabel(f"{_point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
         for c_i, column in enumerate(columns):
             image: np.ndarray | None = None
             label = ""
@@ -242,7 +264,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                 else:
                     label = (cell.status if cell and cell.status else "missing")
             for r_i, region in enumerate(regions):
-                ax = fig.add_subplot(grid[top + r_i, n_sub + c_i])
+                ax = fig.add_subplot(grid[r_i, 1 + c_i])
                 ax.set_xticks([])
                 ax.set_yticks([])
                 for spine in ax.spines.values():
@@ -259,7 +281,8 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                 text = label_time if column == "reference" else (
                     f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
-    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10, y=1.0)
+    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10,
+                 y=0.995)
     return _save(fig, layout, experiment, "insets")
 
 
@@ -289,11 +312,12 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
             ax.set_ylabel("efficiency relative to light sampling", fontsize=8)
         ax.set_title("whole image" if region == WHOLE_IMAGE else f"inset {region}", fontsize=9)
         ax.grid(True, which="both", alpha=0.2)
-        ax.tick_params(labelsize=7)
-        xs_all = sorted({p.axis_value for p in data.points})
-        ax.set_xticks(xs_all)
-        ax.set_xticklabels([f"{x:g}" for x in xs_all])
+        ax.set_xticks(sorted({p.axis_value for p in data.points}))
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.xaxis.set_minor_formatter(NullFormatter())
+        _plain_log_ticks(ax.yaxis)
+        ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
+        ax.tick_params(which="both", labelsize=7)
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=8, frameon=False,
                bbox_to_anchor=(0.5, -0.08))

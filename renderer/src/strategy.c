@@ -1,6 +1,7 @@
 #include "strategy.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 static bool uses_portals(enum strategy_kind k)
 {
@@ -75,11 +76,15 @@ void strategy_free(struct strategy *s)
     s->n_pairs = 0;
 }
 
+enum { VIS_UNKNOWN, VIS_EMPTY, VIS_READY };
+
 bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err)
 {
     scratch->cdf = malloc(sizeof *scratch->cdf * (size_t)s->n_pairs);
     scratch->region = malloc((size_t)s->n_pairs);
-    if (!scratch->cdf || !scratch->region) {
+    scratch->vis_state = calloc((size_t)s->n_pairs, 1);
+    scratch->vis = malloc(sizeof *scratch->vis * (size_t)s->n_pairs);
+    if (!scratch->cdf || !scratch->region || !scratch->vis_state || !scratch->vis) {
         strategy_scratch_free(scratch);
         return error_set(err, "out of memory for strategy scratch");
     }
@@ -90,8 +95,12 @@ void strategy_scratch_free(struct strategy_scratch *scratch)
 {
     free(scratch->cdf);
     free(scratch->region);
+    free(scratch->vis_state);
+    free(scratch->vis);
     scratch->cdf = NULL;
     scratch->region = NULL;
+    scratch->vis_state = NULL;
+    scratch->vis = NULL;
 }
 
 enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, int region)
@@ -125,6 +134,21 @@ enum technique strategy_technique(const struct strategy *s, const struct strateg
     return TECHNIQUE_NONE;
 }
 
+/* The visible part of pair i's light through its portal from the prepared
+   point, as a target; NULL when nothing is visible. Cached per point. */
+static const struct target *visible_target(const struct strategy *s, const struct strategy_point *pt, int i)
+{
+    struct strategy_scratch *sc = pt->scratch;
+    if (sc->vis_state[i] == VIS_UNKNOWN) {
+        const struct strategy_pair *pair = &s->pairs[i];
+        struct polygon vis;
+        bool ok = antishadow_visible_polygon(&s->scene->portals[pair->portal].antishadow, pt->p, &vis) >= 3 &&
+                  target_init(&sc->vis[i], &vis);
+        sc->vis_state[i] = ok ? VIS_READY : VIS_EMPTY;
+    }
+    return sc->vis_state[i] == VIS_READY ? &sc->vis[i] : NULL;
+}
+
 /* Projected solid angle (cosine-weighted when n is set) of a polygon: the
    unoccluded irradiance per unit radiance it delivers to p. */
 static double irradiance_factor(const struct polygon *poly, struct vec3 p, struct vec3 n)
@@ -133,11 +157,14 @@ static double irradiance_factor(const struct polygon *poly, struct vec3 p, struc
     return polygon_solid_angle(poly, p);
 }
 
-/* Weight of a pair at p under the strategy's heuristic; `region` is set. */
-static double pair_weight(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p, struct vec3 n,
-                          unsigned char *region)
+/* Weight of pair i at the point under the strategy's heuristic; sets the
+   pair's region. */
+static double pair_weight(const struct strategy *s, const struct strategy_point *ptp, int i)
 {
     const struct scene *sc = s->scene;
+    const struct strategy_pair *pair = &s->pairs[i];
+    struct vec3 p = ptp->p, n = ptp->n;
+    unsigned char *region = &ptp->scratch->region[i];
     const struct light *l = &sc->lights[pair->light];
     bool classify = classifies(s->kind);
     /* The plain portal techniques use the seed heuristic (area) and no
@@ -185,9 +212,8 @@ static double pair_weight(const struct strategy *s, const struct strategy_pair *
         return sum > 0.0 ? l->power * mine / sum : 0.0;
     }
     case PORTAL_WEIGHT_IRRADIANCE: {
-        struct polygon vis;
-        if (antishadow_visible_polygon(&pt->antishadow, p, &vis) < 3) return 0.0;
-        return rgb_luminance(l->radiance) * irradiance_factor(&vis, p, n);
+        const struct target *vis = visible_target(s, ptp, i);
+        return vis ? rgb_luminance(l->radiance) * irradiance_factor(&vis->polygon, p, n) : 0.0;
     }
     }
     return 0.0;
@@ -202,8 +228,9 @@ void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch
     pt->total = 0.0;
     if (!uses_portals(s->kind)) return;
     double acc = 0.0;
+    memset(scratch->vis_state, VIS_UNKNOWN, (size_t)s->n_pairs);
     for (int i = 0; i < s->n_pairs; ++i) {
-        double w = pair_weight(s, &s->pairs[i], p, n, &scratch->region[i]);
+        double w = pair_weight(s, pt, i);
         if (!(w > 0.0) || !isfinite(w)) w = 0.0;
         acc += w;
         scratch->cdf[i] = acc;
@@ -211,21 +238,16 @@ void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch
     pt->total = acc;
 }
 
-/* The visible part of pair's light through its portal, as a target. */
-static bool visible_target(const struct scene *sc, const struct strategy_pair *pair, struct vec3 p, struct target *t)
-{
-    struct polygon vis;
-    if (antishadow_visible_polygon(&sc->portals[pair->portal].antishadow, p, &vis) < 3) return false;
-    return target_init(t, &vis);
-}
 
-/* Density of wi under one pair's technique (0 when it cannot produce wi). */
-static double technique_pdf(const struct strategy *s, const struct strategy_pair *pair, enum technique t, struct vec3 p,
-                            struct vec3 wi)
+/* Density of wi under one pair's technique (0 when it cannot produce wi);
+   pair_index is -1 for the defensive light-only pair. */
+static double technique_pdf(const struct strategy *s, const struct strategy_point *pt, const struct strategy_pair *pair,
+                            int pair_index, enum technique t, struct vec3 wi)
 {
     const struct scene *sc = s->scene;
     const struct light *l = &sc->lights[pair->light];
-    struct target vis;
+    struct vec3 p = pt->p;
+    const struct target *vis;
     switch (t) {
     case TECHNIQUE_NONE:
         return 0.0;
@@ -238,19 +260,23 @@ static double technique_pdf(const struct strategy *s, const struct strategy_pair
     case TECHNIQUE_PORTAL_SOLID:
         return target_pdf_solid_angle(&sc->portals[pair->portal].target, p, wi);
     case TECHNIQUE_VISIBLE_AREA:
-        return visible_target(sc, pair, p, &vis) ? target_pdf_area(&vis, p, wi) : 0.0;
+        vis = visible_target(s, pt, pair_index);
+        return vis ? target_pdf_area(vis, p, wi) : 0.0;
     case TECHNIQUE_VISIBLE_SOLID:
-        return visible_target(sc, pair, p, &vis) ? target_pdf_solid_angle(&vis, p, wi) : 0.0;
+        vis = visible_target(s, pt, pair_index);
+        return vis ? target_pdf_solid_angle(vis, p, wi) : 0.0;
     }
     return 0.0;
 }
 
-static bool technique_sample(const struct strategy *s, const struct strategy_pair *pair, enum technique t,
-                             struct vec3 p, const double u[3], struct target_point *tp)
+static bool technique_sample(const struct strategy *s, const struct strategy_point *pt,
+                             const struct strategy_pair *pair, int pair_index, enum technique t, const double u[3],
+                             struct target_point *tp)
 {
     const struct scene *sc = s->scene;
     const struct light *l = &sc->lights[pair->light];
-    struct target vis;
+    struct vec3 p = pt->p;
+    const struct target *vis;
     switch (t) {
     case TECHNIQUE_NONE:
         return false;
@@ -263,9 +289,11 @@ static bool technique_sample(const struct strategy *s, const struct strategy_pai
     case TECHNIQUE_PORTAL_SOLID:
         return target_sample_solid_angle(&sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
     case TECHNIQUE_VISIBLE_AREA:
-        return visible_target(sc, pair, p, &vis) && target_sample_area(&vis, p, u[0], u[1], u[2], tp);
+        vis = visible_target(s, pt, pair_index);
+        return vis && target_sample_area(vis, p, u[0], u[1], u[2], tp);
     case TECHNIQUE_VISIBLE_SOLID:
-        return visible_target(sc, pair, p, &vis) && target_sample_solid_angle(&vis, p, u[0], u[1], u[2], tp);
+        vis = visible_target(s, pt, pair_index);
+        return vis && target_sample_solid_angle(vis, p, u[0], u[1], u[2], tp);
     }
     return false;
 }
@@ -282,15 +310,12 @@ static double pair_probability(const struct strategy_point *pt, int i)
 }
 
 /* Mixture density of wi reaching `light`: the defensive light-sampling
-   share plus every pair of that light that could have produced wi. */
-double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi)
+   share plus every pair of that light that could have produced wi. The
+   density of pair `known` (if >= 0) is already known to be known_pdf. */
+static double mixture_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi,
+                          int known, double known_pdf)
 {
     const struct light *l = &s->scene->lights[light];
-    if (!uses_portals(s->kind)) {
-        double sel = s->power.prob[light];
-        return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
-                                                     : target_pdf_solid_angle(&l->target, pt->p, wi));
-    }
     double pdf = 0.0;
     if (s->defensive > 0.0)
         pdf += s->defensive * s->power.prob[light] * target_pdf_solid_angle(&l->target, pt->p, wi);
@@ -299,12 +324,27 @@ double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, i
         for (int i = s->first_pair[light]; i < s->first_pair[light + 1]; ++i) {
             double sel = pair_probability(pt, i);
             if (sel <= 0.0) continue;
+            if (i == known) {
+                mix += sel * known_pdf;
+                continue;
+            }
             enum technique t = strategy_technique(s, &s->pairs[i], region_of(pt, i));
-            mix += sel * technique_pdf(s, &s->pairs[i], t, pt->p, wi);
+            mix += sel * technique_pdf(s, pt, &s->pairs[i], i, t, wi);
         }
         pdf += (1.0 - s->defensive) * mix;
     }
     return pdf;
+}
+
+double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi)
+{
+    if (!uses_portals(s->kind)) {
+        const struct light *l = &s->scene->lights[light];
+        double sel = s->power.prob[light];
+        return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
+                                                     : target_pdf_solid_angle(&l->target, pt->p, wi));
+    }
+    return mixture_pdf(s, pt, light, wi, -1, 0.0);
 }
 
 /* First index whose cdf exceeds x (cdf non-decreasing, x < cdf[n-1]). */
@@ -326,14 +366,15 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     struct strategy_pair light_only;
     const struct strategy_pair *pair;
     enum technique t;
+    int index = -1;
 
     if (uses_portals(s->kind) && u0 >= s->defensive) {
         /* Rescale u0 to [0,1) and pick a pair by the point's weights. */
         if (!(pt->total > 0.0)) return false;
         u0 = (u0 - s->defensive) / (1.0 - s->defensive);
-        int i = cdf_find(pt->scratch->cdf, s->n_pairs, u0 * pt->total);
-        pair = &s->pairs[i];
-        t = strategy_technique(s, pair, region_of(pt, i));
+        index = cdf_find(pt->scratch->cdf, s->n_pairs, u0 * pt->total);
+        pair = &s->pairs[index];
+        t = strategy_technique(s, pair, region_of(pt, index));
     } else {
         if (uses_portals(s->kind)) u0 = u0 / s->defensive;
         light_only.light = alias_sample(&s->power, u0, NULL);
@@ -343,7 +384,7 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     }
 
     struct target_point tp;
-    if (!technique_sample(s, pair, t, pt->p, u + 1, &tp)) return false;
+    if (!technique_sample(s, pt, pair, index, t, u + 1, &tp)) return false;
     out->wi = tp.wi;
     const struct light *l = &sc->lights[pair->light];
     if (pair->portal < 0) {
@@ -369,7 +410,8 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     out->radiance = light_emitted(l, vec3_neg(tp.wi));
     /* Light-only strategies know their density already; mixtures must add
        every other way of producing the same direction. */
-    out->pdf_sa = uses_portals(s->kind) ? strategy_pdf(s, pt, out->light, tp.wi)
-                                        : s->power.prob[pair->light] * tp.pdf_sa;
+    if (!uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp.pdf_sa;
+    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp.wi, index, tp.pdf_sa);
+    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp.wi, -1, 0.0);
     return true;
 }

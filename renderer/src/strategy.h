@@ -48,10 +48,14 @@ struct strategy {
 bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err);
 void strategy_free(struct strategy *s);
 
-/* Per-thread scratch that strategy_prepare fills (one slot per pair). */
+/* Per-thread scratch that strategy_prepare fills (one slot per pair). The
+   visible part of each pair's light is computed at most once per shading
+   point, when a weight, a sample or a pdf first needs it. */
 struct strategy_scratch {
     double *cdf;              /* cumulative pair weights */
     unsigned char *region;    /* enum region per pair */
+    unsigned char *vis_state; /* VIS_UNKNOWN, VIS_EMPTY or VIS_READY */
+    struct target *vis;       /* the clipped projection, when VIS_READY */
 };
 bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err);
 void strategy_scratch_free(struct strategy_scratch *scratch);
@@ -62,7 +66,7 @@ struct strategy_point {
     struct vec3 p;            /* world position (offset origin for rays) */
     struct vec3 n;            /* unit normal of the receiving side, or zero */
     double total;             /* sum of pair weights (portal strategies) */
-    const struct strategy_scratch *scratch;
+    struct strategy_scratch *scratch;
 };
 
 void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch, struct vec3 p, struct vec3 n,

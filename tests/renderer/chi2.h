@@ -17,22 +17,26 @@
    sampler's failures (it returned false).
 
    Expected counts. N times the integral of the pdf over each bin. Each bin
-   is split into sub x sub cells uniform in theta and phi (so that cells stay
-   compact near the axis), each cell's exact solid angle times its pdf. A
-   cell is checked on its 3 x 3 lattice of corners, edge midpoints and centre:
-   when the centre value times the area disagrees by more than 0.1% with the
-   sum over its four quarters of the mean of their corners, the cell is split
-   in 2 x 2, recursively down to max_depth levels, where that quarter-corner
-   estimate is kept. Cells next to a split cell are split once too, which
-   catches a shape's corner poking into a cell between lattice points. With
-   the defaults (8 x 8 cells, depth 3) a shape's outline is resolved to 1/64
-   of a bin: the bias of a bin on the outline is ~0.1/64 of its mass, far
-   below the statistical error; a piece of the pdf narrower than 1/8 of a bin
-   that misses every lattice point is lost (fit the cap, or raise sub, for
-   slivers). The region outside the cap is integrated the same way on 8 x 16
-   bins uniform in theta. The expected failure count is N (1 - integral of
-   the pdf over the sphere): a sampler may fail exactly as often as its pdf is
-   defective. An integral above 1 + CHI2_NORM_TOL fails the test outright.
+   is split into sub x sub cells uniform in theta and phi (compact near the
+   axis too). A cell is first checked on a 3 x 3 lattice (corners, edge
+   midpoints, centre; shared between neighbours): when its centre value times
+   its exact solid angle agrees to 0.1% with the sum over its quarters of the
+   mean of their corners, that sum is its integral. Otherwise (the cell holds
+   an edge of the pdf) it is resolved on `fine` points of a Fibonacci lattice
+   (see chi2_cell_fine_). Then a flood fill resolves the neighbours
+   (8-neighbourhood, phi wrapping) of resolved cells, and keeps spreading
+   from those where the fine points show what the coarse lattice missed: this
+   follows thin tips of a shape (the acute corners of a grazing rectangle,
+   slivers) and corners poking between lattice points. With the defaults
+   (8 x 8 cells of 233 points) an outline is resolved to ~1/120 of a bin.
+   What escapes: the part of a tip narrower than the point spacing w (area
+   ~ w^2 / (2 tan(angle))), and features that no lattice point
+   of any cell touches; fit the cap to the shape (chi2_config_cap) or raise
+   sub/fine for extreme slivers. The region outside the cap is integrated the
+   same way on 8 x 16 bins uniform in theta. The expected failure count is
+   N (1 - integral of the pdf over the sphere): a sampler may fail exactly as
+   often as its pdf is defective. An integral above 1 + CHI2_NORM_TOL fails
+   the test outright.
 
    Statistic. Cells with expected counts below 5 are pooled, smallest first,
    until the pool reaches 5; chi^2 = sum (observed - expected)^2 / expected
@@ -70,7 +74,7 @@ struct chi2_config {
     uint64_t seed;
     double significance; /* reject when p < significance */
     int sub;             /* integration cells per bin side */
-    int max_depth;       /* adaptive splits of a cell */
+    int fine;            /* points in a cell that holds an edge (Fibonacci) */
 };
 
 #define CHI2_NORM_TOL 1e-3
@@ -78,7 +82,7 @@ struct chi2_config {
 #define CHI2_MAX_RINGS 1024
 
 /* Defaults: 20 x 40 bins, 200000 samples, seed 1, significance 0.01,
-   8 x 8 integration cells per bin, depth 3. */
+   8 x 8 integration cells per bin, 233 points per resolved cell. */
 static inline void chi2_config_init(struct chi2_config *cfg, struct vec3 axis, double cap_angle)
 {
     cfg->frame = frame_from_normal(vec3_normalize(axis));
@@ -89,7 +93,7 @@ static inline void chi2_config_init(struct chi2_config *cfg, struct vec3 axis, d
     cfg->seed = 1;
     cfg->significance = 0.01;
     cfg->sub = 8;
-    cfg->max_depth = 3;
+    cfg->fine = 233;
 }
 
 /* Fits the cap to a convex spherical shape given by its n unit vertex
@@ -167,11 +171,16 @@ struct chi2_integrand_ {
     void *ctx;
 };
 
+static inline double chi2_pdf_sc_(const struct chi2_integrand_ *f, double sin_th, double cos_th, double sin_ph,
+                                  double cos_ph)
+{
+    struct vec3 local = vec3_make(sin_th * cos_ph, sin_th * sin_ph, cos_th);
+    return f->pdf(f->ctx, frame_to_world(&f->cfg->frame, local));
+}
+
 static inline double chi2_pdf_at_(const struct chi2_integrand_ *f, double theta, double phi)
 {
-    double st = sin(theta);
-    struct vec3 local = vec3_make(st * cos(phi), st * sin(phi), cos(theta));
-    return f->pdf(f->ctx, frame_to_world(&f->cfg->frame, local));
+    return chi2_pdf_sc_(f, sin(theta), cos(theta), sin(phi), cos(phi));
 }
 
 /* Solid angle of theta in [th0, th1], phi in [ph0, ph1]:
@@ -182,74 +191,128 @@ static inline double chi2_cell_area_(double th0, double th1, double ph0, double 
     return 2.0 * sin(0.5 * (th0 + th1)) * sin(0.5 * (th1 - th0)) * (ph1 - ph0);
 }
 
-/* Integral of the pdf over one cell (see the top of this file). *split
-   reports whether the cell was subdivided; force subdivides it regardless. */
-static inline double chi2_cell_(const struct chi2_integrand_ *f, double th0, double th1, double ph0, double ph1,
-                                int depth, bool force, bool *split)
+static inline bool chi2_differ_(double a, double b)
 {
-    double th[3] = { th0, 0.5 * (th0 + th1), th1 }, ph[3] = { ph0, 0.5 * (ph0 + ph1), ph1 };
-    double v[3][3];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) v[i][j] = chi2_pdf_at_(f, th[i], ph[j]);
-    double coarse = v[1][1] * chi2_cell_area_(th0, th1, ph0, ph1), fine = 0.0;
-    for (int i = 0; i < 2; ++i)
-        for (int j = 0; j < 2; ++j)
-            fine += 0.25 * (v[i][j] + v[i + 1][j] + v[i][j + 1] + v[i + 1][j + 1]) *
-                    chi2_cell_area_(th[i], th[i + 1], ph[j], ph[j + 1]);
-    *split = false;
-    if (!force && fabs(coarse - fine) <= 1e-3 * fmax(fabs(coarse), fabs(fine))) return fine;
-    if (depth >= f->cfg->max_depth) return fine;
-    *split = true;
+    return fabs(a - b) > 1e-3 * fmax(fabs(a), fabs(b));
+}
+
+/* Integral over a cell from a (k+1) x (k+1) lattice of pdf values v (rows
+   along theta): each of the k x k sub-cells gets the mean of its corners
+   times its exact solid angle. */
+static inline double chi2_lattice_sum_(const double *v, int k, double th0, double th1, double ph0, double ph1)
+{
     double sum = 0.0;
-    bool ignored;
-    for (int i = 0; i < 2; ++i)
-        for (int j = 0; j < 2; ++j) sum += chi2_cell_(f, th[i], th[i + 1], ph[j], ph[j + 1], depth + 1, false, &ignored);
+    for (int i = 0; i < k; ++i) {
+        double ta = th0 + (th1 - th0) * i / k, tb = th0 + (th1 - th0) * (i + 1) / k;
+        double row = 0.0;
+        for (int j = 0; j < k; ++j)
+            row += v[i * (k + 1) + j] + v[(i + 1) * (k + 1) + j] + v[i * (k + 1) + j + 1] + v[(i + 1) * (k + 1) + j + 1];
+        sum += 0.25 * row * chi2_cell_area_(ta, tb, ph0, ph0 + (ph1 - ph0) / k);
+    }
     return sum;
 }
 
+/* A cell resolved on a Fibonacci lattice of `fine` points: point i at
+   ((i + 1/2) / M, frac((i F' + 1/2) / M)) in the cell's (theta, phi) square,
+   with M = fine and F' the previous Fibonacci number. Unlike a square grid it
+   has no rows or columns for a shape's edge to run along (an edge along
+   theta or phi would bias a grid by up to half a row). Each point weighs
+   sin(theta) (the measure), normalised to the cell's exact solid angle. */
+static inline double chi2_cell_fine_(const struct chi2_integrand_ *f, double th0, double th1, double ph0, double ph1)
+{
+    int m = f->cfg->fine, a = 1, b = 1;
+    while (a + b <= m) {
+        int c = a + b;
+        a = b;
+        b = c;
+    }
+    /* m is rounded down to the Fibonacci number b; a precedes it. */
+    double sum = 0.0, wsum = 0.0;
+    for (int i = 0; i < b; ++i) {
+        double x = (i + 0.5) / b, y = fmod((double)i * a + 0.5, (double)b) / b;
+        double th = th0 + (th1 - th0) * x, w = sin(th);
+        sum += w * chi2_pdf_at_(f, th, ph0 + (ph1 - ph0) * y);
+        wsum += w;
+    }
+    return wsum > 0.0 ? sum / wsum * chi2_cell_area_(th0, th1, ph0, ph1) : 0.0;
+}
+
 /* Masses of the nr x ns bins between the theta boundaries theta[0..nr] and
-   ns equal phi sectors: sub x sub cells per bin, then a second pass splits
-   the unsplit neighbours (8-neighbourhood, phi wrapping) of split cells. */
+   ns equal phi sectors (see the top of this file). */
 static inline bool chi2_masses_(const struct chi2_integrand_ *f, const double *theta, int nr, int ns, double *mass)
 {
     int sub = f->cfg->sub, rows = nr * sub, cols = ns * sub;
-    double *val = malloc((size_t)rows * (size_t)cols * sizeof *val);
-    unsigned char *split = calloc((size_t)rows * (size_t)cols, 1);
-    if (!val || !split) {
-        free(val);
-        free(split);
-        return false;
-    }
-    for (int pass = 0; pass < 2; ++pass) {
-        for (int r = 0; r < rows; ++r) {
-            int ring = r / sub, k = r % sub;
-            double th0 = theta[ring] + (theta[ring + 1] - theta[ring]) * k / sub;
-            double th1 = theta[ring] + (theta[ring + 1] - theta[ring]) * (k + 1) / sub;
-            for (int c = 0; c < cols; ++c) {
-                size_t at = (size_t)r * (size_t)cols + (size_t)c;
-                bool force = false;
-                if (pass == 1) {
-                    if (split[at]) continue;
-                    for (int dr = -1; dr <= 1 && !force; ++dr)
-                        for (int dc = -1; dc <= 1 && !force; ++dc) {
-                            int rr = r + dr, cc = (c + dc + cols) % cols;
-                            if (rr >= 0 && rr < rows && split[(size_t)rr * (size_t)cols + (size_t)cc] == 1) force = true;
-                        }
-                    if (!force) continue;
+    size_t ncell = (size_t)rows * (size_t)cols, lrows = 2 * (size_t)rows + 1, lcols = 2 * (size_t)cols;
+    double *val = malloc(ncell * sizeof *val), *coarse_est = malloc(ncell * sizeof *coarse_est);
+    double *lat = malloc(lrows * lcols * sizeof *lat);
+    double *th = malloc(lrows * sizeof *th), *trig = malloc(2 * lcols * sizeof *trig);
+    unsigned char *state = calloc(ncell, 1); /* 0 coarse, 1 resolved and spreading, 2 resolved */
+    size_t *queue = malloc(ncell * sizeof *queue);
+    bool ok = val && coarse_est && lat && th && trig && state && queue;
+    if (ok) {
+        /* theta of lattice row a: cell r = a / 2 spans a ring's sub-th part. */
+        for (size_t a = 0; a < lrows; ++a) {
+            int r = (int)(a / 2) < rows ? (int)(a / 2) : rows - 1, ring = r / sub, q = r % sub;
+            double half = (a == lrows - 1) ? 1.0 : (double)(a % 2) * 0.5;
+            double step = (theta[ring + 1] - theta[ring]) / sub;
+            th[a] = theta[ring] + step * (q + half);
+        }
+        /* The lattice's phi columns are shared by all rows. */
+        for (size_t b = 0; b < lcols; ++b) {
+            trig[2 * b] = sin(M_PI * (double)b / (double)cols);
+            trig[2 * b + 1] = cos(M_PI * (double)b / (double)cols);
+        }
+        for (size_t a = 0; a < lrows; ++a) {
+            double st = sin(th[a]), ct = cos(th[a]);
+            for (size_t b = 0; b < lcols; ++b) lat[a * lcols + b] = chi2_pdf_sc_(f, st, ct, trig[2 * b], trig[2 * b + 1]);
+        }
+        size_t head = 0, tail = 0;
+        for (size_t r = 0; r < (size_t)rows; ++r) {
+            for (size_t c = 0; c < (size_t)cols; ++c) {
+                double v[9], ph0 = 2.0 * M_PI * (double)c / cols, ph1 = 2.0 * M_PI * (double)(c + 1) / cols;
+                for (size_t i = 0; i < 3; ++i)
+                    for (size_t j = 0; j < 3; ++j) v[i * 3 + j] = lat[(2 * r + i) * lcols + (2 * c + j) % lcols];
+                size_t at = r * (size_t)cols + c;
+                double coarse = v[4] * chi2_cell_area_(th[2 * r], th[2 * r + 2], ph0, ph1);
+                coarse_est[at] = chi2_lattice_sum_(v, 2, th[2 * r], th[2 * r + 2], ph0, ph1);
+                val[at] = coarse_est[at];
+                if (chi2_differ_(coarse, coarse_est[at])) {
+                    val[at] = chi2_cell_fine_(f, th[2 * r], th[2 * r + 2], ph0, ph1);
+                    state[at] = 1;
+                    queue[tail++] = at;
                 }
-                bool did = false;
-                val[at] = chi2_cell_(f, th0, th1, 2.0 * M_PI * c / cols, 2.0 * M_PI * (c + 1) / cols, 0, force, &did);
-                /* 2 marks cells split in the second pass: they do not spread. */
-                if (did) split[at] = (unsigned char)(pass == 0 ? 1 : 2);
             }
         }
+        while (head < tail) {
+            size_t at = queue[head++], r = at / (size_t)cols, c = at % (size_t)cols;
+            for (int dr = -1; dr <= 1; ++dr) {
+                for (int dc = -1; dc <= 1; ++dc) {
+                    long rr = (long)r + dr;
+                    if (rr < 0 || rr >= rows) continue;
+                    size_t cc = (c + (size_t)cols + (size_t)(long)dc) % (size_t)cols, nb = (size_t)rr * (size_t)cols + cc;
+                    if (state[nb]) continue;
+                    double ph0 = 2.0 * M_PI * (double)cc / cols, ph1 = 2.0 * M_PI * (double)(cc + 1) / cols;
+                    val[nb] = chi2_cell_fine_(f, th[2 * rr], th[2 * rr + 2], ph0, ph1);
+                    state[nb] = 2;
+                    if (chi2_differ_(val[nb], coarse_est[nb])) {
+                        state[nb] = 1;
+                        queue[tail++] = nb;
+                    }
+                }
+            }
+        }
+        for (int b = 0; b < nr * ns; ++b) mass[b] = 0.0;
+        for (size_t r = 0; r < (size_t)rows; ++r)
+            for (size_t c = 0; c < (size_t)cols; ++c) mass[(r / sub) * (size_t)ns + c / sub] += val[r * (size_t)cols + c];
     }
-    for (int b = 0; b < nr * ns; ++b) mass[b] = 0.0;
-    for (int r = 0; r < rows; ++r)
-        for (int c = 0; c < cols; ++c) mass[(r / sub) * ns + c / sub] += val[(size_t)r * (size_t)cols + (size_t)c];
     free(val);
-    free(split);
-    return true;
+    free(coarse_est);
+    free(lat);
+    free(th);
+    free(trig);
+    free(state);
+    free(queue);
+    return ok;
 }
 
 /* Runs the test (see the top of this file). *p_value receives p (0 when the
@@ -261,7 +324,7 @@ static inline bool chi2_test(const struct chi2_config *cfg, chi2_sample_fn sampl
     int nt = cfg->theta_bins, np = cfg->phi_bins, nbins = nt * np;
     double cap_t = 2.0 * pow(sin(0.5 * cfg->cap_angle), 2.0); /* 1 - cos(cap) */
     *p_value = 0.0;
-    if (nt < 1 || nt > CHI2_MAX_RINGS || np < 1 || cfg->sub < 1 || cfg->max_depth < 0 || cfg->samples < 1 ||
+    if (nt < 1 || nt > CHI2_MAX_RINGS || np < 1 || cfg->sub < 1 || cfg->fine < 3 || cfg->samples < 1 ||
         !(cfg->cap_angle > 0.0) || !(cfg->cap_angle <= M_PI)) {
         if (report && report_len) snprintf(report, report_len, "chi2: invalid configuration");
         return false;

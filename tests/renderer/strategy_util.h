@@ -122,7 +122,7 @@ static inline bool strategy_chi2_run(const struct test_scene *ts, enum strategy_
     struct strategy_scratch scratch;
     struct error err;
     if (!strategy_init(&s, &ts->scene, &rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
-        snprintf(report, report_len, "strategy init: %s", err.message);
+        snprintf(report, report_len, "strategy init: %.400s", err.message);
         return false;
     }
     struct strategy_chi2 c;

@@ -10,8 +10,6 @@
 #include "rng.h"
 #include "testlib.h"
 
-/* ---- scene helpers ---- */
-
 /* Rotation of v about the unit axis by angle (Rodrigues). */
 static struct vec3 rotate_axis(struct vec3 v, struct vec3 axis, double angle)
 {
@@ -64,8 +62,6 @@ static void lampshade(double s_light, struct polygon *light, struct polygon *por
     *light = square(vec3_make(0, 2.6, 0), X, Z, s_light); /* winding normal -y: faces the room */
     *portal = square(vec3_make(0, 2.2, 0), X, Z, 0.3);
 }
-
-/* ---- brute force ---- */
 
 /* A polygon as a flat region: Newell normal and inward edge normals, so that
    inside_margin is the smallest distance (in its plane) to an edge line,
@@ -193,7 +189,7 @@ static double portal_point_margin(const struct brute *b, struct vec3 p, struct v
     return flat_inside(&b->light_flat, vec3_madd(p, w, t));
 }
 
-enum tri_state { NO, YES, UNSURE };
+enum tri_state { TRI_NO, TRI_YES, TRI_UNSURE };
 
 /* Does any light point reach p through the portal (margin BF_DELTA)? A yes
    is a witness; a no is a proof by branch and bound over a subdivision of
@@ -233,7 +229,7 @@ static enum tri_state brute_any_visible(const struct brute *b, struct vec3 p, do
     while (top > 0) {
         struct node nd = stack[--top];
         double mmax = fmax(nd.m[0], fmax(nd.m[1], nd.m[2]));
-        if (mmax >= BF_DELTA) return YES;
+        if (mmax >= BF_DELTA) return TRI_YES;
         double diam = fmax(vec3_length(vec3_sub(nd.v[0], nd.v[1])),
                            fmax(vec3_length(vec3_sub(nd.v[1], nd.v[2])), vec3_length(vec3_sub(nd.v[2], nd.v[0]))));
         if (mmax + triangle_lipschitz(b, p, dp, nd.v) * diam < -BF_DELTA) continue;
@@ -256,7 +252,7 @@ static enum tri_state brute_any_visible(const struct brute *b, struct vec3 p, do
         };
         for (int c = 0; c < 4; ++c) stack[top++] = kids[c];
     }
-    return unsure ? UNSURE : NO;
+    return unsure ? TRI_UNSURE : TRI_NO;
 }
 
 /* A region, or -1 when the brute force cannot decide with margin. */
@@ -266,35 +262,36 @@ static int brute_region(const struct brute *b, struct vec3 p)
     if (dp < -BF_DELTA) return REGION_OUTSIDE;
     if (dp <= BF_DELTA) return -1;
 
-    /* Whole light seen: every light sample crosses inside the portal. */
+    /* Whole light seen: every light sample crosses inside the portal. The
+       vertices among the samples make this exact: the margin is concave on
+       the portal plane, so its minimum over the convex L' is at a vertex. */
     double m_min = INFINITY;
     for (int i = 0; i < b->n_light_samples; ++i)
         m_min = fmin(m_min, light_point_margin(b, p, dp, b->light_samples[i]));
-    enum tri_state umbra = m_min >= BF_DELTA ? YES : m_min <= -BF_DELTA ? NO : UNSURE;
+    enum tri_state umbra = m_min >= BF_DELTA ? TRI_YES : m_min <= -BF_DELTA ? TRI_NO : TRI_UNSURE;
 
-    /* Whole portal filled: every ray through a portal sample hits the light. */
+    /* Whole portal filled: every ray through a portal sample hits the light
+       (exact at the vertices for the same reason, in the light's plane). */
     double u_min = INFINITY;
     for (int i = 0; i < b->n_portal_samples; ++i)
         u_min = fmin(u_min, portal_point_margin(b, p, b->portal_samples[i]));
-    enum tri_state antumbra = u_min >= BF_DELTA ? YES : u_min <= -BF_DELTA ? NO : UNSURE;
+    enum tri_state antumbra = u_min >= BF_DELTA ? TRI_YES : u_min <= -BF_DELTA ? TRI_NO : TRI_UNSURE;
 
-    if (umbra == YES) return antumbra == YES ? -1 : REGION_ANTI_UMBRA;
-    if (antumbra == YES) return REGION_ANTI_ANTUMBRA;
-    if (umbra == UNSURE || antumbra == UNSURE) return -1;
+    if (umbra == TRI_YES) return antumbra == TRI_YES ? -1 : REGION_ANTI_UMBRA;
+    if (antumbra == TRI_YES) return REGION_ANTI_ANTUMBRA;
+    if (umbra == TRI_UNSURE || antumbra == TRI_UNSURE) return -1;
     switch (brute_any_visible(b, p, dp)) {
-    case YES:
+    case TRI_YES:
         return REGION_ANTI_PENUMBRA;
-    case NO:
+    case TRI_NO:
         return REGION_OUTSIDE;
-    case UNSURE:
+    case TRI_UNSURE:
         return -1;
     }
     return -1;
 }
 
-/* ---- configurations ---- */
-
-struct config {
+struct pair_setup {
     const char *name;
     struct polygon light, portal;
     struct vec3 box_lo, box_hi; /* the room */
@@ -304,9 +301,9 @@ struct config {
     bool expect_antumbra;
 };
 
-static struct config config_make(const char *name, struct polygon light, struct polygon portal, bool antumbra)
+static struct pair_setup setup_make(const char *name, struct polygon light, struct polygon portal, bool antumbra)
 {
-    struct config c;
+    struct pair_setup c;
     c.name = name;
     c.light = light;
     c.portal = portal;
@@ -324,7 +321,7 @@ static struct config config_make(const char *name, struct polygon light, struct 
 
 #define N_FIXED 9
 
-static void fixed_configs(struct config *c)
+static void fixed_setups(struct pair_setup *c)
 {
     static const double s_light[5] = { 0.075, 0.15, 0.3, 0.6, 1.2 };
     static const char *names[5] = { "lampshade s_L=0.075", "lampshade s_L=0.15", "lampshade s_L=0.3",
@@ -335,24 +332,24 @@ static void fixed_configs(struct config *c)
         /* Alternate the windings: the classifier must not depend on them. */
         if (i % 2) p = reversed(&p);
         if (i == 4) l = reversed(&l);
-        c[i] = config_make(names[i], l, p, s_light[i] > 0.3);
+        c[i] = setup_make(names[i], l, p, s_light[i] > 0.3);
     }
     struct polygon l, p;
     lampshade(0.6, &l, &p);
-    c[5] = config_make("portal tilted 30 deg", l, rotated(&p, vec3_make(0, 2.2, 0), X, M_PI / 6.0), true);
-    c[6] = config_make("portal turned 20 deg about y", l, rotated(&p, vec3_make(0, 2.2, 0), Y, 20.0 * M_PI / 180.0),
+    c[5] = setup_make("portal tilted 30 deg", l, rotated(&p, vec3_make(0, 2.2, 0), X, M_PI / 6.0), true);
+    c[6] = setup_make("portal turned 20 deg about y", l, rotated(&p, vec3_make(0, 2.2, 0), Y, 20.0 * M_PI / 180.0),
                        true);
     /* Triangle light, slightly tilted, over a pentagon portal. */
     struct polygon tri = ngon(vec3_make(0.05, 2.6, 0), X, Z, 0.45, 3, 0.3);
     tri = rotated(&tri, vec3_make(0.05, 2.6, 0), vec3_normalize(vec3_make(1, 0, 1)), 0.2);
-    c[7] = config_make("triangle light, pentagon portal", tri, ngon(vec3_make(0, 2.2, 0), Z, X, 0.16, 5, 0.1), true);
+    c[7] = setup_make("triangle light, pentagon portal", tri, ngon(vec3_make(0, 2.2, 0), Z, X, 0.16, 5, 0.1), true);
     /* Portal offset sideways and tilted 25 deg about z, about an oblique
        axis as well, under a light tilted the other way. */
     struct polygon side = square(vec3_make(0.35, 2.0, -0.1), X, Z, 0.25);
     side = rotated(&side, vec3_make(0.35, 2.0, -0.1), Z, 25.0 * M_PI / 180.0);
     side = rotated(&side, vec3_make(0.35, 2.0, -0.1), vec3_normalize(vec3_make(1, 1, 1)), 0.15);
     struct polygon tl = rotated(&l, vec3_make(0, 2.6, 0), X, -0.15);
-    c[8] = config_make("tilted light, non-parallel portal offset sideways", tl, side, true);
+    c[8] = setup_make("tilted light, non-parallel portal offset sideways", tl, side, true);
 }
 
 static struct vec3 random_in_box(struct rng *r, struct vec3 lo, struct vec3 hi)
@@ -364,7 +361,7 @@ static struct vec3 random_in_box(struct rng *r, struct vec3 lo, struct vec3 hi)
 /* A random point of the config: a quarter each in the room, the focus box,
    the near box and a column along the axis (where the anti-antumbra is),
    none within 1 cm of the portal plane. */
-static struct vec3 config_point(const struct config *c, const struct brute *b, struct rng *r, int i)
+static struct vec3 setup_point(const struct pair_setup *c, const struct brute *b, struct rng *r, int i)
 {
     for (;;) {
         struct vec3 p;
@@ -395,14 +392,14 @@ struct agreement {
 
 /* Compares the classifier with the brute force at n points; prints the first
    few disagreements. */
-static struct agreement agree(const struct antishadow *a, const struct brute *b, const struct config *c, int n,
+static struct agreement agree(const struct antishadow *a, const struct brute *b, const struct pair_setup *c, int n,
                               uint64_t seed)
 {
     struct agreement g = { 0, 0, 0, { 0, 0, 0, 0 } };
     struct rng r;
     rng_seed(&r, seed, 2, 0);
     for (int i = 0; i < n; ++i) {
-        struct vec3 p = config_point(c, b, &r, i);
+        struct vec3 p = setup_point(c, b, &r, i);
         int want = brute_region(b, p);
         if (want < 0) {
             ++g.skipped;
@@ -420,14 +417,12 @@ static struct agreement agree(const struct antishadow *a, const struct brute *b,
     return g;
 }
 
-/* ---- tests ---- */
-
 static void test_build_plane_counts(void)
 {
     /* Parallel aligned squares: each separating plane arises twice (through a
        portal edge and through the parallel light edge) and is kept once. */
-    struct config c[N_FIXED];
-    fixed_configs(c);
+    struct pair_setup c[N_FIXED];
+    fixed_setups(c);
     for (int i = 0; i < N_FIXED; ++i) {
         struct antishadow a;
         struct error err = { { 0 } };
@@ -496,8 +491,8 @@ static void test_lampshade_hand_checked(void)
 
 static void test_brute_force_fixed(void)
 {
-    struct config c[N_FIXED];
-    fixed_configs(c);
+    struct pair_setup c[N_FIXED];
+    fixed_setups(c);
     int total_compared = 0, total_disagree = 0;
     for (int i = 0; i < N_FIXED; ++i) {
         struct antishadow a;
@@ -576,7 +571,7 @@ static void test_brute_force_random_pairs(void)
         for (int i = 0; i < light.n; ++i) clearance = fmin(clearance, -plane_distance(&a.portal_plane, light.v[i]));
         if (clearance < 0.02) continue;
         with_antumbra += a.has_antumbra;
-        struct config c;
+        struct pair_setup c;
         c.name = "random pair";
         c.light = light;
         c.portal = portal;
@@ -616,8 +611,8 @@ static void test_brute_force_random_pairs(void)
    whose rays hit the light lie in it (and those that miss lie outside it). */
 static void test_visible_polygon(void)
 {
-    struct config c[N_FIXED];
-    fixed_configs(c);
+    struct pair_setup c[N_FIXED];
+    fixed_setups(c);
     int checked[4] = { 0, 0, 0, 0 }, rays = 0;
     for (int i = 0; i < N_FIXED; ++i) {
         struct antishadow a;
@@ -632,7 +627,7 @@ static void test_visible_polygon(void)
         rng_seed(&r, 600 + (uint64_t)i, 0, 0);
         int fails = 0;
         for (int k = 0; k < 600; ++k) {
-            struct vec3 p = config_point(&c[i], &b, &r, k);
+            struct vec3 p = setup_point(&c[i], &b, &r, k);
             enum region reg = antishadow_classify(&a, p);
             struct polygon vis, clip;
             int n = antishadow_visible_polygon(&a, p, &vis);
@@ -766,13 +761,13 @@ static double now_s(void)
    polygon, on points of the focus box. */
 static void test_timing(void)
 {
-    struct config c[N_FIXED];
-    fixed_configs(c);
+    struct pair_setup c[N_FIXED];
+    fixed_setups(c);
     static const int which[3] = { 3, 6, 8 };
     enum { N_POINTS = 4096, REPEAT = 100 };
     struct vec3 pts[N_POINTS];
     for (int w = 0; w < 3; ++w) {
-        const struct config *cf = &c[which[w]];
+        const struct pair_setup *cf = &c[which[w]];
         struct antishadow a;
         struct error err;
         CHECK(antishadow_build(&cf->light, &cf->portal, &a, &err));

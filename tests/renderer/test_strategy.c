@@ -57,7 +57,8 @@ static void test_tilted_pentagon(void)
 {
     struct test_scene ts;
     ts_init(&ts);
-    struct polygon penta = { 5, { { 0 } } };
+    struct polygon penta;
+    penta.n = 5;
     for (int i = 0; i < 5; ++i) {
         double a = -2.0 * M_PI * i / 5.0; /* clockwise seen from above: faces down */
         penta.v[i] = vec3_make(0.25 * cos(a), 2.6, 0.25 * sin(a));

@@ -1,0 +1,258 @@
+"""Shared pieces of the benchmark suite: paths, machine description, running
+the renderer and the C benchmarks, reading EXR, the relMSE estimator and
+writing results/bench/<name>.json.
+
+Timing policy (the machine is shared): every renderer run records its own
+render time (time_s of the final JSON line, wall clock) and the CPU time the
+process consumed (user + sys, from the rusage of the reaped child). Rates per
+CPU second do not depend on how much of the machine other work took;
+rates per wall second do. Comparisons are ratios of runs made in the same
+round, and medians over rounds.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+BENCH_DIR = Path(__file__).resolve().parent
+ROOT = BENCH_DIR.parent.parent
+RESULTS = ROOT / "results" / "bench"
+TMP = RESULTS / "tmp"
+LAMPSHADE = ROOT / "configs" / "scenes" / "lampshade.yaml"
+MULTI_LAMP = ROOT / "configs" / "scenes" / "multi_lamp.yaml"
+STRATEGIES = ("light_area", "light", "portal", "projection", "antishadow", "antishadow_exact")
+REL_EPSILON = 0.01
+# render.snapshots.every cannot be 0 (it must be > 0): "no snapshots" is a
+# period far beyond any benchmark run.
+NO_SNAPSHOTS = ("--set", "render.snapshots.every=1e9")
+
+_T0 = time.monotonic()
+
+
+def log(msg: str) -> None:
+    print(f"[bench {time.monotonic() - _T0:6.1f}s] {msg}", file=sys.stderr, flush=True)
+
+
+def median(xs: list[float]) -> float:
+    xs = [x for x in xs if x == x]
+    return statistics.median(xs) if xs else float("nan")
+
+
+def loadavg() -> list[float]:
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return []
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def embree_version() -> str:
+    """From the Debian package, if there is one (raw_embree.json has the
+    version the library itself reports)."""
+    if shutil.which("dpkg-query"):
+        for pkg in ("libembree3-3", "libembree-dev"):
+            r = subprocess.run(["dpkg-query", "-W", "-f=${Version}", pkg], capture_output=True, text=True)
+            if r.returncode == 0 and r.stdout.strip():
+                return r.stdout.strip()
+    return "unknown"
+
+
+def machine_info() -> dict[str, Any]:
+    return {
+        "nproc": os.cpu_count(),
+        "nproc_affinity": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
+        "cpu_model": cpu_model(),
+        "embree_package": embree_version(),
+        "kernel": platform.release(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "loadavg_1_5_15": loadavg(),
+    }
+
+
+@dataclass
+class Context:
+    """What every section needs: the build, the mode and shared metadata."""
+
+    build: Path
+    quick: bool
+    render: Path
+    version: str
+    started: str
+    machine: dict[str, Any]
+    bins: dict[str, Path] = field(default_factory=dict)
+
+    def meta(self) -> dict[str, Any]:
+        return {
+            "date": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "suite_started": self.started,
+            "quick": self.quick,
+            "renderer": str(self.render),
+            "renderer_version": self.version,
+            "machine": {**self.machine, "loadavg_1_5_15": loadavg()},
+        }
+
+
+def make_context(build: Path, quick: bool) -> Context:
+    render = build / "render"
+    if not (render.is_file() and os.access(render, os.X_OK)):
+        raise SystemExit(f"bench: renderer not found at {render} (build it with make)")
+    r = subprocess.run([str(render), "--version"], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"bench: {render} --version failed: {r.stderr.strip()}")
+    version = r.stdout.strip().split()[-1]
+    return Context(
+        build=build,
+        quick=quick,
+        render=render,
+        version=version,
+        started=_dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+        machine=machine_info(),
+    )
+
+
+def children_cpu_s() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+@dataclass
+class RenderRun:
+    """One renderer process: its JSON lines, render time and CPU time."""
+
+    args: list[str]
+    out: Path
+    start: dict[str, Any]
+    final: dict[str, Any]
+    snapshots: list[dict[str, Any]]
+    process_wall_s: float
+    cpu_s: float
+
+    @property
+    def time_s(self) -> float:
+        return float(self.final["time_s"])
+
+    @property
+    def samples(self) -> float:
+        return float(self.final["spp"]) * self.start["width"] * self.start["height"]
+
+    def summary(self) -> dict[str, Any]:
+        f = self.final
+        return {
+            "spp": f["spp"],
+            "time_s": f["time_s"],
+            "cpu_s": round(self.cpu_s, 4),
+            "process_wall_s": round(self.process_wall_s, 4),
+            "threads": self.start.get("threads"),
+            "rays": f["rays"],
+            "samples": self.samples,
+            "samples_per_s": self.samples / max(self.time_s, 1e-9),
+            "rays_per_s": f["rays"] / max(self.time_s, 1e-9),
+            "samples_per_cpu_s": self.samples / max(self.cpu_s, 1e-9),
+            "rays_per_cpu_s": f["rays"] / max(self.cpu_s, 1e-9),
+            "cpu_share": self.cpu_s / max(self.process_wall_s, 1e-9),
+            "shadow_rays": f.get("shadow_rays"),
+            "shadow_blocked": f.get("shadow_blocked"),
+            "light_samples": f.get("light_samples"),
+            "light_missed": f.get("light_missed"),
+            "nonfinite": f.get("nonfinite"),
+            "snapshots": len(self.snapshots),
+        }
+
+
+def run_render(ctx: Context, config: Path, out: Path, *args: str, snapshots: bool = False) -> RenderRun:
+    """Runs the renderer to completion; raises with its stderr on failure."""
+    if out.exists():
+        shutil.rmtree(out)
+    cmd = [str(ctx.render), str(config), "--out", str(out), "--quiet", *([] if snapshots else NO_SNAPSHOTS), *args]
+    c0, w0 = children_cpu_s(), time.monotonic()
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    wall, cpu = time.monotonic() - w0, children_cpu_s() - c0
+    if p.returncode != 0:
+        raise RuntimeError(f"render failed ({p.returncode}): {' '.join(cmd)}\n{p.stderr.strip()}")
+    events = [json.loads(line) for line in p.stdout.splitlines() if line.strip()]
+    start = next(e for e in events if e.get("event") == "start")
+    final = next(e for e in events if e.get("event") == "final")
+    snaps = [e for e in events if e.get("event") == "snapshot"]
+    return RenderRun(cmd, out, start, final, snaps, wall, cpu)
+
+
+def run_json(cmd: list[str]) -> dict[str, Any]:
+    """Runs a C benchmark that prints one JSON object; its stderr passes through."""
+    p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed with status {p.returncode}")
+    return json.loads(p.stdout)
+
+
+# ---- EXR and the error metric -------------------------------------------------
+
+
+def read_exr(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """(rgb, variance, header) as float64 (H, W, 3) arrays, mapped by channel name."""
+    import OpenEXR  # imported here so that sections without EXR work without it
+
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        header = dict(f.header())
+        ch = f.channels()
+        rgb = np.stack([np.asarray(ch[c].pixels, dtype=np.float64) for c in ("R", "G", "B")], axis=-1)
+        var = np.stack(
+            [np.asarray(ch[c].pixels, dtype=np.float64) for c in ("variance.R", "variance.G", "variance.B")], axis=-1
+        )
+    return rgb, var, header
+
+
+def rel_error(x: np.ndarray, ref: np.ndarray, ref_var: np.ndarray) -> dict[str, float]:
+    """relMSE of x against an independent reference, with the reference's own
+    noise removed:
+      relMSE     = mean over pixels and channels of (x - ref)^2 / (ref^2 + eps)
+      ref_noise  = mean of var_ref / (ref^2 + eps)   (var_ref: variance of the
+                   reference's mean, from its variance layer)
+      estimate   = relMSE - ref_noise
+    since E[(x - ref)^2] = MSE(x) + Var(ref) for independent renders. The
+    standard error is that of a mean over pixels of the per-pixel difference
+    (pixels treated as independent; neighbouring pixels are, up to the shared
+    reference). `resolved` is False when the estimate is within two standard
+    errors of zero: the reference is then too noisy to measure x."""
+    d = ref * ref + REL_EPSILON
+    per = ((x - ref) ** 2 - ref_var) / d
+    raw = float(np.mean((x - ref) ** 2 / d))
+    noise = float(np.mean(ref_var / d))
+    est = float(np.mean(per))
+    pix = per.mean(axis=-1).ravel()
+    se = float(pix.std(ddof=1) / np.sqrt(pix.size))
+    return {"rel_mse": raw, "ref_noise": noise, "rel_mse_est": est, "rel_mse_est_se": se, "resolved": est > 2 * se}
+
+
+def write_result(ctx: Context, name: str, params: dict[str, Any], results: Any) -> Path:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    payload = {"name": name, **ctx.meta(), "params": params, "results": results}
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(payload, indent=1, sort_keys=False) + "\n")
+    tmp.replace(path)
+    log(f"wrote {path.relative_to(ROOT)}")
+    return path

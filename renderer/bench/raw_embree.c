@@ -1,0 +1,362 @@
+/* raw_embree.c: the raw ray-tracing limit of a scene, the yardstick for the
+   renderer's rays/s. The scene is loaded exactly as the renderer loads it
+   (config_load + scene_create), then ray batches of the three kinds the
+   renderer traces are precomputed and only tracing is timed:
+
+     camera  closest hit, pinhole rays jittered in scan-line order;
+     bounce  closest hit, cosine-distributed from the camera hit points;
+     shadow  occlusion, from the hit points to uniform points on a light
+             (only where the light faces the point and the point faces the
+             light, as the renderer traces them);
+     mix     the three interleaved per camera sample in the renderer's order
+             (camera, shadow, bounce), i.e. the renderer's own ray mix.
+
+   Two APIs are timed on the same batches: "wrapper" (scene_intersect /
+   scene_occluded, the renderer's thin wrappers over rtcIntersect1 /
+   rtcOccluded1: double->float conversion, normal normalisation) and
+   "embree" (rtcIntersect1 / rtcOccluded1 on prebuilt float rays: the
+   floor of single-ray tracing). Each (kind, api, threads) cell runs for a
+   fixed time, repeated round-robin, and the median is reported as JSON on
+   stdout. */
+#include <embree3/rtcore.h>
+#include <pmmintrin.h>
+#include <pthread.h>
+#include <stdint.h>
+#include <xmmintrin.h>
+
+#include "bench_util.h"
+#include "camera.h"
+#include "config.h"
+#include "rng.h"
+#include "scene.h"
+
+enum ray_kind { RAY_CAMERA, RAY_BOUNCE, RAY_SHADOW };
+enum batch_id { BATCH_CAMERA, BATCH_BOUNCE, BATCH_SHADOW, BATCH_MIX, BATCH_COUNT };
+static const char *const batch_names[BATCH_COUNT] = { "camera", "bounce", "shadow", "mix" };
+enum api_id { API_WRAPPER, API_EMBREE, API_COUNT };
+static const char *const api_names[API_COUNT] = { "wrapper", "embree" };
+
+struct ray_rec {
+    struct vec3 o, d;
+    double tmax;
+    int kind;
+};
+
+struct batch {
+    int n, cap;
+    struct ray_rec *rays;
+    struct RTCRayHit *rh;   /* the same rays in Embree's float layout */
+};
+
+static void batch_push(struct batch *b, struct vec3 o, struct vec3 d, double tmax, int kind)
+{
+    if (b->n == b->cap) {
+        b->cap = b->cap ? 2 * b->cap : 4096;
+        b->rays = realloc(b->rays, sizeof *b->rays * (size_t)b->cap);
+        if (!b->rays) {
+            fprintf(stderr, "raw_embree: out of memory\n");
+            exit(1);
+        }
+    }
+    b->rays[b->n++] = (struct ray_rec){ o, d, tmax, kind };
+}
+
+static void batch_finish(struct batch *b)
+{
+    void *mem = NULL;
+    if (posix_memalign(&mem, 64, sizeof *b->rh * (size_t)(b->n > 0 ? b->n : 1)) != 0) mem = NULL;
+    b->rh = mem;
+    if (!b->rh) {
+        fprintf(stderr, "raw_embree: out of memory\n");
+        exit(1);
+    }
+    for (int i = 0; i < b->n; ++i) {
+        const struct ray_rec *r = &b->rays[i];
+        struct RTCRayHit *x = &b->rh[i];
+        memset(x, 0, sizeof *x);
+        x->ray.org_x = (float)r->o.x, x->ray.org_y = (float)r->o.y, x->ray.org_z = (float)r->o.z;
+        x->ray.dir_x = (float)r->d.x, x->ray.dir_y = (float)r->d.y, x->ray.dir_z = (float)r->d.z;
+        x->ray.tnear = 0.0f;
+        x->ray.tfar = r->tmax < 3.0e38 ? (float)r->tmax : INFINITY;
+        x->ray.mask = ~0u;
+        x->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        x->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    }
+}
+
+/* Uniform point on a convex polygon: a fan triangle by area, then uniform in it. */
+static struct vec3 polygon_uniform_point(const struct polygon *poly, double u0, double u1, double u2)
+{
+    double total = 0.0, areas[POLYGON_MAX];
+    for (int k = 0; k + 2 < poly->n; ++k) {
+        struct vec3 e1 = vec3_sub(poly->v[k + 1], poly->v[0]), e2 = vec3_sub(poly->v[k + 2], poly->v[0]);
+        areas[k] = 0.5 * vec3_length(vec3_cross(e1, e2));
+        total += areas[k];
+    }
+    int k = 0;
+    double x = u0 * total;
+    while (k + 3 < poly->n && x >= areas[k]) x -= areas[k++];
+    double su = sqrt(u1);
+    double b0 = 1.0 - su, b1 = u2 * su;
+    struct vec3 a = poly->v[0], b = poly->v[k + 1], c = poly->v[k + 2];
+    return vec3_add(vec3_add(vec3_scale(a, b0), vec3_scale(b, b1)), vec3_scale(c, 1.0 - b0 - b1));
+}
+
+/* Builds the four batches from `spp` jittered camera samples per pixel. */
+static void build_batches(const struct config *cfg, const struct scene *sc, int spp, struct batch b[BATCH_COUNT])
+{
+    struct camera cam;
+    camera_init(&cam, &cfg->camera, cfg->width, cfg->height);
+    for (int s = 0; s < spp; ++s)
+        for (int y = 0; y < cfg->height; ++y)
+            for (int x = 0; x < cfg->width; ++x) {
+                struct rng rng;
+                rng_seed(&rng, 12345, (uint64_t)y * (uint64_t)cfg->width + (uint64_t)x, (uint64_t)s);
+                struct vec3 d = camera_ray(&cam, x + rng_uniform(&rng), y + rng_uniform(&rng));
+                batch_push(&b[BATCH_CAMERA], cam.origin, d, INFINITY, RAY_CAMERA);
+                batch_push(&b[BATCH_MIX], cam.origin, d, INFINITY, RAY_CAMERA);
+                struct hit h;
+                if (!scene_intersect(sc, cam.origin, d, INFINITY, &h) || h.light >= 0) continue;
+                struct vec3 wo = vec3_neg(d);
+                struct vec3 n = vec3_dot(h.ng, wo) > 0.0 ? h.ng : vec3_neg(h.ng);
+                struct frame fr = frame_from_normal(n);
+
+                if (sc->n_lights > 0) {
+                    int li = (int)(rng_uniform(&rng) * sc->n_lights);
+                    if (li >= sc->n_lights) li = sc->n_lights - 1;
+                    const struct light *l = &sc->lights[li];
+                    struct vec3 yl = polygon_uniform_point(&l->target.polygon, rng_uniform(&rng), rng_uniform(&rng),
+                                                           rng_uniform(&rng));
+                    struct vec3 to = vec3_sub(yl, h.p);
+                    double dist = vec3_length(to);
+                    struct vec3 wi = vec3_scale(to, 1.0 / dist);
+                    bool facing = l->two_sided || vec3_dot(wi, l->target.normal) < 0.0;
+                    if (dist > 0.0 && facing && vec3_dot(wi, n) > 0.0) {
+                        struct vec3 o = scene_offset_origin(sc, h.p, n, wi);
+                        double len = vec3_length(vec3_sub(yl, o));
+                        double tmax = len * (1.0 - SCENE_SHADOW_EPS);
+                        batch_push(&b[BATCH_SHADOW], o, wi, tmax, RAY_SHADOW);
+                        batch_push(&b[BATCH_MIX], o, wi, tmax, RAY_SHADOW);
+                    }
+                }
+                double u1 = rng_uniform(&rng), u2 = rng_uniform(&rng);
+                double r = sqrt(u1), phi = 2.0 * M_PI * u2;
+                struct vec3 wl = vec3_make(r * cos(phi), r * sin(phi), sqrt(fmax(0.0, 1.0 - u1)));
+                struct vec3 wi = vec3_normalize(frame_to_world(&fr, wl));
+                struct vec3 o = scene_offset_origin(sc, h.p, n, wi);
+                batch_push(&b[BATCH_BOUNCE], o, wi, INFINITY, RAY_BOUNCE);
+                batch_push(&b[BATCH_MIX], o, wi, INFINITY, RAY_BOUNCE);
+            }
+    for (int k = 0; k < BATCH_COUNT; ++k) batch_finish(&b[k]);
+}
+
+/* Traces rays [i0, i1) of a batch; returns the number of hits (occluded rays
+   count as hits), so the work cannot be optimised away. */
+static uint64_t trace_range(const struct scene *sc, const struct batch *b, int api, int i0, int i1)
+{
+    uint64_t hits = 0;
+    if (api == API_WRAPPER) {
+        for (int i = i0; i < i1; ++i) {
+            const struct ray_rec *r = &b->rays[i];
+            if (r->kind == RAY_SHADOW) {
+                hits += scene_occluded(sc, r->o, r->d, r->tmax);
+            } else {
+                struct hit h;
+                hits += scene_intersect(sc, r->o, r->d, r->tmax, &h);
+            }
+        }
+    } else {
+        RTCScene rs = sc->rtc_scene;
+        for (int i = i0; i < i1; ++i) {
+            struct RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            struct RTCRayHit x = b->rh[i];
+            if (b->rays[i].kind == RAY_SHADOW) {
+                rtcOccluded1(rs, &ctx, &x.ray);
+                hits += x.ray.tfar < 0.0f;
+            } else {
+                rtcIntersect1(rs, &ctx, &x);
+                hits += x.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+            }
+        }
+    }
+    return hits;
+}
+
+struct worker {
+    pthread_t thread;
+    const struct scene *sc;
+    const struct batch *b;
+    int api, start;
+    double seconds;
+    pthread_barrier_t *barrier;
+    uint64_t rays, hits;
+    double wall_s, cpu_s;
+};
+
+#define CHUNK 1024
+
+static void *worker_main(void *arg)
+{
+    struct worker *w = arg;
+    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+    pthread_barrier_wait(w->barrier);
+    double t0 = bench_wall_s(), c0 = bench_thread_cpu_s();
+    int i = w->start, n = w->b->n;
+    uint64_t rays = 0, hits = 0;
+    double t = t0;
+    while (t - t0 < w->seconds) {
+        int i1 = i + CHUNK < n ? i + CHUNK : n;
+        hits += trace_range(w->sc, w->b, w->api, i, i1);
+        rays += (uint64_t)(i1 - i);
+        i = i1 == n ? 0 : i1;
+        t = bench_wall_s();
+    }
+    w->wall_s = t - t0;
+    w->cpu_s = bench_thread_cpu_s() - c0;
+    w->rays = rays;
+    w->hits = hits;
+    return NULL;
+}
+
+struct measurement {
+    double rays_per_s;          /* all threads, per wall second */
+    double rays_per_cpu_s;      /* per second of thread CPU time */
+};
+
+static struct measurement measure(const struct scene *sc, const struct batch *b, int api, int threads, double seconds)
+{
+    struct worker w[16];
+    pthread_barrier_t barrier;
+    pthread_barrier_init(&barrier, NULL, (unsigned)threads);
+    for (int k = 0; k < threads; ++k) {
+        w[k] = (struct worker){ .sc = sc, .b = b, .api = api, .seconds = seconds, .barrier = &barrier };
+        /* Threads start at different places so they do not walk the batch in lockstep. */
+        w[k].start = (int)((int64_t)b->n * k / threads / CHUNK * CHUNK);
+        if (pthread_create(&w[k].thread, NULL, worker_main, &w[k]) != 0) {
+            fprintf(stderr, "raw_embree: cannot start thread %d\n", k);
+            exit(1);
+        }
+    }
+    uint64_t rays = 0;
+    double wall = 0.0, cpu = 0.0;
+    for (int k = 0; k < threads; ++k) {
+        pthread_join(w[k].thread, NULL);
+        rays += w[k].rays;
+        wall = fmax(wall, w[k].wall_s);
+        cpu += w[k].cpu_s;
+    }
+    pthread_barrier_destroy(&barrier);
+    return (struct measurement){ (double)rays / wall, (double)rays / fmax(cpu, 1e-9) };
+}
+
+static void usage(const char *argv0)
+{
+    fprintf(stderr,
+            "usage: %s CONFIG [--set KEY=VALUE]... [--seconds S] [--reps R] [--max-threads T] [--spp K]\n"
+            "Times incoherent camera, bounce and shadow rays of CONFIG's scene with 1..T threads;\n"
+            "prints one JSON object on stdout, progress on stderr.\n",
+            argv0);
+}
+
+int main(int argc, char **argv)
+{
+    const char *path = NULL;
+    struct bench_overrides ov = { 0 };
+    double seconds = 0.3;
+    int reps = 5, max_threads = 2, spp = 2;
+    for (int i = 1; i < argc; ++i) {
+        if (bench_take_set(&ov, argc, argv, &i)) continue;
+        if (!strcmp(argv[i], "--seconds") && i + 1 < argc) seconds = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--max-threads") && i + 1 < argc) max_threads = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--spp") && i + 1 < argc) spp = atoi(argv[++i]);
+        else if (argv[i][0] != '-' && !path) path = argv[i];
+        else {
+            usage(argv[0]);
+            return 2;
+        }
+    }
+    if (!path || seconds <= 0.0 || reps < 1 || reps > 64 || max_threads < 1 || max_threads > 16 || spp < 1) {
+        usage(argv[0]);
+        return 2;
+    }
+    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+
+    struct error err = { { 0 } };
+    struct config cfg;
+    if (!config_load(path, ov.items, ov.n, &cfg, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 2;
+    }
+    struct scene sc;
+    if (!scene_create(&cfg, &sc, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        config_free(&cfg);
+        return 2;
+    }
+    ssize_t ver = rtcGetDeviceProperty(sc.device, RTC_DEVICE_PROPERTY_VERSION);
+
+    struct batch b[BATCH_COUNT];
+    memset(b, 0, sizeof b);
+    build_batches(&cfg, &sc, spp, b);
+    fprintf(stderr, "raw_embree: %dx%d x %d spp: %d camera, %d bounce, %d shadow rays (%d mixed)\n", cfg.width,
+            cfg.height, spp, b[BATCH_CAMERA].n, b[BATCH_BOUNCE].n, b[BATCH_SHADOW].n, b[BATCH_MIX].n);
+
+    double hit_fraction[BATCH_COUNT];
+    for (int k = 0; k < BATCH_COUNT; ++k)
+        hit_fraction[k] = b[k].n ? (double)trace_range(&sc, &b[k], API_EMBREE, 0, b[k].n) / b[k].n : 0.0;
+
+    /* Warm-up: caches, page faults of the batches, CPU clocks. */
+    for (int k = 0; k < BATCH_COUNT; ++k)
+        for (int a = 0; a < API_COUNT; ++a) measure(&sc, &b[k], a, 1, 0.05);
+
+    static double wall[BATCH_COUNT][API_COUNT][16][64], cpu[BATCH_COUNT][API_COUNT][16][64];
+    for (int r = 0; r < reps; ++r) {
+        fprintf(stderr, "raw_embree: round %d/%d\n", r + 1, reps);
+        for (int k = 0; k < BATCH_COUNT; ++k)
+            for (int a = 0; a < API_COUNT; ++a)
+                for (int t = 1; t <= max_threads; ++t) {
+                    struct measurement m = measure(&sc, &b[k], a, t, seconds);
+                    wall[k][a][t - 1][r] = m.rays_per_s;
+                    cpu[k][a][t - 1][r] = m.rays_per_cpu_s;
+                }
+    }
+
+    printf("{\"embree_version\":\"%d.%d.%d\",\"config\":\"%s\",\"width\":%d,\"height\":%d,\"spp\":%d,"
+           "\"seconds_per_cell\":%g,\"reps\":%d,\"api_note\":\"wrapper = scene_intersect/scene_occluded "
+           "(renderer wrappers over rtcIntersect1/rtcOccluded1); embree = rtcIntersect1/rtcOccluded1 on "
+           "prebuilt float rays\",\"batches\":{",
+           (int)(ver / 10000), (int)(ver / 100 % 100), (int)(ver % 100), path, cfg.width, cfg.height, spp, seconds,
+           reps);
+    for (int k = 0; k < BATCH_COUNT; ++k)
+        printf("%s\"%s\":{\"rays\":%d,\"hit_fraction\":%.6f}", k ? "," : "", batch_names[k], b[k].n,
+               hit_fraction[k]);
+    printf("},\"cells\":[");
+    int first = 1;
+    for (int k = 0; k < BATCH_COUNT; ++k)
+        for (int a = 0; a < API_COUNT; ++a)
+            for (int t = 1; t <= max_threads; ++t) {
+                printf("%s{\"kind\":\"%s\",\"api\":\"%s\",\"threads\":%d,\"rays_per_s\":[", first ? "" : ",",
+                       batch_names[k], api_names[a], t);
+                first = 0;
+                for (int r = 0; r < reps; ++r) printf("%s%.1f", r ? "," : "", wall[k][a][t - 1][r]);
+                printf("],\"rays_per_cpu_s\":[");
+                for (int r = 0; r < reps; ++r) printf("%s%.1f", r ? "," : "", cpu[k][a][t - 1][r]);
+                double mw = bench_median(wall[k][a][t - 1], reps), mc = bench_median(cpu[k][a][t - 1], reps);
+                printf("],\"median_rays_per_s\":%.1f,\"median_rays_per_s_per_thread\":%.1f,"
+                       "\"median_rays_per_cpu_s\":%.1f}",
+                       mw, mw / t, mc);
+            }
+    printf("]}\n");
+
+    for (int k = 0; k < BATCH_COUNT; ++k) {
+        free(b[k].rays);
+        free(b[k].rh);
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+    return 0;
+}

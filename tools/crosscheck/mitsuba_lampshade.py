@@ -1,0 +1,598 @@
+#!/usr/bin/env python3
+"""Independent-renderer cross-check: our renderer against Mitsuba 3.
+
+Renders the lampshade scene (configs/scenes/lampshade.yaml) with our renderer,
+rebuilds the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE
+config our renderer wrote (OUT/ours/config.yaml), renders it K times with
+independent seeds, and compares the two images block by block:
+
+    z = (ours_block - mitsuba_block) / sqrt(var_ours_block + var_mitsuba_block)
+
+over 8x8 pixel blocks and the three channels. var_ours comes from our EXR's
+variance layer (variance of the pixel mean); var_mitsuba from the spread of the
+K independent Mitsuba renders. The run fails (exit 1) when max |z| exceeds the
+two-sided Bonferroni bound for an overall false-alarm rate --alpha over all
+block-channel tests.
+
+Mitsuba lives in its own venv (.venv-xcheck at the repository root); when the
+running interpreter cannot import it, the script re-executes itself there.
+
+Exit status: 0 agreement within noise, 1 disagreement, 2 usage/setup error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+import time
+import zlib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+XCHECK_VENV = ROOT / ".venv-xcheck"
+DEFAULT_SCENE = ROOT / "configs" / "scenes" / "lampshade.yaml"
+REEXEC_GUARD = "PORTAL_XCHECK_REEXEC"
+
+
+def ensure_mitsuba() -> None:
+    """Import mitsuba here, or re-run this script with the .venv-xcheck python."""
+    try:
+        import mitsuba  # noqa: F401
+        return
+    except ImportError:
+        pass
+    python = XCHECK_VENV / "bin" / "python"
+    if python.exists() and os.environ.get(REEXEC_GUARD) != "1":
+        env = dict(os.environ, **{REEXEC_GUARD: "1"})
+        os.execve(str(python), [str(python), str(Path(__file__).resolve()), *sys.argv[1:]], env)
+    sys.stderr.write(
+        "mitsuba is not importable and %s has no working python with it.\n"
+        "Create it with:  python3 -m venv %s && %s/bin/pip install mitsuba numpy openexr PyYAML\n"
+        % (XCHECK_VENV, XCHECK_VENV, XCHECK_VENV)
+    )
+    sys.exit(2)
+
+
+class SetupError(Exception):
+    """Anything that prevents the comparison from being made (exit 2)."""
+
+
+# ---------------------------------------------------------------------------
+# Command line
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    default_renderer = ROOT / "renderer" / "build-lead" / "render"
+    if not default_renderer.exists():
+        default_renderer = ROOT / "renderer" / "build" / "render"
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="scene YAML (default: lampshade)")
+    p.add_argument("--renderer", type=Path, default=default_renderer, help="our render binary")
+    p.add_argument("--integrator", choices=("direct", "path"), default="direct")
+    p.add_argument("--s-L", dest="s_L", type=float, default=None,
+                   help="params.s_L override (default: the scene's value)")
+    p.add_argument("--ours-spp", type=int, default=1024)
+    p.add_argument("--mitsuba-spp", type=int, default=1024, help="total Mitsuba spp over all runs")
+    p.add_argument("--mitsuba-runs", type=int, default=32,
+                   help="K independent Mitsuba renders of mitsuba-spp/K spp each (variance estimate)")
+    p.add_argument("--max-depth", type=int, default=3,
+                   help="path only: our render.max_depth N (bounces); Mitsuba gets max_depth N+1")
+    p.add_argument("--rr-depth", type=int, default=5,
+                   help="path only: Russian roulette depth, ours render.rr_depth and Mitsuba rr_depth")
+    p.add_argument("--strategy", default="light", help="our sampling strategy")
+    p.add_argument("--threads", default="2", help="our render threads")
+    p.add_argument("--seed", type=int, default=1, help="our seed; Mitsuba uses seed*1000+k")
+    p.add_argument("--block", type=int, default=8, help="block side in pixels")
+    p.add_argument("--alpha", type=float, default=1e-3, help="overall false-alarm rate of the bound")
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                   help="extra --set override for our renderer (e.g. film.width=64); "
+                        "Mitsuba follows through the effective config")
+    p.add_argument("--reuse-ours", action="store_true",
+                   help="reuse OUT/ours/final.exr if present instead of rendering again")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default results/crosscheck/<integrator>_sL<s_L>)")
+    args = p.parse_args(argv)
+    if args.mitsuba_runs < 2 or args.mitsuba_spp % args.mitsuba_runs != 0:
+        p.error("--mitsuba-runs must be >= 2 and divide --mitsuba-spp")
+    if args.ours_spp < 2:
+        p.error("--ours-spp must be >= 2 (the variance layer needs two samples)")
+    if args.max_depth < 1:
+        p.error("--max-depth must be >= 1")
+    if args.out is None:
+        tag = "scene" if args.s_L is None else "sL%g" % args.s_L
+        args.out = ROOT / "results" / "crosscheck" / ("%s_%s" % (args.integrator, tag))
+    return args
+
+
+# ---------------------------------------------------------------------------
+# Our renderer
+
+
+def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
+    """Renders with our binary; returns its final JSON event plus wall time."""
+    if not args.renderer.exists():
+        raise SetupError("renderer binary %s not found (build it: make BUILD=renderer/build-xcheck "
+                         "renderer/build-xcheck/render)" % args.renderer)
+    cmd = [str(args.renderer), str(args.scene), "--out", str(out_dir), "--spp", str(args.ours_spp),
+           "--seed", str(args.seed), "--threads", str(args.threads), "--strategy", args.strategy,
+           "--integrator", args.integrator, "--quiet", "--set", "render.time=0",
+           "--set", "render.snapshots.every=1e9"]  # no snapshots: 0 is refused
+    if args.s_L is not None:
+        cmd += ["--set", "params.s_L=%r" % args.s_L]
+    if args.integrator == "path":
+        cmd += ["--set", "render.max_depth=%d" % args.max_depth, "--set", "render.rr_depth=%d" % args.rr_depth]
+    for s in args.sets:
+        cmd += ["--set", s]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.monotonic() - t0
+    if proc.returncode != 0:
+        raise SetupError("our renderer failed (exit %d): %s\n%s" % (proc.returncode, " ".join(cmd), proc.stderr))
+    final = None
+    for line in proc.stdout.splitlines():
+        ev = json.loads(line)
+        if ev.get("event") == "final":
+            final = ev
+    if final is None:
+        raise SetupError("our renderer printed no final event")
+    final["wall_s"] = wall
+    final["command"] = cmd
+    return final
+
+
+def read_ours(path: Path):
+    """Mean (H, W, 3) and variance of the mean (H, W, 3) from our EXR, float64."""
+    import numpy as np
+    import OpenEXR
+
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        ch = f.channels()
+        header = dict(f.header())
+        mean = np.stack([ch[c].pixels for c in ("R", "G", "B")], axis=-1).astype(np.float64)
+        var = np.stack([ch["variance." + c].pixels for c in ("R", "G", "B")], axis=-1).astype(np.float64)
+    return mean, var, header
+
+
+def write_exr(path: Path, mean, var) -> None:
+    """Same channel layout as our renderer's EXR (R, G, B, variance.*)."""
+    import numpy as np
+    import OpenEXR
+
+    channels = {}
+    for i, c in enumerate("RGB"):
+        channels[c] = np.ascontiguousarray(mean[..., i], dtype=np.float32)
+        channels["variance." + c] = np.ascontiguousarray(var[..., i], dtype=np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, channels) as f:
+        f.write(str(path))
+
+
+# ---------------------------------------------------------------------------
+# Effective config -> Mitsuba scene
+
+
+def _triangles(vertices: list, quads: list, triangles: list) -> list[tuple[int, int, int]]:
+    """Splits planar convex quads into two triangles, keeping the winding."""
+    tris = [tuple(t) for t in triangles]
+    for q in quads:
+        tris.append((q[0], q[1], q[2]))
+        tris.append((q[0], q[2], q[3]))
+    for t in tris:
+        if any(not 0 <= i < len(vertices) for i in t):
+            raise SetupError("face index out of range: %r" % (t,))
+    return tris
+
+
+def write_ply(path: Path, vertices: list, tris: list) -> None:
+    """Binary little-endian PLY: float xyz, uchar-count int faces."""
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex %d\n"
+            "property float x\nproperty float y\nproperty float z\n"
+            "element face %d\nproperty list uchar int vertex_indices\nend_header\n"
+            % (len(vertices), len(tris)))
+    body = b"".join(struct.pack("<3f", *map(float, v)) for v in vertices)
+    body += b"".join(struct.pack("<B3i", 3, *t) for t in tris)
+    path.write_bytes(head.encode("ascii") + body)
+
+
+def _rgb(value) -> dict:
+    return {"type": "rgb", "value": [float(x) for x in value]}
+
+
+def _bsdf(material: dict, name: str) -> dict:
+    if material.get("type") != "diffuse":
+        raise SetupError("material %r: only diffuse is converted (got %r)" % (name, material.get("type")))
+    # Our surfaces are two-sided; Mitsuba's diffuse is black from the back.
+    return {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb(material["albedo"])}}
+
+
+def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int) -> dict:
+    """Mitsuba load_dict() description of our effective config."""
+    import mitsuba as mi
+
+    mesh_dir.mkdir(parents=True, exist_ok=True)
+    cam = cfg["camera"]
+    look_at = mi.ScalarTransform4f().look_at(origin=[float(x) for x in cam["position"]],
+                                             target=[float(x) for x in cam["look_at"]],
+                                             up=[float(x) for x in cam["up"]])
+    scene: dict = {
+        "type": "scene",
+        "integrator": integrator,
+        "sensor": {
+            "type": "perspective",
+            "fov_axis": "y",
+            "fov": float(cam["fov_y"]),
+            "to_world": look_at,
+            "film": {
+                "type": "hdrfilm",
+                "width": int(cfg["film"]["width"]),
+                "height": int(cfg["film"]["height"]),
+                "pixel_format": "rgb",
+                "component_format": "float32",
+                # Our film: one-pixel box filter, i.e. the plain mean of the
+                # samples drawn uniformly inside the pixel.
+                "rfilter": {"type": "box"},
+            },
+            "sampler": {"type": "independent", "sample_count": spp},
+        },
+    }
+    materials = cfg["materials"]
+    for i, shape in enumerate(cfg.get("shapes") or []):
+        if shape.get("type") != "mesh":
+            raise SetupError("shape %r: effective configs hold meshes only (got %r)"
+                             % (shape.get("name"), shape.get("type")))
+        tris = _triangles(shape["vertices"], shape.get("quads") or [], shape.get("triangles") or [])
+        ply = mesh_dir / ("shape_%02d.ply" % i)
+        write_ply(ply, shape["vertices"], tris)
+        scene["shape_%02d_%s" % (i, shape["name"])] = {
+            "type": "ply",
+            "filename": str(ply),
+            # Flat shading: without this Mitsuba would smooth the normals of
+            # meshes that share vertices between faces (the box).
+            "face_normals": True,
+            "bsdf": _bsdf(materials[shape["material"]], shape["material"]),
+        }
+    for i, light in enumerate(cfg.get("lights") or []):
+        if light.get("two_sided"):
+            raise SetupError("light %r: two-sided lights are not converted (Mitsuba's area emitter "
+                             "is one-sided)" % light["name"])
+        verts = light["vertices"]
+        # Fan triangulation of the convex polygon keeps its winding. Mitsuba's
+        # triangle normal is cross(p1 - p0, p2 - p0), the right-hand rule of the
+        # vertex order, as our polygon_normal; its area emitter emits on the
+        # normal's side, as our one-sided light does.
+        tris = [(0, k, k + 1) for k in range(1, len(verts) - 1)]
+        ply = mesh_dir / ("light_%02d.ply" % i)
+        write_ply(ply, verts, tris)
+        scene["light_%02d_%s" % (i, light["name"])] = {
+            "type": "ply",
+            "filename": str(ply),
+            "face_normals": True,
+            # Our lights reflect nothing; Mitsuba's default BSDF would be a
+            # 0.5 diffuse.
+            "bsdf": {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb([0, 0, 0])}},
+            "emitter": {"type": "area", "radiance": _rgb(light["radiance"])},
+        }
+    # Portals are sampling aids, not geometry: nothing to convert.
+    return scene
+
+
+def mitsuba_integrator(args: argparse.Namespace) -> dict:
+    if args.integrator == "direct":
+        # Ours: emission seen by the camera + one light sample and one BSDF
+        # sample at the first hit, combined by MIS.
+        return {"type": "direct", "emitter_samples": 1, "bsdf_samples": 1}
+    # Our max_depth counts bounces (vertices that gather light); Mitsuba's
+    # counts path segments including the camera ray: N bounces = N + 1.
+    return {"type": "path", "max_depth": args.max_depth + 1, "rr_depth": args.rr_depth}
+
+
+def render_mitsuba(scene_dict: dict, runs: int, spp_each: int, seed_base: int):
+    """K independent renders; returns (K, H, W, 3) float64 and timings."""
+    import mitsuba as mi
+    import numpy as np
+
+    t0 = time.monotonic()
+    scene = mi.load_dict(scene_dict)
+    load_s = time.monotonic() - t0
+    images = []
+    t1 = time.monotonic()
+    for k in range(runs):
+        # Mitsuba multiplies the seed by the pixel count and adds the pixel
+        # index: distinct seeds give disjoint per-pixel streams.
+        img = mi.render(scene, seed=seed_base + k, spp=spp_each)
+        images.append(np.array(img, dtype=np.float64))
+    render_s = time.monotonic() - t1
+    return np.stack(images), load_s, render_s
+
+
+# ---------------------------------------------------------------------------
+# Statistics
+
+
+def normal_two_sided_quantile(p_tail: float) -> float:
+    """z with P(|Z| > z) = p_tail for a standard normal (bisection on erfc)."""
+    lo, hi = 0.0, 40.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if math.erfc(mid / math.sqrt(2.0)) > p_tail:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def block_mean(a, b: int):
+    """Means over b x b blocks of (..., H, W, C); a partial border is dropped."""
+    h, w = a.shape[-3] // b * b, a.shape[-2] // b * b
+    a = a[..., :h, :w, :]
+    shape = a.shape[:-3] + (h // b, b, w // b, b, a.shape[-1])
+    return a.reshape(shape).mean(axis=(-4, -2))
+
+
+def compare(ours, ours_var, mits_runs, b: int, alpha: float) -> dict:
+    import numpy as np
+
+    k = mits_runs.shape[0]
+    mits = mits_runs.mean(axis=0)
+    # Per-pixel variance of the K-run mean: sample variance over runs / K.
+    mits_var = mits_runs.var(axis=0, ddof=1) / k
+
+    # Block means and their variances. Pixels are independent in both
+    # renderers (per-pixel seeding), so Var(block mean) = mean(pixel var) / b^2;
+    # pooling 64 pixels gives the Mitsuba variance 64 (K-1) degrees of
+    # freedom, so z is close to normal even in the far tail.
+    ob, mb = block_mean(ours, b), block_mean(mits, b)
+    ovb = block_mean(ours_var, b) / (b * b)
+    mvb = block_mean(mits_var, b) / (b * b)
+    # The brief's estimator, no pixel independence assumed: the spread of the
+    # K runs' block means (K-1 degrees of freedom). Reported as a check of
+    # the pooled one.
+    mvb_runs = block_mean(mits_runs, b).var(axis=0, ddof=1) / k
+
+    diff = ob - mb
+    var = ovb + mvb
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(var > 0, diff / np.sqrt(np.where(var > 0, var, 1.0)),
+                     np.where(diff == 0, 0.0, np.inf * np.sign(diff)))
+        var_runs = ovb + mvb_runs
+        z_runs = np.where(var_runs > 0, diff / np.sqrt(np.where(var_runs > 0, var_runs, 1.0)),
+                          np.where(diff == 0, 0.0, np.inf * np.sign(diff)))
+    n_tests = z.size
+    bound = normal_two_sided_quantile(alpha / n_tests)
+    absz = np.abs(z)
+
+    # Whole-image quantities.
+    sum_o, sum_m = ours.sum(axis=(0, 1)), mits.sum(axis=(0, 1))
+    ratio = sum_o / sum_m
+    ratio_sigma = np.sqrt(ours_var.sum(axis=(0, 1)) + mits_var.sum(axis=(0, 1))) / sum_m
+    # relMSE with the usual 1e-2 guard in the denominator; it holds both
+    # images' noise, so compare it with its expectation from the variances.
+    denom = mits ** 2 + 1e-2
+    relmse = float(np.mean((ours - mits) ** 2 / denom))
+    relmse_noise = float(np.mean((ours_var + mits_var) / denom))
+
+    top = []
+    order = np.argsort(absz, axis=None)[::-1][:10]
+    for flat in order:
+        by, bx, c = np.unravel_index(flat, z.shape)
+        top.append({
+            "block": [int(bx), int(by)],
+            "pixels_x": [int(bx * b), int(bx * b + b - 1)],
+            "pixels_y": [int(by * b), int(by * b + b - 1)],
+            "channel": "RGB"[c],
+            "ours": float(ob[by, bx, c]),
+            "mitsuba": float(mb[by, bx, c]),
+            "sigma_ours": float(math.sqrt(ovb[by, bx, c])),
+            "sigma_mitsuba": float(math.sqrt(mvb[by, bx, c])),
+            "z": float(z[by, bx, c]),
+        })
+    pos = mvb > 0
+    return {
+        "mitsuba_mean": mits,
+        "mitsuba_var": mits_var,
+        "z": z,
+        "stats": {
+            "blocks": int(z.shape[0] * z.shape[1]),
+            "tests": int(n_tests),
+            "block_px": b,
+            "max_abs_z": float(absz.max()),
+            "bound": bound,
+            "alpha": alpha,
+            "frac_gt_3": float(np.mean(absz > 3)),
+            "frac_gt_4": float(np.mean(absz > 4)),
+            "frac_gt_5": float(np.mean(absz > 5)),
+            "expected_frac_gt_3": math.erfc(3 / math.sqrt(2)),
+            "expected_frac_gt_4": math.erfc(4 / math.sqrt(2)),
+            # Over the tests with some variance (black blocks give z = 0).
+            "tests_with_variance": int(np.count_nonzero(var > 0)),
+            "mean_z": float(z[var > 0].mean()) if (var > 0).any() else 0.0,
+            "mean_z2": float(np.mean(z[var > 0] ** 2)) if (var > 0).any() else 0.0,
+            "max_abs_z_runs_variance": float(np.abs(z_runs).max()),
+            "median_var_ratio_runs_over_pooled": float(np.median(mvb_runs[pos] / mvb[pos])) if pos.any() else None,
+            "median_var_ratio_ours_over_mitsuba": float(np.median(ovb[pos] / mvb[pos])) if pos.any() else None,
+            "mean_ratio_ours_over_mitsuba": [float(x) for x in ratio],
+            "mean_ratio_sigma": [float(x) for x in ratio_sigma],
+            "relmse": relmse,
+            "relmse_expected_from_noise": relmse_noise,
+            "top_blocks": top,
+        },
+    }
+
+
+# ---------------------------------------------------------------------------
+# Images
+
+
+def write_png(path: Path, rgb8) -> None:
+    """Minimal 8-bit RGB PNG writer (zlib only)."""
+    import numpy as np
+
+    h, w, _ = rgb8.shape
+    raw = b"".join(b"\x00" + np.ascontiguousarray(rgb8[y]).tobytes() for y in range(h))
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+    png += chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
+    path.write_bytes(png)
+
+
+def _srgb8(x):
+    import numpy as np
+
+    x = np.clip(x, 0.0, 1.0)
+    y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return (y * 255 + 0.5).astype(np.uint8)
+
+
+def _luminance(img):
+    return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+
+
+def _diverging(v):
+    """v in [-1, 1]: blue (negative) - white - red (positive), as uint8."""
+    import numpy as np
+
+    v = np.clip(v, -1.0, 1.0)
+    r = 1.0 - np.maximum(-v, 0.0)
+    g = 1.0 - np.abs(v)
+    bl = 1.0 - np.maximum(v, 0.0)
+    return (np.stack([r, g, bl], axis=-1) * 255 + 0.5).astype(np.uint8)
+
+
+def write_images(out: Path, ours, mits, z, b: int, bound: float) -> dict:
+    """Tone-mapped side by side (same exposure), signed difference, z map."""
+    import numpy as np
+
+    # One exposure for both: the 99th percentile of Mitsuba's luminance -> 1.
+    lum = _luminance(mits)
+    scale = 1.0 / max(float(np.percentile(lum, 99.0)), 1e-6)
+    gap = np.full((ours.shape[0], 4, 3), 255, np.uint8)
+    side = np.concatenate([_srgb8(ours * scale), gap, _srgb8(mits * scale)], axis=1)
+    write_png(out / "ours.png", _srgb8(ours * scale))
+    write_png(out / "mitsuba.png", _srgb8(mits * scale))
+    write_png(out / "side_by_side.png", side)
+    # Signed luminance difference, block-averaged to see past the per-pixel
+    # noise, relative to the exposure white: full colour at 5% of white.
+    d = block_mean(_luminance(ours - mits)[..., None], b)[..., 0]
+    d_img = _diverging(d * scale / 0.05)
+    write_png(out / "diff.png", np.kron(d_img, np.ones((b, b, 1), np.uint8)))
+    # Block z: the channel with the largest |z|, saturating at the bound;
+    # blocks beyond the bound are drawn black.
+    idx = np.argmax(np.abs(z), axis=-1)
+    zsel = np.take_along_axis(z, idx[..., None], axis=-1)[..., 0]
+    z_img = _diverging(zsel / bound)
+    z_img[np.abs(zsel) > bound] = 0
+    write_png(out / "zmap.png", np.kron(z_img, np.ones((b, b, 1), np.uint8)))
+    return {"exposure_scale": scale}
+
+
+# ---------------------------------------------------------------------------
+
+
+def format_table(s: dict, info: dict) -> str:
+    lines = []
+    lines.append("cross-check ours vs Mitsuba %s: integrator %s, s_L %s, %s" % (
+        info["mitsuba_version"], info["integrator"], info["s_L"], info["mitsuba_integrator"]))
+    lines.append("  ours    : %d spp, strategy %s, render %.1f s (wall %.1f s)" % (
+        info["ours_spp"], info["strategy"], info["ours_time_s"], info["ours_wall_s"]))
+    lines.append("  mitsuba : %d spp = %d runs x %d spp, render %.1f s (+ load %.1f s)" % (
+        info["mitsuba_spp"], info["mitsuba_runs"], info["mitsuba_spp"] // info["mitsuba_runs"],
+        info["mitsuba_render_s"], info["mitsuba_load_s"]))
+    lines.append("  %-34s %s" % ("blocks x channels", "%d x 3 = %d (%dx%d px)" % (
+        s["blocks"], s["tests"], s["block_px"], s["block_px"])))
+    lines.append("  %-34s %.3f   (bound %.3f: Bonferroni, alpha %g)" % (
+        "max |z|", s["max_abs_z"], s["bound"], s["alpha"]))
+    lines.append("  %-34s %.3f" % ("max |z| (variance from run spread)", s["max_abs_z_runs_variance"]))
+    lines.append("  %-34s %.4f (normal: %.4f)" % ("fraction |z| > 3", s["frac_gt_3"], s["expected_frac_gt_3"]))
+    lines.append("  %-34s %.5f (normal: %.5f)" % ("fraction |z| > 4", s["frac_gt_4"], s["expected_frac_gt_4"]))
+    lines.append("  %-34s %.5f" % ("fraction |z| > 5", s["frac_gt_5"]))
+    lines.append("  %-34s %+.3f / %.3f (normal: 0 / 1; over %d tests with variance)" % (
+        "mean z / mean z^2", s["mean_z"], s["mean_z2"], s["tests_with_variance"]))
+    lines.append("  %-34s %s" % ("mean ratio ours/mitsuba R G B", "  ".join(
+        "%.4f+-%.4f" % (r, e) for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]))))
+    lines.append("  %-34s %.3e (noise alone: %.3e)" % ("relMSE", s["relmse"], s["relmse_expected_from_noise"]))
+    if s["median_var_ratio_runs_over_pooled"] is not None:
+        lines.append("  %-34s %.3f (1 if pixels independent)" % (
+            "median var ratio runs/pooled", s["median_var_ratio_runs_over_pooled"]))
+    lines.append("  largest |z| blocks (x0-x1, y0-y1 pixels, row 0 at the top):")
+    for t in s["top_blocks"][:5]:
+        lines.append("    x %3d-%3d y %3d-%3d %s  ours %.5g +- %.2g  mitsuba %.5g +- %.2g  z %+.2f" % (
+            t["pixels_x"][0], t["pixels_x"][1], t["pixels_y"][0], t["pixels_y"][1], t["channel"],
+            t["ours"], t["sigma_ours"], t["mitsuba"], t["sigma_mitsuba"], t["z"]))
+    lines.append("  result: %s" % ("AGREE within noise" if s["max_abs_z"] <= s["bound"] else "DISAGREE"))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    ensure_mitsuba()
+    import mitsuba as mi
+    import numpy as np
+    import yaml
+
+    mi.set_variant("scalar_rgb")
+    out: Path = args.out
+    ours_dir = out / "ours"
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        final_exr = ours_dir / "final.exr"
+        if args.reuse_ours and final_exr.exists() and (ours_dir / "ours_run.json").exists():
+            ours_run = json.loads((ours_dir / "ours_run.json").read_text())
+            print("reusing %s" % final_exr, file=sys.stderr)
+        else:
+            print("rendering ours: %d spp ..." % args.ours_spp, file=sys.stderr)
+            ours_run = run_ours(args, ours_dir)
+            (ours_dir / "ours_run.json").write_text(json.dumps(ours_run, indent=1))
+        ours, ours_var, ours_header = read_ours(final_exr)
+        cfg = yaml.safe_load((ours_dir / "config.yaml").read_text())
+
+        spp_each = args.mitsuba_spp // args.mitsuba_runs
+        integ = mitsuba_integrator(args)
+        scene_dict = build_scene_dict(cfg, integ, out / "mitsuba" / "meshes", spp_each)
+        print("rendering Mitsuba: %d runs x %d spp ..." % (args.mitsuba_runs, spp_each), file=sys.stderr)
+        runs, load_s, render_s = render_mitsuba(scene_dict, args.mitsuba_runs, spp_each, args.seed * 1000)
+        if runs.shape[1:] != ours.shape:
+            raise SetupError("image sizes differ: ours %r, Mitsuba %r" % (ours.shape, runs.shape[1:]))
+    except SetupError as e:
+        print("error: %s" % e, file=sys.stderr)
+        return 2
+
+    result = compare(ours, ours_var, runs, args.block, args.alpha)
+    write_exr(out / "mitsuba" / "mitsuba.exr", result["mitsuba_mean"], result["mitsuba_var"])
+    img_info = write_images(out, ours, result["mitsuba_mean"], result["z"], args.block, result["stats"]["bound"])
+
+    s_L = cfg.get("params", {}).get("s_L") if isinstance(cfg.get("params"), dict) else None
+    info = {
+        "mitsuba_version": mi.__version__,
+        "variant": mi.variant(),
+        "integrator": args.integrator,
+        "mitsuba_integrator": json.dumps(integ),
+        "s_L": args.s_L if args.s_L is not None else (s_L if s_L is not None else "scene default"),
+        "strategy": args.strategy,
+        "ours_spp": int(ours_header.get("spp", args.ours_spp)),
+        "ours_time_s": float(ours_run["time_s"]),
+        "ours_wall_s": float(ours_run["wall_s"]),
+        "ours_config_hash": ours_header.get("config_hash"),
+        "mitsuba_spp": args.mitsuba_spp,
+        "mitsuba_runs": args.mitsuba_runs,
+        "mitsuba_load_s": load_s,
+        "mitsuba_render_s": render_s,
+        "max_depth_ours": args.max_depth if args.integrator == "path" else 1,
+        **img_info,
+    }
+    table = format_table(result["stats"], info)
+    print(table)
+    (out / "report.txt").write_text(table + "\n")
+    (out / "summary.json").write_text(json.dumps({"info": info, "stats": result["stats"]}, indent=1))
+    return 0 if result["stats"]["max_abs_z"] <= result["stats"]["bound"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
