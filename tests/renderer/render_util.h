@@ -84,3 +84,25 @@ static inline double images_max_block_z(const struct film_image *a, const struct
 }
 
 #endif
+
+/* relMSE of a against b (mean over pixels and channels of
+   (a - b)^2 / (b^2 + 0.01)) and the bound it stays below when both are
+   unbiased: its expectation sum (var_a + var_b) / d plus `k` standard
+   deviations, with Var[(a - b)^2] = 2 (var_a + var_b)^2 for Gaussian pixel
+   errors. */
+static inline void images_relmse(const struct film_image *a, const struct film_image *b, double k, double *relmse,
+                                 double *bound)
+{
+    size_t n = (size_t)3 * a->width * a->height;
+    double sum = 0.0, expect = 0.0, var = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        double d = (double)b->rgb[i] * b->rgb[i] + 0.01;
+        double e = (double)a->rgb[i] - b->rgb[i];
+        double v = ((double)a->variance[i] + b->variance[i]) / d;
+        sum += e * e / d;
+        expect += v;
+        var += 2.0 * v * v;
+    }
+    *relmse = sum / n;
+    *bound = (expect + k * sqrt(var)) / n;
+}

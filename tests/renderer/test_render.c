@@ -94,7 +94,47 @@ static void test_estimators_agree(void)
     film_image_free(&ref);
 }
 
+/* Every strategy converges to the image of `light`, on the lampshade (two
+   light/portal ratios) and on the multi-lamp scene: block means agree within
+   5 sigma and the relMSE between the renders stays below its expectation
+   from their own variances plus 5 standard deviations. */
+static void test_strategies_same_image(void)
+{
+    static const char *const scenes[][2] = {
+        { "configs/scenes/lampshade.yaml", "0.6" },
+        { "configs/scenes/lampshade.yaml", "1.2" },
+        { "configs/scenes/multi_lamp.yaml", NULL },
+    };
+    for (int sc = 0; sc < 3; ++sc) {
+        struct config_override base[] = { small[0], small[1], small[2], { "render.spp", "512" },
+                                           { "render.integrator", "direct" }, { "render.strategy", "light" },
+                                           { "params.s_L", scenes[sc][1] } };
+        int nb = scenes[sc][1] ? 7 : 6;
+        struct film_image ref = { 0 };
+        CHECK(render_to_image(scenes[sc][0], base, nb, &ref, NULL));
+        for (int k = 0; k < STRATEGY_COUNT; ++k) {
+            if (k == STRATEGY_LIGHT) continue;
+            struct film_image img = { 0 };
+            base[5].value = strategy_names[k];
+            base[3].value = k == STRATEGY_LIGHT_AREA || k == STRATEGY_PORTAL ? "512" : "256";
+            struct config_override seeded[8];
+            memcpy(seeded, base, sizeof base);
+            seeded[nb] = (struct config_override){ "render.seed", "5" };
+            CHECK(render_to_image(scenes[sc][0], seeded, nb + 1, &img, NULL));
+            double z = images_max_block_z(&ref, &img, 4), rel, bound;
+            images_relmse(&img, &ref, 5.0, &rel, &bound);
+            CHECK_MSG(z < 5.0, "%s s_L=%s %s: max block z = %.2f", scenes[sc][0], scenes[sc][1] ? scenes[sc][1] : "-",
+                      strategy_names[k], z);
+            CHECK_MSG(rel <= bound, "%s s_L=%s %s: relMSE %.3g > bound %.3g", scenes[sc][0],
+                      scenes[sc][1] ? scenes[sc][1] : "-", strategy_names[k], rel, bound);
+            film_image_free(&img);
+        }
+        film_image_free(&ref);
+    }
+}
+
 static const struct test_case tests[] = {
+    { "strategies_same_image", test_strategies_same_image },
     { "threads_bit_identical", test_threads_bit_identical },
     { "seed_changes_image", test_seed_changes_image },
     { "direct_equals_path_depth1", test_direct_equals_path_depth1 },

@@ -1,0 +1,238 @@
+/* The command line as a user and the harness see it: exit codes, messages,
+   the output folder, the JSON stream, and SIGTERM/SIGINT handling. Runs the
+   `render` binary that sits next to this test's folder. */
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "film.h"
+#include "testlib.h"
+
+static char render_bin[PATH_MAX];
+
+static void find_binary(void)
+{
+    char self[PATH_MAX - 16];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0) return;
+    self[n] = '\0';
+    char *slash = strrchr(self, '/');
+    if (slash) *slash = '\0';
+    slash = strrchr(self, '/'); /* .../build/tests -> .../build */
+    if (slash) *slash = '\0';
+    snprintf(render_bin, sizeof render_bin, "%s/render", self);
+}
+
+struct run {
+    int status;          /* exit code, or 128 + signal */
+    char out[65536];     /* stdout */
+    char err[8192];      /* stderr */
+};
+
+static void read_all(int fd, char *buf, size_t cap)
+{
+    size_t len = 0;
+    ssize_t n;
+    while (len + 1 < cap && (n = read(fd, buf + len, cap - 1 - len)) > 0) len += (size_t)n;
+    buf[len] = '\0';
+}
+
+/* Runs the renderer with argv (NULL-terminated, argv[0] ignored); if
+   signal_after_s > 0, sends sig after that many seconds. */
+static void run_render(char **argv, double signal_after_s, int sig, struct run *r)
+{
+    if (!render_bin[0]) find_binary();
+    argv[0] = render_bin;
+    char out_path[] = "/tmp/portal-cli-out-XXXXXX", err_path[] = "/tmp/portal-cli-err-XXXXXX";
+    int fo = mkstemp(out_path), fe = mkstemp(err_path);
+    pid_t pid = fork();
+    if (pid == 0) {
+        dup2(fo, 1);
+        dup2(fe, 2);
+        execv(render_bin, argv);
+        _exit(127);
+    }
+    if (signal_after_s > 0) {
+        struct timespec ts = { (time_t)signal_after_s, (long)((signal_after_s - (time_t)signal_after_s) * 1e9) };
+        nanosleep(&ts, NULL);
+        kill(pid, sig);
+    }
+    int st = 0;
+    waitpid(pid, &st, 0);
+    r->status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    lseek(fo, 0, SEEK_SET);
+    lseek(fe, 0, SEEK_SET);
+    read_all(fo, r->out, sizeof r->out);
+    read_all(fe, r->err, sizeof r->err);
+    close(fo), close(fe);
+    unlink(out_path), unlink(err_path);
+}
+
+static bool exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+static void make_tmpdir(char *dir) /* dir: "/tmp/...XXXXXX" */
+{
+    if (!mkdtemp(dir)) dir[0] = '\0';
+}
+
+static void remove_tree(const char *dir)
+{
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    if (system(cmd) != 0) fprintf(stderr, "  could not remove %s\n", dir);
+}
+
+static void test_help_and_version(void)
+{
+    struct run r;
+    char *a1[] = { NULL, "--help", NULL };
+    run_render(a1, 0, 0, &r);
+    CHECK(r.status == 0);
+    CHECK(strstr(r.out, "usage: render CONFIG") && strstr(r.out, "--strategy"));
+    char *a2[] = { NULL, "--version", NULL };
+    run_render(a2, 0, 0, &r);
+    CHECK(r.status == 0 && strstr(r.out, "render "));
+}
+
+static void test_usage_errors(void)
+{
+    struct run r;
+    char *a1[] = { NULL, "configs/scenes/lampshade.yaml", "--bogus", NULL };
+    run_render(a1, 0, 0, &r);
+    CHECK(r.status == 2 && strstr(r.err, "unknown option --bogus"));
+    char *a2[] = { NULL, NULL };
+    run_render(a2, 0, 0, &r);
+    CHECK(r.status == 2);
+    char *a3[] = { NULL, "configs/scenes/lampshade.yaml", "--set", "novalue", NULL };
+    run_render(a3, 0, 0, &r);
+    CHECK(r.status == 2 && strstr(r.err, "--set needs KEY.PATH=VALUE"));
+    char *a4[] = { NULL, "configs/scenes/does_not_exist.yaml", NULL };
+    run_render(a4, 0, 0, &r);
+    CHECK(r.status == 2 && strstr(r.err, "does_not_exist.yaml"));
+}
+
+/* A config error: exit 2, file:line:column on stderr, nothing written. */
+static void test_config_error_writes_nothing(void)
+{
+    char dir[] = "/tmp/portal-cli-XXXXXX";
+    make_tmpdir(dir);
+    char out[600];
+    snprintf(out, sizeof out, "%s/never", dir);
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", out, "--set", "render.strategy=prtal", NULL };
+    run_render(a, 0, 0, &r);
+    CHECK(r.status == 2);
+    CHECK_MSG(strstr(r.err, "--set render.strategy=prtal") != NULL, "stderr: %s", r.err);
+    CHECK(!exists(out));
+    char *b[] = { NULL, "tests/configs/bad/unknown_key_camera.yaml", "--out", out, NULL };
+    run_render(b, 0, 0, &r);
+    CHECK_MSG(r.status == 2 && strstr(r.err, "bad/unknown_key_camera.yaml:"), "status %d, stderr: %s", r.status, r.err);
+    CHECK(!exists(out));
+    remove_tree(dir);
+}
+
+/* A small render: JSON lines, files, exit 0. */
+static void test_render_outputs(void)
+{
+    char dir[] = "/tmp/portal-cli-XXXXXX";
+    make_tmpdir(dir);
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "6", "--threads", "2",
+                  "--set", "film.width=24", "--set", "film.height=16", "--set", "render.snapshots.every_spp=2",
+                  "--quiet", NULL };
+    run_render(a, 0, 0, &r);
+    CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
+    int lines = 0, snaps = 0, finals = 0, starts = 0;
+    for (char *line = r.out; *line;) {
+        char *nl = strchr(line, '\n');
+        if (!nl) break;
+        *nl = '\0';
+        ++lines;
+        CHECK(line[0] == '{' && nl[-1] == '}');
+        starts += strstr(line, "\"event\":\"start\"") != NULL;
+        snaps += strstr(line, "\"event\":\"snapshot\"") != NULL;
+        finals += strstr(line, "\"event\":\"final\"") != NULL && strstr(line, "\"spp\":6");
+        line = nl + 1;
+    }
+    CHECK(starts == 1 && finals == 1);
+    CHECK_MSG(snaps == 3, "%d snapshots (expected at spp 2, 4, 6)", snaps);
+    char path[700];
+    const char *files[] = { "config.yaml", "final.exr", "snapshot_0001.exr", "snapshot_0003.exr" };
+    for (int i = 0; i < 4; ++i) {
+        snprintf(path, sizeof path, "%s/%s", dir, files[i]);
+        CHECK_MSG(exists(path), "missing %s", path);
+    }
+    struct film_image img = { 0 };
+    struct snapshot_read meta = { { 0 }, NULL };
+    struct error err;
+    snprintf(path, sizeof path, "%s/final.exr", dir);
+    CHECK(film_read_exr(path, &img, &meta, &err));
+    CHECK(img.width == 24 && img.height == 16 && meta.info.spp == 6);
+    CHECK(meta.info.strategy && !strcmp(meta.info.strategy, "light"));
+    film_image_free(&img);
+    free(meta.storage);
+    /* The effective config renders again as it is. */
+    char cfg[700], dir2[] = "/tmp/portal-cli-XXXXXX";
+    make_tmpdir(dir2);
+    snprintf(cfg, sizeof cfg, "%s/config.yaml", dir);
+    char *b[] = { NULL, cfg, "--out", dir2, "--quiet", NULL };
+    run_render(b, 0, 0, &r);
+    CHECK_MSG(r.status == 0, "re-render of config.yaml: %s", r.err);
+    remove_tree(dir2);
+    remove_tree(dir);
+}
+
+/* SIGTERM and SIGINT: the current pass ends, final.exr is written, exit 3. */
+static void test_signals(void)
+{
+    int sigs[] = { SIGTERM, SIGINT };
+    for (int i = 0; i < 2; ++i) {
+        char dir[] = "/tmp/portal-cli-XXXXXX";
+        make_tmpdir(dir);
+        struct run r;
+        char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "0", "--time", "60",
+                      "--threads", "2", "--set", "film.width=64", "--set", "film.height=64", "--quiet", NULL };
+        run_render(a, 0.8, sigs[i], &r);
+        CHECK_MSG(r.status == 3, "signal %d: status %d: %s", sigs[i], r.status, r.err);
+        CHECK(strstr(r.out, "\"event\":\"final\"") && strstr(r.out, "\"interrupted\":true"));
+        char path[600];
+        snprintf(path, sizeof path, "%s/final.exr", dir);
+        struct film_image img = { 0 };
+        struct snapshot_read meta = { { 0 }, NULL };
+        struct error err;
+        CHECK_MSG(film_read_exr(path, &img, &meta, &err), "final.exr after signal %d", sigs[i]);
+        CHECK(meta.info.spp > 0);
+        film_image_free(&img);
+        free(meta.storage);
+        remove_tree(dir);
+    }
+}
+
+/* An output folder that cannot be created: runtime error, exit 1. */
+static void test_unwritable_output(void)
+{
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", "/proc/portal-lights-test", "--spp", "1",
+                  "--set", "film.width=8", "--set", "film.height=8", NULL };
+    run_render(a, 0, 0, &r);
+    CHECK_MSG(r.status == 1 && strstr(r.err, "/proc/portal-lights-test"), "status %d: %s", r.status, r.err);
+}
+
+static const struct test_case tests[] = {
+    { "help_and_version", test_help_and_version },
+    { "usage_errors", test_usage_errors },
+    { "config_error_writes_nothing", test_config_error_writes_nothing },
+    { "render_outputs", test_render_outputs },
+    { "signals", test_signals },
+    { "unwritable_output", test_unwritable_output },
+};
+TEST_MAIN(tests)
