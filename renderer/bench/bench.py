@@ -1,0 +1,487 @@
+"""The benchmark suite behind `make bench` (run through renderer/bench/run.sh).
+
+One function per section; each writes results/bench/<name>.json, and
+summary.py turns them into results/bench/summary.md. Sections:
+
+  raw_embree      raw Embree limit on the lampshade (C, raw_embree.c)
+  micro           classification / projection / strategy cost per call vs a
+                  shadow ray (C, micro.c)
+  throughput      renderer rays/s and samples/s per strategy and integrator,
+                  ratio to the raw limit; strategy cost relative to `light`;
+                  wasted shadow rays
+  threads         1 vs 2 render threads
+  snapshots       snapshots every 0.25 s vs none
+  scene_scaling   N = 1, 10, 100, 1000 lampshades (gen_lamps.py)
+  harness         MSE / relMSE of a snapshot vs a reference, EXR read included
+  efficiency      the lampshade ratio sweep at equal time vs a long reference
+  portal_weights  area / distance / irradiance on multi_lamp.yaml
+
+usage: bench.py BUILD_DIR [--quick] [--only SECTION[,SECTION...]]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+import benchlib as bl
+from benchlib import LAMPSHADE, MULTI_LAMP, STRATEGIES, TMP, Context, log, median
+
+SWEEP_S_L = (0.075, 0.15, 0.3, 0.6, 1.2)
+S_P = 0.3
+SWEEP_STRATEGIES = ("light", "portal", "projection", "antishadow", "antishadow_exact")
+WEIGHTS = ("area", "distance", "irradiance")
+REF_SEED = 1000003
+
+
+def ratio_stats(xs: list[float]) -> dict[str, float]:
+    xs = [x for x in xs if x == x and math.isfinite(x)]
+    if not xs:
+        return {"median": float("nan"), "min": float("nan"), "max": float("nan"), "n": 0}
+    return {"median": median(xs), "min": min(xs), "max": max(xs), "n": len(xs)}
+
+
+# ---- 1. raw Embree limit --------------------------------------------------------
+
+
+def section_raw_embree(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "seconds_per_cell": 0.1 if q else 0.3,
+              "reps": 3 if q else 5, "spp": 1 if q else 2, "threads": [1, 2]}
+    raw = bl.run_json([str(ctx.bins["raw_embree"]), str(LAMPSHADE), "--seconds", str(params["seconds_per_cell"]),
+                       "--reps", str(params["reps"]), "--spp", str(params["spp"]), "--max-threads", "2"])
+    table = {}
+    for c in raw["cells"]:
+        row = table.setdefault(f"{c['kind']}/{c['api']}", {})
+        t = c["threads"]
+        row[f"per_thread_rays_per_s_{t}t"] = c["median_rays_per_s_per_thread"]
+        row[f"rays_per_cpu_s_{t}t"] = c["median_rays_per_cpu_s"]
+    ctx.machine["embree_version"] = raw["embree_version"]
+    bl.write_result(ctx, "raw_embree", params, {"table": table, "raw": raw})
+    return table
+
+
+def raw_limit() -> dict[str, float]:
+    """Rays per CPU second of one thread for the renderer's ray mix, from raw_embree.json."""
+    path = bl.RESULTS / "raw_embree.json"
+    if not path.exists():
+        return {}
+    t = json.loads(path.read_text())["results"]["table"]
+    return {
+        "mix_embree_rays_per_cpu_s": t["mix/embree"]["rays_per_cpu_s_1t"],
+        "mix_wrapper_rays_per_cpu_s": t["mix/wrapper"]["rays_per_cpu_s_1t"],
+        "mix_embree_rays_per_s_2t": 2 * t["mix/embree"]["per_thread_rays_per_s_2t"],
+    }
+
+
+# ---- 10. micro-benchmark --------------------------------------------------------
+
+
+def section_micro(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "reps": 3 if q else 7, "min_ms": 5 if q else 20,
+              "floor": [-3, 3]}
+    raw = bl.run_json([str(ctx.bins["micro"]), str(LAMPSHADE), "--reps", str(params["reps"]),
+                       "--min-ms", str(params["min_ms"])])
+    table = {}
+    for set_name, s in raw["sets"].items():
+        shadow = s["cells"]["shadow_ray"]["median_ns"]
+        table[set_name] = {
+            name: {"ns": c["median_ns"], "per_shadow_ray": c["median_ns"] / shadow} for name, c in s["cells"].items()
+        }
+    bl.write_result(ctx, "micro", params, {"table": table, "raw": raw})
+    return table
+
+
+# ---- 2, 5, 9. renderer throughput -------------------------------------------------
+
+
+def wasted(run: dict[str, Any]) -> dict[str, float]:
+    sr, sb = run["shadow_rays"] or 0, run["shadow_blocked"] or 0
+    ls, lm = run["light_samples"] or 0, run["light_missed"] or 0
+    denom = sr + lm
+    return {
+        "wasted_fraction": (sb + lm) / denom if denom else float("nan"),
+        "blocked_fraction": sb / denom if denom else float("nan"),
+        "missed_fraction": lm / denom if denom else float("nan"),
+        "shadow_rays": sr, "shadow_blocked": sb, "light_samples": ls, "light_missed": lm,
+    }
+
+
+def section_throughput(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    spp = {"direct": 2 if q else 8, "path": 1 if q else 4}
+    reps = 1 if q else 3
+    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "spp": spp, "reps": reps, "threads": 2,
+              "order": "round-robin over (integrator, strategy) per round; seed = round"}
+    out = TMP / "runs" / "throughput"
+    bl.run_render(ctx, LAMPSHADE, out / "warmup", "--spp", "1", "--threads", "2")
+    runs: dict[str, list[dict[str, Any]]] = {}
+    for r in range(reps):
+        log(f"throughput: round {r + 1}/{reps}")
+        for integ in ("direct", "path"):
+            for s in STRATEGIES:
+                run = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), "--threads", "2",
+                                    "--strategy", s, "--integrator", integ, "--seed", str(r + 1))
+                runs.setdefault(f"{integ}/{s}", []).append(run.summary())
+    limit = raw_limit()
+    table = {}
+    for key, rs in runs.items():
+        integ, s = key.split("/")
+        row = {k: median([x[k] for x in rs]) for k in
+               ("samples_per_s", "rays_per_s", "samples_per_cpu_s", "rays_per_cpu_s", "cpu_share")}
+        row["rays_per_sample"] = median([x["rays"] / x["samples"] for x in rs])
+        if limit:
+            row["raw_fraction_cpu"] = row["rays_per_cpu_s"] / limit["mix_embree_rays_per_cpu_s"]
+            row["raw_fraction_cpu_wrapper"] = row["rays_per_cpu_s"] / limit["mix_wrapper_rays_per_cpu_s"]
+            row["raw_fraction_wall"] = row["rays_per_s"] / limit["mix_embree_rays_per_s_2t"]
+        # Strategy cost: CPU time per sample relative to `light`, same integrator, same round.
+        light = runs[f"{integ}/light"]
+        row["cost_vs_light_cpu"] = ratio_stats(
+            [(x["cpu_s"] / x["samples"]) / (l["cpu_s"] / l["samples"]) for x, l in zip(rs, light)])
+        row["cost_vs_light_wall"] = ratio_stats(
+            [(x["time_s"] / x["samples"]) / (l["time_s"] / l["samples"]) for x, l in zip(rs, light)])
+        row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
+        table[key] = row
+    bl.write_result(ctx, "throughput", {**params, "raw_limit": limit}, {"table": table, "runs": runs})
+    # The wasted-ray table of section 9 at the default scene (s_L = 0.6).
+    wasted_rows = {key: wasted(rs[0]) for key, rs in runs.items() if key.startswith("direct/")}
+    bl.write_result(ctx, "wasted_rays", {"config": params["config"], "s_L": 0.6, "integrator": "direct",
+                                         "definition": "(shadow_blocked + light_missed) / (shadow_rays + light_missed)"},
+                    {"lampshade_default": wasted_rows})
+    return table
+
+
+# ---- 3. thread scaling ------------------------------------------------------------
+
+
+def section_threads(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    spp, reps = (2 if q else 8), (1 if q else 3)
+    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "integrator": "direct", "spp": spp, "reps": reps}
+    out = TMP / "runs" / "threads"
+    table, runs = {}, {}
+    for s in ("light", "antishadow_exact"):
+        pairs = []
+        for r in range(reps):
+            log(f"threads: {s} round {r + 1}/{reps}")
+            one = bl.run_render(ctx, LAMPSHADE, out / f"{s}_1", "--spp", str(spp), "--threads", "1",
+                                "--strategy", s, "--seed", str(r + 1)).summary()
+            two = bl.run_render(ctx, LAMPSHADE, out / f"{s}_2", "--spp", str(spp), "--threads", "2",
+                                "--strategy", s, "--seed", str(r + 1)).summary()
+            pairs.append((one, two))
+        runs[s] = pairs
+        table[s] = {
+            "speedup_wall": ratio_stats([a["time_s"] / b["time_s"] for a, b in pairs]),
+            # Rays per CPU second at 2 threads over 1: 1.0 means no per-thread
+            # slow-down (locks, memory); the wall speedup on a quiet machine would
+            # be about 2x this, minus idle time at the pass barrier.
+            "cpu_efficiency_2t_vs_1t": ratio_stats([b["samples_per_cpu_s"] / a["samples_per_cpu_s"] for a, b in pairs]),
+            "cpu_share_1t": median([a["cpu_share"] for a, _ in pairs]),
+            "cpu_share_2t": median([b["cpu_share"] for _, b in pairs]),
+            "samples_per_s_1t": median([a["samples_per_s"] for a, _ in pairs]),
+            "samples_per_s_2t": median([b["samples_per_s"] for _, b in pairs]),
+        }
+    bl.write_result(ctx, "threads", params, {"table": table, "runs": runs})
+    return table
+
+
+# ---- 4. snapshot overhead -----------------------------------------------------------
+
+
+def section_snapshots(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    secs, reps, every = (1.5 if q else 3.0), (1 if q else 3), 0.25
+    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "strategy": "light", "integrator": "direct",
+              "time_s": secs, "reps": reps, "every_s": every, "threads": 2}
+    out = TMP / "runs" / "snapshots"
+    pairs = []
+    for r in range(reps):
+        log(f"snapshots: round {r + 1}/{reps}")
+        none = bl.run_render(ctx, LAMPSHADE, out / "none", "--time", str(secs), "--spp", "0", "--threads", "2",
+                             "--seed", str(r + 1)).summary()
+        snap = bl.run_render(ctx, LAMPSHADE, out / "every", "--time", str(secs), "--spp", "0", "--threads", "2",
+                             "--seed", str(r + 1), "--set", f"render.snapshots.every={every}",
+                             snapshots=True).summary()
+        pairs.append((none, snap))
+    table = {
+        # Overhead = 1 - rate with snapshots / rate without.
+        "overhead_wall": ratio_stats([1 - b["samples_per_s"] / a["samples_per_s"] for a, b in pairs]),
+        "overhead_cpu": ratio_stats([1 - b["samples_per_cpu_s"] / a["samples_per_cpu_s"] for a, b in pairs]),
+        "snapshots_written": median([b["snapshots"] for _, b in pairs]),
+        "process_minus_render_s_none": median([a["process_wall_s"] - a["time_s"] for a, _ in pairs]),
+        "process_minus_render_s_every": median([b["process_wall_s"] - b["time_s"] for _, b in pairs]),
+    }
+    bl.write_result(ctx, "snapshots", params, {"table": table, "runs": pairs})
+    return table
+
+
+# ---- 6. scaling with the number of lamps ----------------------------------------------
+
+
+def section_scene_scaling(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    ns, secs, reps, size = (1, 10, 100, 1000), (0.5 if q else 2.0), (1 if q else 2), 128
+    params = {"generator": "renderer/bench/gen_lamps.py", "n_lamps": list(ns), "time_s": secs, "reps": reps,
+              "film": size, "threads": 2, "integrator": "direct"}
+    scenes = {}
+    for n in ns:
+        path = TMP / "scenes" / f"lamps_{n}.yaml"
+        subprocess.run([sys.executable, str(bl.BENCH_DIR / "gen_lamps.py"), str(n), str(path), "--size", str(size)],
+                       check=True)
+        scenes[n] = path
+    out = TMP / "runs" / "scaling"
+    runs: dict[str, list[dict[str, Any]]] = {}
+    for r in range(reps):
+        for n in ns:
+            for s in ("light", "antishadow_exact"):
+                log(f"scene_scaling: round {r + 1}/{reps} N={n} {s}")
+                run = bl.run_render(ctx, scenes[n], out / f"{n}_{s}", "--time", str(secs), "--spp", "0",
+                                    "--threads", "2", "--strategy", s, "--seed", str(r + 1))
+                runs.setdefault(f"{n}/{s}", []).append(run.summary())
+    table: dict[str, Any] = {}
+    for s in ("light", "antishadow_exact"):
+        rows = {}
+        for n in ns:
+            rs = runs[f"{n}/{s}"]
+            rows[str(n)] = {
+                "samples_per_s": median([x["samples_per_s"] for x in rs]),
+                "samples_per_cpu_s": median([x["samples_per_cpu_s"] for x in rs]),
+                "cpu_ns_per_sample": median([1e9 * x["cpu_s"] / x["samples"] for x in rs]),
+                "load_and_write_s": median([x["process_wall_s"] - x["time_s"] for x in rs]),
+                **{k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")},
+            }
+        base = rows[str(ns[0])]["cpu_ns_per_sample"]
+        for n in ns:
+            rows[str(n)]["cost_vs_n1"] = rows[str(n)]["cpu_ns_per_sample"] / base
+        # Least-squares fit cost = a + b N (CPU ns per sample).
+        x = np.array(ns, dtype=float)
+        y = np.array([rows[str(n)]["cpu_ns_per_sample"] for n in ns])
+        b, a = np.polyfit(x, y, 1)
+        table[s] = {"by_n": rows, "fit_ns_per_sample": {"a": float(a), "b_per_lamp": float(b)}}
+    bl.write_result(ctx, "scene_scaling", params, {"table": table, "runs": runs})
+    return table
+
+
+# ---- 7. harness overhead ---------------------------------------------------------------
+
+
+def section_harness(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    reps = 3 if q else 7
+    params = {"what": "read snapshot + reference EXR (openexr bindings), MSE and relMSE (+ reference noise)",
+              "reps": reps, "sizes": [256, 1024]}
+    out = TMP / "runs" / "harness"
+    table = {}
+    try:
+        from portal_harness import exr as hexr, metrics as hmet  # the harness's own code path, if installed
+    except ImportError:
+        hexr = hmet = None
+    for size in (256, 1024):
+        paths = []
+        for seed in (1, 2):
+            run = bl.run_render(ctx, LAMPSHADE, out / f"{size}_{seed}", "--spp", "2", "--threads", "2",
+                                "--seed", str(seed), "--set", f"film.width={size}", "--set", f"film.height={size}")
+            paths.append(Path(run.final["path"]))
+        times_read, times_metric, times_harness = [], [], []
+        for _ in range(reps):
+            t0 = time.perf_counter()
+            x, _, _ = bl.read_exr(paths[0])
+            ref, ref_var, _ = bl.read_exr(paths[1])
+            t1 = time.perf_counter()
+            mse = float(np.mean((x - ref) ** 2))
+            rel = bl.rel_error(x, ref, ref_var)
+            t2 = time.perf_counter()
+            times_read.append(t1 - t0)
+            times_metric.append(t2 - t1)
+            if hexr is not None:
+                t3 = time.perf_counter()
+                a, b = hexr.read_snapshot(paths[0]), hexr.read_snapshot(paths[1])
+                hmet.mse(a.rgb, b.rgb)
+                hmet.rel_mse(a.rgb, b.rgb)
+                hmet.rel_variance_floor(b.rgb, b.variance)
+                times_harness.append(time.perf_counter() - t3)
+        table[str(size)] = {
+            "read_two_exr_ms": 1e3 * median(times_read),
+            "metrics_ms": 1e3 * median(times_metric),
+            "total_ms": 1e3 * median([a + b for a, b in zip(times_read, times_metric)]),
+            "portal_harness_total_ms": 1e3 * median(times_harness) if times_harness else None,
+            "exr_bytes": paths[0].stat().st_size,
+            "check_mse": mse,
+            "check_rel_mse": rel["rel_mse"],
+        }
+    bl.write_result(ctx, "harness", params, table)
+    return table
+
+
+# ---- 8, 11. efficiency at equal time against a cached reference --------------------------
+
+
+def file_digest(path: Path) -> str:
+    return hashlib.sha1(path.read_bytes()).hexdigest()[:12]
+
+
+def reference(ctx: Context, config: Path, sets: list[str], secs: float, tag: str) -> tuple[Path, dict[str, Any]]:
+    """A long `light` render, cached under results/bench/tmp/refs keyed by the
+    scene file, the overrides and the renderer version; reused when it was
+    rendered for at least `secs`."""
+    key = hashlib.sha1(json.dumps([file_digest(config), sets, ctx.version, "light", REF_SEED]).encode()).hexdigest()[:12]
+    folder = TMP / "refs" / f"{tag}_v{ctx.version}_{key}"
+    meta_path = folder / "meta.json"
+    if meta_path.exists():
+        meta = json.loads(meta_path.read_text())
+        if meta.get("time_target_s", 0) >= secs and (folder / "final.exr").exists():
+            log(f"reference {folder.name}: cached ({meta['time_target_s']} s, {meta['spp']} spp)")
+            return folder / "final.exr", meta
+    log(f"reference {folder.name}: rendering {secs} s")
+    args = [a for s in sets for a in ("--set", s)]
+    run = bl.run_render(ctx, config, folder, "--strategy", "light", "--time", str(secs), "--spp", "0",
+                        "--threads", "2", "--seed", str(REF_SEED), *args)
+    meta = {"config": str(config), "sets": sets, "renderer_version": ctx.version, "time_target_s": secs,
+            "time_s": run.time_s, "cpu_s": run.cpu_s, "spp": run.final["spp"], "seed": REF_SEED}
+    meta_path.write_text(json.dumps(meta, indent=1) + "\n")
+    return folder / "final.exr", meta
+
+
+def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants: dict[str, list[str]], secs: float,
+                          ref_exr: Path, out: Path) -> dict[str, Any]:
+    """Renders each variant for `secs` (2 threads) and measures its error
+    against the reference and its efficiency relative to the variant 'light'."""
+    ref, ref_var, _ = bl.read_exr(ref_exr)
+    rows: dict[str, Any] = {}
+    for name, extra in variants.items():
+        args = [a for s in sets for a in ("--set", s)]
+        run = bl.run_render(ctx, config, out / name, "--time", str(secs), "--spp", "0", "--threads", "2",
+                            "--seed", "1", *args, *extra)
+        x, _, _ = bl.read_exr(Path(run.final["path"]))
+        err = bl.rel_error(x, ref, ref_var)
+        summ = run.summary()
+        rows[name] = {**err, "time_s": run.time_s, "cpu_s": run.cpu_s, "spp": run.final["spp"],
+                      **{k: v for k, v in wasted(summ).items()}}
+    base = rows["light"]
+    for name, row in rows.items():
+        for clock in ("cpu_s", "time_s"):
+            suffix = "cpu" if clock == "cpu_s" else "wall"
+            e_row = row["rel_mse_est"] * row[clock]
+            e_base = base["rel_mse_est"] * base[clock]
+            row[f"eff_vs_light_{suffix}"] = e_base / e_row if e_row > 0 else float("inf")
+            # Lower bound when the estimate is unresolved: use est + 2 se.
+            lo = (row["rel_mse_est"] + 2 * row["rel_mse_est_se"]) * row[clock]
+            hi_base = max(base["rel_mse_est"] - 2 * base["rel_mse_est_se"], 0.0) * base[clock]
+            row[f"eff_vs_light_{suffix}_low"] = hi_base / lo if lo > 0 else float("nan")
+        # Relative standard error of the ratio, from the two estimates' errors.
+        if row["rel_mse_est"] > 0 and base["rel_mse_est"] > 0:
+            row["eff_vs_light_rel_se"] = math.hypot(row["rel_mse_est_se"] / row["rel_mse_est"],
+                                                    base["rel_mse_est_se"] / base["rel_mse_est"])
+        else:
+            row["eff_vs_light_rel_se"] = float("nan")
+    return rows
+
+
+def section_efficiency(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    secs, ref_secs = (1.0 if q else 4.0), (6.0 if q else 60.0)
+    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "s_L": list(SWEEP_S_L), "s_P": S_P,
+              "strategies": list(SWEEP_STRATEGIES), "integrator": "direct", "time_s": secs, "threads": 2,
+              "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
+              "rel_mse": "mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)",
+              "rel_mse_est": "rel_mse - mean(var_ref / (ref^2 + 0.01))",
+              "efficiency": "1 / (rel_mse_est * cpu_s); eff_vs_light_wall uses render time_s instead"}
+    table = {}
+    for s_l in SWEEP_S_L:
+        sets = [f"params.s_L={s_l}", f"params.s_P={S_P}"]
+        ref_exr, meta = reference(ctx, LAMPSHADE, sets, ref_secs, f"lampshade_sL{s_l}")
+        log(f"efficiency: s_L={s_l} (ratio {s_l / S_P:g})")
+        rows = measure_at_equal_time(ctx, LAMPSHADE, sets, {s: ["--strategy", s] for s in SWEEP_STRATEGIES}, secs,
+                                     ref_exr, TMP / "runs" / "efficiency" / f"sL{s_l}")
+        table[f"{s_l / S_P:g}"] = {"s_L": s_l, "reference": meta, "strategies": rows}
+    bl.write_result(ctx, "efficiency", params, table)
+    # Wasted shadow rays per ratio (section 9) from the same runs.
+    path = bl.RESULTS / "wasted_rays.json"
+    if path.exists():
+        data = json.loads(path.read_text())
+        data["results"]["sweep"] = {
+            ratio: {s: {k: v for k, v in row.items() if k in (
+                "wasted_fraction", "blocked_fraction", "missed_fraction", "shadow_rays", "shadow_blocked",
+                "light_samples", "light_missed")} for s, row in t["strategies"].items()}
+            for ratio, t in table.items()}
+        path.write_text(json.dumps(data, indent=1) + "\n")
+    return table
+
+
+def section_portal_weights(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    secs, ref_secs = (1.0 if q else 4.0), (6.0 if q else 60.0)
+    params = {"config": str(MULTI_LAMP.relative_to(bl.ROOT)), "strategy": "antishadow_exact",
+              "weights": list(WEIGHTS), "integrator": "direct", "time_s": secs, "threads": 2,
+              "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
+              "efficiency": "relative to `light` at equal time; see efficiency.json for the definitions"}
+    ref_exr, meta = reference(ctx, MULTI_LAMP, [], ref_secs, "multi_lamp")
+    variants = {"light": ["--strategy", "light"]}
+    for w in WEIGHTS:
+        variants[f"antishadow_exact/{w}"] = ["--strategy", "antishadow_exact", "--set", f"render.portal_weight={w}"]
+    log("portal_weights: rendering")
+    rows = measure_at_equal_time(ctx, MULTI_LAMP, [], variants, secs, ref_exr, TMP / "runs" / "weights")
+    table = {"reference": meta, "variants": rows}
+    bl.write_result(ctx, "portal_weights", params, table)
+    return table
+
+
+SECTIONS: dict[str, Callable[[Context], Any]] = {
+    "raw_embree": section_raw_embree,
+    "micro": section_micro,
+    "throughput": section_throughput,
+    "threads": section_threads,
+    "snapshots": section_snapshots,
+    "scene_scaling": section_scene_scaling,
+    "harness": section_harness,
+    "efficiency": section_efficiency,
+    "portal_weights": section_portal_weights,
+}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("build", type=Path, help="build folder holding render (and the compiled benchmarks in bench/)")
+    ap.add_argument("--quick", action="store_true", help="smoke version (~2 minutes)")
+    ap.add_argument("--only", default="", help="comma-separated sections (default: all): " + ", ".join(SECTIONS))
+    args = ap.parse_args()
+    only = [s for s in args.only.split(",") if s]
+    unknown = [s for s in only if s not in SECTIONS]
+    if unknown:
+        ap.error(f"unknown section(s) {unknown}; expected some of {list(SECTIONS)}")
+    ctx = bl.make_context(args.build.resolve(), args.quick)
+    for name in ("raw_embree", "micro"):
+        ctx.bins[name] = ctx.build / "bench" / name
+    log(f"renderer {ctx.version} at {ctx.render}; {'quick' if ctx.quick else 'full'} run; "
+        f"{ctx.machine['nproc']} CPUs ({ctx.machine['cpu_model']}), load {ctx.machine['loadavg_1_5_15']}")
+    failed = []
+    for name, fn in SECTIONS.items():
+        if only and name not in only:
+            continue
+        t0 = time.monotonic()
+        log(f"== {name}")
+        try:
+            fn(ctx)
+        except Exception:  # noqa: BLE001 - one failing section must not lose the others
+            failed.append(name)
+            log(f"section {name} FAILED:\n{traceback.format_exc()}")
+        log(f"== {name} done in {time.monotonic() - t0:.1f} s")
+    if failed:
+        log(f"failed sections: {', '.join(failed)}")
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

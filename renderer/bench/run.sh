@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The benchmark suite (`make bench`): builds the C micro-benchmarks against
+# BUILD_DIR/librender.a, runs every section (renderer/bench/bench.py) and
+# writes results/bench/<section>.json plus results/bench/summary.md, which
+# is also printed. Progress goes to stderr.
+#
+# usage: renderer/bench/run.sh BUILD_DIR
+#   BENCH_QUICK=1          smoke version (~2 minutes instead of ~10-15)
+#   BENCH_ONLY=a,b         only these sections (see bench.py --help)
+#   BENCH_PYTHON=path      Python with numpy and the openexr bindings
+#                          (default: .venv/bin/python of the repository)
+set -euo pipefail
+
+die() { echo "bench: $*" >&2; exit 1; }
+
+[ $# -eq 1 ] || die "usage: renderer/bench/run.sh BUILD_DIR"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+BUILD="$1"
+case "$BUILD" in /*) ;; *) BUILD="$PWD/$BUILD" ;; esac
+cd "$ROOT"
+
+[ -x "$BUILD/render" ] || die "renderer not found: $BUILD/render is missing or not executable (run make first)"
+[ -f "$BUILD/librender.a" ] || die "library not found: $BUILD/librender.a is missing (run make first)"
+
+PY="${BENCH_PYTHON:-$ROOT/.venv/bin/python}"
+[ -x "$PY" ] || die "python not found at $PY (run make venv, or set BENCH_PYTHON)"
+"$PY" -c 'import numpy, OpenEXR' 2>/dev/null || die "$PY lacks numpy or the openexr bindings"
+
+CC="${CC:-cc}"
+mkdir -p "$BUILD/bench"
+for prog in raw_embree micro; do
+    echo "bench: building $BUILD/bench/$prog" >&2
+    "$CC" -std=c99 -O2 -g -Wall -Wextra -Wpedantic -Wshadow -D_POSIX_C_SOURCE=200809L -Irenderer/src \
+        "renderer/bench/$prog.c" "$BUILD/librender.a" -o "$BUILD/bench/$prog" \
+        -lembree3 -lOpenEXRCore -lyaml -lm -pthread \
+        || die "cannot build renderer/bench/$prog.c against $BUILD/librender.a"
+done
+
+args=("$BUILD")
+[ "${BENCH_QUICK:-0}" = "1" ] && args+=(--quick)
+[ -n "${BENCH_ONLY:-}" ] && args+=(--only "$BENCH_ONLY")
+
+status=0
+"$PY" renderer/bench/bench.py "${args[@]}" || status=$?
+"$PY" renderer/bench/summary.py || status=$?
+[ $status -eq 0 ] || echo "bench: some sections failed (see the messages above)" >&2
+exit $status
