@@ -345,11 +345,11 @@ def _reference_for(layout: ResultsLayout, conn: Any, manifest: dict[str, Any], g
 
 def cmd_query(args: argparse.Namespace) -> int:
     params: dict[str, float] = {}
-    for k, v in _parse_sets(args.param, "--param").items():
+    for name, text in _parse_sets(args.param, "--param").items():
         try:
-            params[k] = float(v)
+            params[name] = float(text)
         except ValueError:
-            raise ConfigError("--param", k, f"expected a number, got {v!r}") from None
+            raise ConfigError("--param", name, f"expected a number, got {text!r}") from None
     conn = index.connect(_layout(args).index_path)
     try:
         found = index.curves(conn, args.strategy, params, region=args.region, metric=args.metric)

@@ -198,7 +198,8 @@ class _Reader:
     def fail(self, key: str, message: str) -> ConfigError:
         return ConfigError(self.file, key, message)
 
-    def mapping(self, node: Any, key: str, allowed: set[str], required: set[str] = frozenset()) -> dict[str, Any]:
+    def mapping(self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
+                ) -> dict[str, Any]:
         if not isinstance(node, dict):
             raise self.fail(key, f"expected a mapping, got {_kind(node)}")
         for k in node:
@@ -400,7 +401,7 @@ def load_experiment(path: Path | str) -> Experiment:
                 return int(fixed[f"film.{axis}"])
             except ValueError:
                 raise r.fail(f"fixed.film.{axis}", "expected an integer") from None
-        return getattr(scene_info, axis)
+        return int(getattr(scene_info, axis))
 
     width, height = size("width"), size("height")
 
@@ -457,7 +458,7 @@ def load_experiment(path: Path | str) -> Experiment:
     divide_by = axis_node.get("divide_by")
     if divide_by is not None:
         divide_by = r.string(divide_by, "axis.divide_by")
-        value = dict(sweep).get(divide_by, [fixed.get(divide_by, scene_info.scalars.get(divide_by))])
+        value: tuple[Any, ...] = dict(sweep).get(divide_by, (fixed.get(divide_by, scene_info.scalars.get(divide_by)),))
         try:
             [float(v) for v in value]
         except (TypeError, ValueError):

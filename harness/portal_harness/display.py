@@ -13,7 +13,8 @@ _LUMINANCE_WEIGHTS = np.asarray(_SRGB.matrix_RGB_to_XYZ)[1]
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:
-    return np.asarray(rgb, dtype=np.float64) @ _LUMINANCE_WEIGHTS
+    y: np.ndarray = np.asarray(rgb, dtype=np.float64) @ _LUMINANCE_WEIGHTS
+    return y
 
 
 def exposure_from_reference(reference: np.ndarray, percentile: float = 99.0, white: float = 0.9) -> float:

@@ -51,6 +51,7 @@ class Target:
     renderer: str
     renderer_version: str
     retry_failed: bool = True
+    force: bool = False
 
 
 def _worker_init() -> None:
@@ -66,7 +67,7 @@ def _worker_init() -> None:
 
 def _task(spec: RunSpec, target: Target) -> dict[str, Any]:
     return runs.execute(spec, target.layout, target.renderer, target.renderer_version,
-                        retry_failed=target.retry_failed)
+                        force=target.force, retry_failed=target.retry_failed)
 
 
 def _failure(spec: RunSpec, target: Target, error: BaseException) -> dict[str, Any]:
@@ -108,7 +109,7 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
     from distributed import Client, as_completed
 
     scene_bytes: dict[str, bytes] = {}
-    with Client(address, timeout="30s") as client:
+    with Client(address, timeout="30s") as client:  # type: ignore[no-untyped-call]
         futures = {}
         for spec in specs:
             if spec.scene not in scene_bytes:
@@ -120,7 +121,7 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
                 final_dir, key=f"render-{key}-{os.getpid()}", pure=False, retries=0,
             )
             futures[future] = spec
-        for future in as_completed(list(futures)):
+        for future in as_completed(list(futures)):  # type: ignore[no-untyped-call]
             spec = futures[future]
             try:
                 key, files = future.result()

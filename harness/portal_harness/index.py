@@ -177,7 +177,8 @@ def membership(conn: sqlite3.Connection, experiment: str) -> list[sqlite3.Row]:
 
 
 def run_row(conn: sqlite3.Connection, key: str) -> sqlite3.Row | None:
-    return conn.execute("SELECT * FROM runs WHERE key = ?", (key,)).fetchone()
+    row: sqlite3.Row | None = conn.execute("SELECT * FROM runs WHERE key = ?", (key,)).fetchone()
+    return row
 
 
 def metrics_of(conn: sqlite3.Connection, key: str, reference_key: str | None = None) -> list[sqlite3.Row]:
@@ -190,11 +191,12 @@ def metrics_of(conn: sqlite3.Connection, key: str, reference_key: str | None = N
 
 def find_reference(conn: sqlite3.Connection, scene_hash: str) -> sqlite3.Row | None:
     """The finished reference of a scene with the most samples."""
-    return conn.execute(
+    row: sqlite3.Row | None = conn.execute(
         """SELECT * FROM runs WHERE kind = 'reference' AND status = 'done' AND scene_hash = ?
            ORDER BY final_spp DESC LIMIT 1""",
         (scene_hash,),
     ).fetchone()
+    return row
 
 
 def curves(

@@ -66,7 +66,7 @@ def up_to_date(run: RunLayout, reference_key: str, regions: tuple[Region, ...]) 
             data = json.load(f)
     except (OSError, json.JSONDecodeError):
         return False
-    return data.get("reference_key") == reference_key and data.get("regions") == _regions_json(regions)
+    return bool(data.get("reference_key") == reference_key and data.get("regions") == _regions_json(regions))
 
 
 def write_files(run: RunLayout, key: str, reference_key: str, regions: tuple[Region, ...], rows: list[MetricRow]) -> None:

@@ -72,7 +72,7 @@ def execute_in(
 
     start_event = next((e for e in result.events if e.get("event") == "start"), {})
     final_event = next((e for e in result.events if e.get("event") == "final"), None)
-    snapshots = [
+    snapshots: list[dict[str, Any]] = [
         {"index": int(e.get("index", 0)), "file": run.relative(str(e.get("path", ""))),
          "time_s": float(e.get("time_s", 0.0)), "spp": int(e.get("spp", 0))}
         for e in result.events if e.get("event") == "snapshot"

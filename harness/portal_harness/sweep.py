@@ -105,7 +105,7 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
         finished = existing is not None and (
             existing.get("status") == store.STATUS_DONE
             or (not options.retry_failed and existing.get("status") == store.STATUS_FAILED))
-        if finished and not force:
+        if existing is not None and finished and not force:
             manifests[key] = {**existing, "cached": True}
             index.record_run(conn, existing, run.dir)
         else:
@@ -113,12 +113,6 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
             queued.add(key)
     if not todo:
         return manifests
-    if force:
-        for spec in todo:
-            key = spec.key(options.renderer_version)
-            run = options.layout.run(key, spec.reference)
-            if run.manifest.exists():
-                run.manifest.unlink()
     bar = tqdm(total=len(todo), desc=desc, unit="render", disable=not options.progress, file=sys.stderr,
                dynamic_ncols=True)
 
@@ -131,7 +125,7 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
         bar.set_postfix_str(f"{label} {dict(spec.labels) or ''} {manifest['status']}", refresh=False)
         bar.update(1)
 
-    target = Target(options.layout, options.renderer, options.renderer_version, options.retry_failed)
+    target = Target(options.layout, options.renderer, options.renderer_version, options.retry_failed, force)
     try:
         if options.scheduler:
             run_dask(todo, target, options.scheduler, done)

@@ -120,10 +120,12 @@ def wasted(run: dict[str, Any]) -> dict[str, float]:
 
 def section_throughput(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
-    spp = {"direct": 2 if q else 8, "path": 1 if q else 4}
+    spp = {"direct": 3 if q else 8, "path": 2 if q else 4}
     reps = 1 if q else 3
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "spp": spp, "reps": reps, "threads": 2,
-              "order": "round-robin over (integrator, strategy) per round; seed = round"}
+              "order": "round-robin over (integrator, strategy) per round; seed = round",
+              "cpu_rates": "differential: (run at spp) - (same run stopped after 1 pass), so load and EXR "
+                           "write are excluded"}
     out = TMP / "runs" / "throughput"
     bl.run_render(ctx, LAMPSHADE, out / "warmup", "--spp", "1", "--threads", "2")
     runs: dict[str, list[dict[str, Any]]] = {}
@@ -131,24 +133,26 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         log(f"throughput: round {r + 1}/{reps}")
         for integ in ("direct", "path"):
             for s in STRATEGIES:
-                run = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), "--threads", "2",
-                                    "--strategy", s, "--integrator", integ, "--seed", str(r + 1))
-                runs.setdefault(f"{integ}/{s}", []).append(run.summary())
+                common = ["--threads", "2", "--strategy", s, "--integrator", integ, "--seed", str(r + 1)]
+                a = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), *common).summary()
+                b = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}_1", "--spp", "1", *common).summary()
+                runs.setdefault(f"{integ}/{s}", []).append({**a, "diff": bl.differential(a, b), "one_pass": b})
     limit = raw_limit()
     table = {}
     for key, rs in runs.items():
         integ, s = key.split("/")
-        row = {k: median([x[k] for x in rs]) for k in
-               ("samples_per_s", "rays_per_s", "samples_per_cpu_s", "rays_per_cpu_s", "cpu_share")}
+        row = {k: median([x[k] for x in rs]) for k in ("samples_per_s", "rays_per_s", "cpu_share")}
+        row.update({k: median([x["diff"][k] for x in rs]) for k in
+                    ("samples_per_cpu_s", "rays_per_cpu_s", "fixed_cpu_s")})
         row["rays_per_sample"] = median([x["rays"] / x["samples"] for x in rs])
         if limit:
             row["raw_fraction_cpu"] = row["rays_per_cpu_s"] / limit["mix_embree_rays_per_cpu_s"]
             row["raw_fraction_cpu_wrapper"] = row["rays_per_cpu_s"] / limit["mix_wrapper_rays_per_cpu_s"]
             row["raw_fraction_wall"] = row["rays_per_s"] / limit["mix_embree_rays_per_s_2t"]
-        # Strategy cost: CPU time per sample relative to `light`, same integrator, same round.
+        # Strategy cost: time per sample relative to `light`, same integrator, same round.
         light = runs[f"{integ}/light"]
         row["cost_vs_light_cpu"] = ratio_stats(
-            [(x["cpu_s"] / x["samples"]) / (l["cpu_s"] / l["samples"]) for x, l in zip(rs, light)])
+            [l["diff"]["samples_per_cpu_s"] / x["diff"]["samples_per_cpu_s"] for x, l in zip(rs, light)])
         row["cost_vs_light_wall"] = ratio_stats(
             [(x["time_s"] / x["samples"]) / (l["time_s"] / l["samples"]) for x, l in zip(rs, light)])
         row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
@@ -167,7 +171,7 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
 
 def section_threads(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
-    spp, reps = (2 if q else 8), (1 if q else 3)
+    spp, reps = (3 if q else 8), (1 if q else 3)
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "integrator": "direct", "spp": spp, "reps": reps}
     out = TMP / "runs" / "threads"
     table, runs = {}, {}
@@ -175,18 +179,21 @@ def section_threads(ctx: Context) -> dict[str, Any]:
         pairs = []
         for r in range(reps):
             log(f"threads: {s} round {r + 1}/{reps}")
-            one = bl.run_render(ctx, LAMPSHADE, out / f"{s}_1", "--spp", str(spp), "--threads", "1",
-                                "--strategy", s, "--seed", str(r + 1)).summary()
-            two = bl.run_render(ctx, LAMPSHADE, out / f"{s}_2", "--spp", str(spp), "--threads", "2",
-                                "--strategy", s, "--seed", str(r + 1)).summary()
+            common = ["--strategy", s, "--seed", str(r + 1)]
+            one = bl.run_render(ctx, LAMPSHADE, out / f"{s}_1", "--spp", str(spp), "--threads", "1", *common).summary()
+            two = bl.run_render(ctx, LAMPSHADE, out / f"{s}_2", "--spp", str(spp), "--threads", "2", *common).summary()
+            b1 = bl.run_render(ctx, LAMPSHADE, out / f"{s}_b1", "--spp", "1", "--threads", "1", *common).summary()
+            b2 = bl.run_render(ctx, LAMPSHADE, out / f"{s}_b2", "--spp", "1", "--threads", "2", *common).summary()
+            one["diff"], two["diff"] = bl.differential(one, b1), bl.differential(two, b2)
             pairs.append((one, two))
         runs[s] = pairs
         table[s] = {
             "speedup_wall": ratio_stats([a["time_s"] / b["time_s"] for a, b in pairs]),
-            # Rays per CPU second at 2 threads over 1: 1.0 means no per-thread
+            # Samples per CPU second at 2 threads over 1: 1.0 means no per-thread
             # slow-down (locks, memory); the wall speedup on a quiet machine would
             # be about 2x this, minus idle time at the pass barrier.
-            "cpu_efficiency_2t_vs_1t": ratio_stats([b["samples_per_cpu_s"] / a["samples_per_cpu_s"] for a, b in pairs]),
+            "cpu_efficiency_2t_vs_1t": ratio_stats(
+                [b["diff"]["samples_per_cpu_s"] / a["diff"]["samples_per_cpu_s"] for a, b in pairs]),
             "cpu_share_1t": median([a["cpu_share"] for a, _ in pairs]),
             "cpu_share_2t": median([b["cpu_share"] for _, b in pairs]),
             "samples_per_s_1t": median([a["samples_per_s"] for a, _ in pairs]),
@@ -205,24 +212,34 @@ def section_snapshots(ctx: Context) -> dict[str, Any]:
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "strategy": "light", "integrator": "direct",
               "time_s": secs, "reps": reps, "every_s": every, "threads": 2}
     out = TMP / "runs" / "snapshots"
-    pairs = []
+    rounds = []
     for r in range(reps):
         log(f"snapshots: round {r + 1}/{reps}")
-        none = bl.run_render(ctx, LAMPSHADE, out / "none", "--time", str(secs), "--spp", "0", "--threads", "2",
-                             "--seed", str(r + 1)).summary()
-        snap = bl.run_render(ctx, LAMPSHADE, out / "every", "--time", str(secs), "--spp", "0", "--threads", "2",
-                             "--seed", str(r + 1), "--set", f"render.snapshots.every={every}",
-                             snapshots=True).summary()
-        pairs.append((none, snap))
+        common = ["--threads", "2", "--seed", str(r + 1)]
+        none = bl.run_render(ctx, LAMPSHADE, out / "none", "--time", str(secs), "--spp", "0", *common).summary()
+        snap = bl.run_render(ctx, LAMPSHADE, out / "every", "--time", str(secs), "--spp", "0", *common,
+                             "--set", f"render.snapshots.every={every}", snapshots=True).summary()
+        one = bl.run_render(ctx, LAMPSHADE, out / "one", "--spp", "1", *common).summary()
+        d = bl.differential(none, one)
+        # CPU of one snapshot: what the run with snapshots used beyond its
+        # fixed costs and its samples at the snapshot-free rate.
+        extra = snap["cpu_s"] - d["fixed_cpu_s"] - snap["samples"] / d["samples_per_cpu_s"]
+        rounds.append({"none": none, "every": snap, "one_pass": one,
+                       "cpu_per_snapshot_s": extra / max(snap["snapshots"], 1)})
+    cps = median([x["cpu_per_snapshot_s"] for x in rounds])
     table = {
         # Overhead = 1 - rate with snapshots / rate without.
-        "overhead_wall": ratio_stats([1 - b["samples_per_s"] / a["samples_per_s"] for a, b in pairs]),
-        "overhead_cpu": ratio_stats([1 - b["samples_per_cpu_s"] / a["samples_per_cpu_s"] for a, b in pairs]),
-        "snapshots_written": median([b["snapshots"] for _, b in pairs]),
-        "process_minus_render_s_none": median([a["process_wall_s"] - a["time_s"] for a, _ in pairs]),
-        "process_minus_render_s_every": median([b["process_wall_s"] - b["time_s"] for _, b in pairs]),
+        "overhead_wall": ratio_stats([1 - x["every"]["samples_per_s"] / x["none"]["samples_per_s"] for x in rounds]),
+        "overhead_cpu": ratio_stats(
+            [1 - x["every"]["samples_per_cpu_s"] / x["none"]["samples_per_cpu_s"] for x in rounds]),
+        "cpu_per_snapshot_ms": 1e3 * cps,
+        # On an otherwise idle machine the writer takes its CPU from the render
+        # threads, which own every core: the overhead is that share.
+        "overhead_idle_machine_estimate": cps / (every * (ctx.machine["nproc"] or 1)),
+        "snapshots_written": median([x["every"]["snapshots"] for x in rounds]),
+        "cpu_share_none": median([x["none"]["cpu_share"] for x in rounds]),
     }
-    bl.write_result(ctx, "snapshots", params, {"table": table, "runs": pairs})
+    bl.write_result(ctx, "snapshots", params, {"table": table, "runs": rounds})
     return table
 
 
@@ -246,9 +263,11 @@ def section_scene_scaling(ctx: Context) -> dict[str, Any]:
         for n in ns:
             for s in ("light", "antishadow_exact"):
                 log(f"scene_scaling: round {r + 1}/{reps} N={n} {s}")
-                run = bl.run_render(ctx, scenes[n], out / f"{n}_{s}", "--time", str(secs), "--spp", "0",
-                                    "--threads", "2", "--strategy", s, "--seed", str(r + 1))
-                runs.setdefault(f"{n}/{s}", []).append(run.summary())
+                common = ["--threads", "2", "--strategy", s, "--seed", str(r + 1)]
+                a = bl.run_render(ctx, scenes[n], out / f"{n}_{s}", "--time", str(secs), "--spp", "0",
+                                  *common).summary()
+                b = bl.run_render(ctx, scenes[n], out / f"{n}_{s}_1", "--spp", "1", *common).summary()
+                runs.setdefault(f"{n}/{s}", []).append({**a, "diff": bl.differential(a, b)})
     table: dict[str, Any] = {}
     for s in ("light", "antishadow_exact"):
         rows = {}
@@ -256,8 +275,9 @@ def section_scene_scaling(ctx: Context) -> dict[str, Any]:
             rs = runs[f"{n}/{s}"]
             rows[str(n)] = {
                 "samples_per_s": median([x["samples_per_s"] for x in rs]),
-                "samples_per_cpu_s": median([x["samples_per_cpu_s"] for x in rs]),
-                "cpu_ns_per_sample": median([1e9 * x["cpu_s"] / x["samples"] for x in rs]),
+                "samples_per_cpu_s": median([x["diff"]["samples_per_cpu_s"] for x in rs]),
+                "cpu_ns_per_sample": median([1e9 / x["diff"]["samples_per_cpu_s"] for x in rs]),
+                "fixed_cpu_s": median([x["diff"]["fixed_cpu_s"] for x in rs]),
                 "load_and_write_s": median([x["process_wall_s"] - x["time_s"] for x in rs]),
                 **{k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")},
             }

@@ -183,6 +183,20 @@ class RenderRun:
         }
 
 
+def differential(a: dict[str, Any], b: dict[str, Any]) -> dict[str, float]:
+    """CPU rates of run `a` with the fixed costs (config and scene load, thread
+    start, final EXR write) removed, using run `b`: the same configuration
+    stopped after one pass. The difference of the two is pure rendering.
+    Falls back to a's totals when b rendered as many samples as a."""
+    ds, dr, dc = a["samples"] - b["samples"], a["rays"] - b["rays"], a["cpu_s"] - b["cpu_s"]
+    if ds <= 0 or dc <= 0:
+        return {"samples_per_cpu_s": a["samples_per_cpu_s"], "rays_per_cpu_s": a["rays_per_cpu_s"],
+                "fixed_cpu_s": float("nan"), "differential": False}
+    per_sample = dc / ds
+    return {"samples_per_cpu_s": ds / dc, "rays_per_cpu_s": dr / dc,
+            "fixed_cpu_s": b["cpu_s"] - b["samples"] * per_sample, "differential": True}
+
+
 def run_render(ctx: Context, config: Path, out: Path, *args: str, snapshots: bool = False) -> RenderRun:
     """Runs the renderer to completion; raises with its stderr on failure."""
     if out.exists():

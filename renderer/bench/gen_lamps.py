@@ -124,6 +124,7 @@ def scene_yaml(n: int, spacing: float = 2.0, size: int = 128) -> str:
         "  strategy: light",
         "  mis: power",
         "  spp: 16",
+        "  snapshots: {every: 0.5}",
         "  seed: 1",
         "  threads: auto",
         "  output: results/bench/tmp/lamps",

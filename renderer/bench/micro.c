@@ -15,6 +15,9 @@
      prepare_pdf.S       strategy_prepare + strategy_pdf of a direction to a
                          uniform point on the light (what MIS asks when a
                          BSDF ray hits the light)
+   where S is each strategy with the config's render.portal_weight, and
+   antishadow_exact@W with each other weight W (the weight decides how much
+   strategy_prepare computes per pair),
    over two point sets: "floor" (uniform over the floor square) and
    "antishadow" (floor points whose region is not outside). Prints one JSON
    object on stdout. */
@@ -29,6 +32,7 @@
 #include "target.h"
 
 #define N_POINTS 4096
+#define N_VARIANTS (STRATEGY_COUNT + 2)
 
 struct point_set {
     const char *name;
@@ -216,12 +220,27 @@ int main(int argc, char **argv)
         return 2;
     }
 
-    struct strategy strategies[STRATEGY_COUNT];
-    struct strategy_scratch scratches[STRATEGY_COUNT];
-    for (int k = 0; k < STRATEGY_COUNT; ++k) {
+    /* Every strategy with the config's portal weight, then antishadow_exact
+       with each other weight (the weight decides what strategy_prepare computes). */
+    struct strategy strategies[N_VARIANTS];
+    struct strategy_scratch scratches[N_VARIANTS];
+    char variant_names[N_VARIANTS][64];
+    int n_variants = 0;
+    for (int k = 0; k < STRATEGY_COUNT + 3; ++k) {
         struct render_desc rd = cfg.render;
-        rd.strategy = (enum strategy_kind)k;
-        if (!strategy_init(&strategies[k], &sc, &rd, &err) || !strategy_scratch_init(&strategies[k], &scratches[k], &err)) {
+        if (k < STRATEGY_COUNT) {
+            rd.strategy = (enum strategy_kind)k;
+            snprintf(variant_names[n_variants], sizeof variant_names[0], "%s", strategy_names[k]);
+        } else {
+            rd.strategy = STRATEGY_ANTISHADOW_EXACT;
+            rd.portal_weight = (enum portal_weight_kind)(k - STRATEGY_COUNT);
+            if (rd.portal_weight == cfg.render.portal_weight) continue;
+            snprintf(variant_names[n_variants], sizeof variant_names[0], "%s@%s",
+                     strategy_names[STRATEGY_ANTISHADOW_EXACT], portal_weight_names[rd.portal_weight]);
+        }
+        int k_out = n_variants++;
+        if (!strategy_init(&strategies[k_out], &sc, &rd, &err) ||
+            !strategy_scratch_init(&strategies[k_out], &scratches[k_out], &err)) {
             fprintf(stderr, "micro: %s\n", err.message);
             return 1;
         }
@@ -233,7 +252,7 @@ int main(int argc, char **argv)
     fprintf(stderr, "micro: %d floor points (%d with a visible polygon), %d antishadow points\n", sets[0].n,
             sets[0].n_vis, sets[1].n);
 
-    static struct cell cells[2][4 + 3 * STRATEGY_COUNT];
+    static struct cell cells[2][4 + 3 * N_VARIANTS];
     int n_cells = 0;
     for (int s = 0; s < 2; ++s) {
         int n = 0;
@@ -241,7 +260,7 @@ int main(int argc, char **argv)
         cells[s][n++] = (struct cell){ .kind = CELL_CLASSIFY };
         cells[s][n++] = (struct cell){ .kind = CELL_VISIBLE_POLYGON };
         cells[s][n++] = (struct cell){ .kind = CELL_VISIBLE_TARGET };
-        for (int k = 0; k < STRATEGY_COUNT; ++k) {
+        for (int k = 0; k < n_variants; ++k) {
             cells[s][n++] = (struct cell){ .kind = CELL_PREPARE, .strategy = k };
             cells[s][n++] = (struct cell){ .kind = CELL_PREPARE_SAMPLE, .strategy = k };
             cells[s][n++] = (struct cell){ .kind = CELL_PREPARE_PDF, .strategy = k };
@@ -270,8 +289,9 @@ int main(int argc, char **argv)
             }
     }
 
-    printf("{\"config\":\"%s\",\"reps\":%d,\"min_ms\":%g,\"floor\":[%g,%g],\"clock\":\"thread CPU time\",\"sets\":{",
-           path, reps, min_ms, lo, hi);
+    printf("{\"config\":\"%s\",\"portal_weight\":\"%s\",\"reps\":%d,\"min_ms\":%g,\"floor\":[%g,%g],"
+           "\"clock\":\"thread CPU time\",\"sets\":{",
+           path, portal_weight_names[cfg.render.portal_weight], reps, min_ms, lo, hi);
     for (int s = 0; s < 2; ++s) {
         const struct point_set *ps = &sets[s];
         printf("%s\"%s\":{\"points\":%d,\"visible_points\":%d,\"regions\":{\"outside\":%d,\"anti_umbra\":%d,"
@@ -282,7 +302,7 @@ int main(int argc, char **argv)
             struct cell *cl = &cells[s][c];
             char name[96];
             if (cl->kind >= CELL_PREPARE)
-                snprintf(name, sizeof name, "%s.%s", cell_names[cl->kind], strategy_names[cl->strategy]);
+                snprintf(name, sizeof name, "%s.%s", cell_names[cl->kind], variant_names[cl->strategy]);
             else
                 snprintf(name, sizeof name, "%s", cell_names[cl->kind]);
             printf("%s\"%s\":{\"ns\":[", c ? "," : "", name);
@@ -296,7 +316,7 @@ int main(int argc, char **argv)
     }
     printf("},\"sink\":%g}\n", sink != sink ? 0.0 : 1.0);
 
-    for (int k = 0; k < STRATEGY_COUNT; ++k) {
+    for (int k = 0; k < n_variants; ++k) {
         strategy_scratch_free(&scratches[k]);
         strategy_free(&strategies[k]);
     }

@@ -30,9 +30,11 @@
    vertices sit at angles in (0, pi); the condition for q at angle alpha is
    angle(p) > alpha, so only the portal vertex of largest angle binds (the
    mirror case u1 < 0 takes the smallest). Its plane has portal and light on
-   the same side: the supporting plane of f. If the portal reaches the
-   light's plane, a portal point q there sees along the ray p q only q itself,
-   which is not on the light: the anti-antumbra is empty.
+   the same side: the supporting plane of f. It coincides with an anti-umbra
+   plane (reversed) only when f is parallel to a portal edge, as for the
+   paper's aligned rectangles; elsewhere the two sets differ. If the portal
+   reaches the light's plane, a portal point q there sees along the ray p q
+   only q itself, which is not on the light: the anti-antumbra is empty.
 
    Outside (L', P disjoint). The set of points beyond Pi that see some light
    through P is C = {(1 + u) x - u l : x in P, l in L, u > 0}, which is

@@ -17,13 +17,14 @@
 
 /* Compression of the pixel chunks. Snapshots are rewritten every fraction
    of a second, so speed matters more than size. Float radiance has random
-   low mantissa bytes, which the ZIP predictor (made for half floats) cannot
-   model: zlib gains only ~3% on noisy pixels (~30% on black or constant
-   areas) and costs ~90% of the write time whatever the level. Measured
-   here, 256x256 / 1024x1024: ZIP level 1 44 / 740 ms, ZIPS level 1
-   40 / 580 ms, ZIP level 6 48 / 815 ms, NONE 3.5 / 48 ms. ZIPS (one
-   scanline per chunk) is the fastest zlib variant, level 1 its fastest
-   level with the same ratio. */
+   low mantissa bytes that neither the ZIP byte split and predictor (made
+   for 16-bit halves) nor deflate can model: zlib gains only ~3% on noisy
+   pixels (~30% on black or constant areas) and takes ~90% of the write
+   time whatever the level. Measured on this machine (2 cores, idle), a
+   noisy 256x256 / 1024x1024 snapshot, fsync included: ZIP level 1
+   44 / 740 ms, ZIPS level 1 40 / 580 ms, ZIP level 6 48 / 815 ms, NONE
+   3.5 / 48 ms. ZIPS (one scanline per chunk) is the fastest zlib variant
+   and level 1 the fastest level at the same ratio. */
 #define FILM_EXR_COMPRESSION EXR_COMPRESSION_ZIPS
 #define FILM_ZIP_LEVEL 1
 
@@ -121,7 +122,7 @@ void film_snapshot(const struct film *f, struct film_image *img)
     size_t count = 3 * (size_t)f->width * (size_t)f->height;
     for (size_t i = 0; i < count; ++i) {
         img->rgb[i] = narrow_mean(f->mean[i]);
-        img->variance[i] = narrow_variance(f->m2[i] * scale);
+        img->variance[i] = n >= 2 ? narrow_variance(f->m2[i] * scale) : 0.0f;
     }
 }
 
@@ -216,7 +217,7 @@ static bool exr_fail(struct error *err, const char *path, const char *call, exr_
 /* OpenEXRCore 3.1.5 keeps zlib's output when it is exactly as long as the
    raw chunk, but every reader takes a chunk whose packed size equals its
    raw size to be stored uncompressed, so such a chunk reads back as garbage
-   (upstream issue AcademySoftwareFoundation/openexr#2306, fixed in 3.4).
+   (AcademySoftwareFoundation/openexr#2306, reported on 3.4.7, fixed since).
    Noisy float rows hit this every few dozen chunks. This wrapper around the
    library's compressor stores the raw bytes in that case, as the format
    requires for chunks that do not shrink. */

@@ -142,8 +142,11 @@ static const struct target *visible_target(const struct strategy *s, const struc
     if (sc->vis_state[i] == VIS_UNKNOWN) {
         const struct strategy_pair *pair = &s->pairs[i];
         struct polygon vis;
-        bool ok = antishadow_visible_polygon(&s->scene->portals[pair->portal].antishadow, pt->p, &vis) >= 3 &&
-                  target_init(&sc->vis[i], &vis);
+        const struct antishadow *a = &s->scene->portals[pair->portal].antishadow;
+        /* Once classified, the anti-umbra and anti-antumbra need no clipping. */
+        int n = classifies(s->kind) ? antishadow_visible_polygon_in(a, pt->p, (enum region)sc->region[i], &vis)
+                                    : antishadow_visible_polygon(a, pt->p, &vis);
+        bool ok = n >= 3 && target_init(&sc->vis[i], &vis);
         sc->vis_state[i] = ok ? VIS_READY : VIS_EMPTY;
     }
     return sc->vis_state[i] == VIS_READY ? &sc->vis[i] : NULL;

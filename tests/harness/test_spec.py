@@ -28,11 +28,13 @@ def test_01_key_is_stable_and_depends_on_every_input() -> None:
 
 def test_02_scene_hash_ignores_sampling_settings() -> None:
     h = _spec().scene_hash()
-    for change in ({"strategy": "portal"}, {"seed": 9}, {"spp": 64}, {"threads": 1},
-                   {"overrides": (("params.s_L", "0.3"), ("render.mis", "balance"))}):
+    same: list[dict[str, object]] = [{"strategy": "portal"}, {"seed": 9}, {"spp": 64}, {"threads": 1},
+                                     {"overrides": (("params.s_L", "0.3"), ("render.mis", "balance"))}]
+    for change in same:
         assert _spec(**change).scene_hash() == h, change
-    for change in ({"integrator": "path"}, {"overrides": (("params.s_L", "0.6"),)},
-                   {"overrides": (("params.s_L", "0.3"), ("render.max_depth", "3"))}):
+    different: list[dict[str, object]] = [{"integrator": "path"}, {"overrides": (("params.s_L", "0.6"),)},
+                                          {"overrides": (("params.s_L", "0.3"), ("render.max_depth", "3"))}]
+    for change in different:
         assert _spec(**change).scene_hash() != h, change
 
 
