@@ -422,10 +422,12 @@ def load_experiment(path: Path | str) -> Experiment:
                         seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots)
 
     ref_node = r.mapping(root.get("reference", {}) or {}, "reference", {"strategy", "spp", "time_s", "seed", "threads"})
+    ref_time = r.number(ref_node.get("time_s", 0), "reference.time_s")
     reference = ReferenceSettings(
         strategy=r.choice(ref_node.get("strategy", "light"), "reference.strategy", STRATEGIES, "strategy"),
-        spp=r.integer(ref_node.get("spp", 1024), "reference.spp"),
-        time_s=r.number(ref_node.get("time_s", 0), "reference.time_s"),
+        # Exactly the limits given: 1024 spp only when no time is given.
+        spp=r.integer(ref_node.get("spp", 0 if ref_time > 0 else 1024), "reference.spp"),
+        time_s=ref_time,
         seed=r.integer(ref_node.get("seed", 7919), "reference.seed"),
         threads=parse_threads(ref_node.get("threads", budget.threads if budget else 1), r, "reference.threads"),
     )
@@ -527,7 +529,10 @@ def spec_from_scene(
     r = _Reader(str(scene))
     merged = dict(info.scalars)
     for k, v in overrides.items():
-        merged[k] = yaml.safe_load(v) if v != "" else v
+        try:
+            merged[k] = yaml.safe_load(v) if v != "" else v
+        except yaml.YAMLError:
+            raise ConfigError("--set", k, f"value {v!r} is not a YAML scalar") from None
 
     def pick(given: Any, key: str, default: Any) -> Any:
         return given if given is not None else merged.get(key, default)

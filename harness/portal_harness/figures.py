@@ -25,6 +25,7 @@ matplotlib.use("Agg")  # pinned: figures are files, never windows
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 from matplotlib.axis import Axis as MplAxis  # noqa: E402
 from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
@@ -32,7 +33,7 @@ from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 from portal_harness import display, exr, index  # noqa: E402
 from portal_harness.config import Experiment, Point  # noqa: E402
 from portal_harness.errors import CorruptExrError, HarnessError  # noqa: E402
-from portal_harness.metrics import WHOLE_IMAGE, Region, crop, efficiency  # noqa: E402
+from portal_harness.metrics import WHOLE_IMAGE, Region, crop, floor_corrected_efficiency  # noqa: E402
 from portal_harness.paths import ResultsLayout  # noqa: E402
 from portal_harness.spec import STRATEGIES  # noqa: E402
 
@@ -295,16 +296,22 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
     for r_i, region in enumerate(regions):
         ax = axes[0][r_i]
         for strategy in experiment.strategies:
-            xs, ys = [], []
+            xs, ys, bounds = [], [], []
             for point in data.points:
                 eff = _efficiency(conn, data.runs.get((point.id, strategy)), region)
                 base = _efficiency(conn, data.runs.get((point.id, "light")), region)
-                if eff is not None and base is not None and base > 0:
+                if eff is not None and base is not None and base[0] > 0:
                     xs.append(point.axis_value)
-                    ys.append(eff / base)
-            if xs:
-                ax.plot(xs, ys, marker="o", ms=4, lw=1.3, color=STRATEGY_COLOURS[strategy],
-                        label=STRATEGY_LABELS[strategy])
+                    ys.append(eff[0] / base[0])
+                    bounds.append(eff[1] or base[1])
+            if not xs:
+                continue
+            colour_ = STRATEGY_COLOURS[strategy]
+            ax.plot(xs, ys, lw=1.3, color=colour_, label=STRATEGY_LABELS[strategy])
+            ax.plot([x for x, b in zip(xs, bounds) if not b], [y for y, b in zip(ys, bounds) if not b],
+                    ls="none", marker="o", ms=4, color=colour_)
+            ax.plot([x for x, b in zip(xs, bounds) if b], [y for y, b in zip(ys, bounds) if b],
+                    ls="none", marker="^", ms=6, mfc="white", color=colour_)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(experiment.axis.label, fontsize=8)
@@ -319,14 +326,18 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
         ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
         ax.tick_params(which="both", labelsize=7)
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=8, frameon=False,
+    handles.append(Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"))
+    labels.append("lower bound (error within 2x the reference's noise)")
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 7), fontsize=8, frameon=False,
                bbox_to_anchor=(0.5, -0.08))
-    fig.suptitle(f"{experiment.name}: efficiency 1/(relMSE x time) relative to light sampling", fontsize=10)
+    fig.suptitle(f"{experiment.name}: efficiency 1/(relMSE x time) relative to light sampling "
+                 "(reference noise removed)", fontsize=10)
     fig.tight_layout()
     return _save(fig, layout, experiment, "efficiency")
 
 
-def _efficiency(conn: sqlite3.Connection, cell: Cell | None, region: str) -> float | None:
+def _efficiency(conn: sqlite3.Connection, cell: Cell | None, region: str) -> tuple[float, bool] | None:
+    """(efficiency of the final image with the reference noise removed, whether it is only a lower bound)."""
     if not _done(cell):
         return None
     assert cell is not None
@@ -334,8 +345,8 @@ def _efficiency(conn: sqlite3.Connection, cell: Cell | None, region: str) -> flo
              if m["is_final"] and m["region"] == region and m["error"] is None]
     if not final or final[0]["rel_mse"] is None or final[0]["time_s"] is None:
         return None
-    value = efficiency(final[0]["rel_mse"], final[0]["time_s"])
-    return value if math.isfinite(value) else None
+    value, bound = floor_corrected_efficiency(final[0]["rel_mse"], final[0]["floor_rel"] or 0.0, final[0]["time_s"])
+    return (value, bound) if math.isfinite(value) else None
 
 
 def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:

@@ -4,7 +4,8 @@ their relative variance compared with a committed baseline.
 Statistic (derived in harness/README.md): for each render, the renderer's
 variance layer gives per pixel and channel the variance of the mean v; we
 use w = v / (mean^2 + 0.01), the expected relMSE of that pixel. Over R seeds
-and M pixel-channels, W = mean(w) and its standard error come from
+and the M pixel-channels of the experiment's insets (the whole image if it
+has none), W = mean(w) and its standard error come from
 metrics.pooled_estimate; a strategy fails when
 z = (W - W_base) / sqrt(SE^2 + SE_base^2) > z_max (one-sided: only a rise
 fails), i.e. when W / W_base exceeds the printed ratio bound.
@@ -19,6 +20,8 @@ import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, TextIO
+
+import numpy as np
 
 from portal_harness import exr, index, metrics, store
 from portal_harness.config import Experiment
@@ -76,7 +79,8 @@ def read_baseline(path: Path) -> dict[str, Any] | None:
 def settings_of(experiment: Experiment) -> dict[str, Any]:
     assert experiment.regress is not None
     return {"spp": experiment.regress.spp, "seeds": list(experiment.regress.seeds), "width": experiment.width,
-            "height": experiment.height, "integrator": experiment.integrator, "fixed": dict(experiment.fixed)}
+            "height": experiment.height, "integrator": experiment.integrator, "fixed": dict(experiment.fixed),
+            "regions": [[r.name, r.x, r.y, r.width, r.height] for r in experiment.insets]}
 
 
 def print_table(verdicts: list[Verdict], z_max: float, out: TextIO) -> None:
@@ -86,7 +90,8 @@ def print_table(verdicts: list[Verdict], z_max: float, out: TextIO) -> None:
     print("-" * len(header), file=out)
 
     def num(v: float | None, spec: str) -> str:
-        return format(v, spec) if v is not None and math.isfinite(v) else "-"
+        width = int(spec.split(".")[0])
+        return format(v, spec) if v is not None and math.isfinite(v) else "-".rjust(width)
 
     for v in verdicts:
         ratio = (v.current.value / v.baseline.value
@@ -138,7 +143,9 @@ def regress(experiment: Experiment, options: SweepOptions, update: bool, out: Te
             except CorruptExrError as e:
                 errors[name] = str(e)
                 break
-            replicates.append(metrics.relative_variance(snap.rgb, snap.variance))
+            w = metrics.relative_variance(snap.rgb, snap.variance)
+            replicates.append(np.concatenate([metrics.crop(w, r).reshape(-1) for r in experiment.insets])
+                              if experiment.insets else w)
         estimates[name] = metrics.pooled_estimate(replicates) if name not in errors else None
 
     entries = (baseline or {}).get("entries", {})

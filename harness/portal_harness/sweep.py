@@ -22,7 +22,7 @@ from portal_harness import exr, index, measure, store
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError
 from portal_harness.execute import Target, plan_jobs, run_dask, run_local
-from portal_harness.metrics import WHOLE_IMAGE, efficiency
+from portal_harness.metrics import WHOLE_IMAGE, efficiency, floor_corrected_efficiency
 from portal_harness.paths import ResultsLayout
 from portal_harness.spec import RunSpec
 
@@ -177,7 +177,9 @@ def compute_metrics(experiment: Experiment, plan: Plan, options: SweepOptions, c
 def summarize(experiment: Experiment, plan: Plan, conn: sqlite3.Connection,
               manifests: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (point, strategy): status and the final image's metrics;
-    efficiency = 1 / (relMSE x time), relative to light sampling at that point."""
+    efficiency = 1 / (relMSE x time); efficiency_vs_light uses the
+    reference-noise-corrected efficiency of both (metrics.floor_corrected_efficiency)
+    and is a lower bound where reference_limited is true."""
     rows: list[dict[str, Any]] = []
     for planned in plan.runs:
         manifest = manifests.get(planned.key, {})
@@ -194,11 +196,15 @@ def summarize(experiment: Experiment, plan: Plan, conn: sqlite3.Connection,
             if m["region"] == WHOLE_IMAGE:
                 row["time_s"] = m["time_s"]
                 row["spp"] = m["spp"]
-                row["efficiency"] = efficiency(m["rel_mse"], m["time_s"]) if m["rel_mse"] is not None else math.nan
+                row["rel_mse_floor"] = m["floor_rel"]
+                if m["rel_mse"] is not None:
+                    row["efficiency"] = efficiency(m["rel_mse"], m["time_s"])
+                    row["efficiency_corrected"], row["reference_limited"] = floor_corrected_efficiency(
+                        m["rel_mse"], m["floor_rel"] or 0.0, m["time_s"])
         rows.append(row)
     for row in rows:
         base = next((r for r in rows if r["point"] == row["point"] and r["strategy"] == BASELINE_STRATEGY), None)
-        e, b = row.get("efficiency", math.nan), (base or {}).get("efficiency", math.nan)
+        e, b = row.get("efficiency_corrected", math.nan), (base or {}).get("efficiency_corrected", math.nan)
         row["efficiency_vs_light"] = e / b if math.isfinite(e) and math.isfinite(b) and b > 0 else math.nan
     return rows
 
@@ -224,7 +230,8 @@ def write_summary(experiment: Experiment, layout: ResultsLayout, rows: list[dict
 
 
 def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
-    header = f"{'point':<22} {'strategy':<17} {'status':<12} {'time_s':>7} {'spp':>7} {'relMSE':>10} {'eff/light':>9}"
+    header = (f"{'point':<22} {'strategy':<17} {'status':<12} {'time_s':>7} {'spp':>7} {'relMSE':>10} "
+              f"{'eff/light':>10}")
     print(header, file=out)
     print("-" * len(header), file=out)
     for r in rows:
@@ -232,7 +239,9 @@ def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
             return format(v, spec) if isinstance(v, (int, float)) and math.isfinite(v) else "-"
         print(f"{r['point']:<22} {r['strategy']:<17} {r['status']:<12} {fmt(r.get('time_s'), '7.2f'):>7} "
               f"{fmt(r.get('spp'), '7d'):>7} {fmt(r.get('rel_mse'), '10.3e'):>10} "
-              f"{fmt(r.get('efficiency_vs_light'), '9.3f'):>9}", file=out)
+              f"{'>' if r.get('reference_limited') else ' '}{fmt(r.get('efficiency_vs_light'), '9.3g'):>9}", file=out)
+    print("(eff/light: efficiency relative to light sampling, reference noise removed; "
+          "'>' a lower bound, the run's error being within 2x the reference's noise)", file=out)
 
 
 def failures_of(plan: Plan, manifests: dict[str, dict[str, Any]]) -> list[str]:

@@ -316,11 +316,11 @@ def section_harness(ctx: Context) -> dict[str, Any]:
         times_read, times_metric, times_harness = [], [], []
         for _ in range(reps):
             t0 = time.perf_counter()
-            x, _, _ = bl.read_exr(paths[0])
+            x, x_var, _ = bl.read_exr(paths[0])
             ref, ref_var, _ = bl.read_exr(paths[1])
             t1 = time.perf_counter()
             mse = float(np.mean((x - ref) ** 2))
-            rel = bl.rel_error(x, ref, ref_var)
+            rel = bl.rel_error(x, x_var, ref, ref_var)
             t2 = time.perf_counter()
             times_read.append(t1 - t0)
             times_metric.append(t2 - t1)
@@ -383,8 +383,8 @@ def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants:
         args = [a for s in sets for a in ("--set", s)]
         run = bl.run_render(ctx, config, out / name, "--time", str(secs), "--spp", "0", "--threads", "2",
                             "--seed", "1", *args, *extra)
-        x, _, _ = bl.read_exr(Path(run.final["path"]))
-        err = bl.rel_error(x, ref, ref_var)
+        x, x_var, _ = bl.read_exr(Path(run.final["path"]))
+        err = bl.rel_error(x, x_var, ref, ref_var)
         summ = run.summary()
         rows[name] = {**err, "time_s": run.time_s, "cpu_s": run.cpu_s, "spp": run.final["spp"],
                       **{k: v for k, v in wasted(summ).items()}}
@@ -399,6 +399,8 @@ def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants:
             lo = (row["rel_mse_est"] + 2 * row["rel_mse_est_se"]) * row[clock]
             hi_base = max(base["rel_mse_est"] - 2 * base["rel_mse_est_se"], 0.0) * base[clock]
             row[f"eff_vs_light_{suffix}_low"] = hi_base / lo if lo > 0 else float("nan")
+        e_row_var, e_base_var = row["rel_var"] * row["cpu_s"], base["rel_var"] * base["cpu_s"]
+        row["eff_vs_light_cpu_var"] = e_base_var / e_row_var if e_row_var > 0 else float("inf")
         # Relative standard error of the ratio, from the two estimates' errors.
         if row["rel_mse_est"] > 0 and base["rel_mse_est"] > 0:
             row["eff_vs_light_rel_se"] = math.hypot(row["rel_mse_est_se"] / row["rel_mse_est"],
@@ -416,7 +418,9 @@ def section_efficiency(ctx: Context) -> dict[str, Any]:
               "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
               "rel_mse": "mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)",
               "rel_mse_est": "rel_mse - mean(var_ref / (ref^2 + 0.01))",
-              "efficiency": "1 / (rel_mse_est * cpu_s); eff_vs_light_wall uses render time_s instead"}
+              "efficiency": "1 / (rel_mse_est * cpu_s); eff_vs_light_wall uses render time_s instead; "
+                            "eff_vs_light_cpu_var uses rel_var (the render's own variance layer) instead of "
+                            "rel_mse_est"}
     table = {}
     for s_l in SWEEP_S_L:
         sets = [f"params.s_L={s_l}", f"params.s_P={S_P}"]

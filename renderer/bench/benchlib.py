@@ -239,18 +239,23 @@ def read_exr(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     return rgb, var, header
 
 
-def rel_error(x: np.ndarray, ref: np.ndarray, ref_var: np.ndarray) -> dict[str, float]:
+def rel_error(x: np.ndarray, x_var: np.ndarray, ref: np.ndarray, ref_var: np.ndarray) -> dict[str, Any]:
     """relMSE of x against an independent reference, with the reference's own
     noise removed:
-      relMSE     = mean over pixels and channels of (x - ref)^2 / (ref^2 + eps)
-      ref_noise  = mean of var_ref / (ref^2 + eps)   (var_ref: variance of the
-                   reference's mean, from its variance layer)
-      estimate   = relMSE - ref_noise
-    since E[(x - ref)^2] = MSE(x) + Var(ref) for independent renders. The
+      rel_mse      = mean over pixels and channels of (x - ref)^2 / (ref^2 + eps)
+      ref_noise    = mean of var_ref / (ref^2 + eps)  (var_ref: variance of the
+                     reference's mean, from its variance layer)
+      rel_mse_est  = rel_mse - ref_noise
+    since E[(x - ref)^2] = MSE(x) + Var(ref) for independent renders. Its
     standard error is that of a mean over pixels of the per-pixel difference
-    (pixels treated as independent; neighbouring pixels are, up to the shared
-    reference). `resolved` is False when the estimate is within two standard
-    errors of zero: the reference is then too noisy to measure x."""
+    (pixels are independent given the reference). `resolved` is False when
+    the estimate is within two standard errors of zero: the reference is then
+    too noisy to measure x.
+
+    rel_var is the same quantity from x's own variance layer,
+    mean of var_x / (ref^2 + eps): far less noisy, but blind to bias. The
+    z-score (rel_mse_est - rel_var) / se flags a bias (or a variance layer
+    that misses rare events) when large and positive."""
     d = ref * ref + REL_EPSILON
     per = ((x - ref) ** 2 - ref_var) / d
     raw = float(np.mean((x - ref) ** 2 / d))
@@ -258,7 +263,9 @@ def rel_error(x: np.ndarray, ref: np.ndarray, ref_var: np.ndarray) -> dict[str, 
     est = float(np.mean(per))
     pix = per.mean(axis=-1).ravel()
     se = float(pix.std(ddof=1) / np.sqrt(pix.size))
-    return {"rel_mse": raw, "ref_noise": noise, "rel_mse_est": est, "rel_mse_est_se": se, "resolved": est > 2 * se}
+    rel_var = float(np.mean(x_var / d))
+    return {"rel_mse": raw, "ref_noise": noise, "rel_mse_est": est, "rel_mse_est_se": se, "resolved": est > 2 * se,
+            "rel_var": rel_var, "bias_z": (est - rel_var) / se if se > 0 else float("nan")}
 
 
 def write_result(ctx: Context, name: str, params: dict[str, Any], results: Any) -> Path:

@@ -21,7 +21,9 @@ struct sphrect {
 };
 
 /* False when o lies (nearly) in the rectangle's plane or the solid angle is
-   too small to sample robustly (callers then fall back to area sampling). */
+   below 1e-12 sr, too small to sample robustly (callers then fall back to
+   area sampling); o may be on either side. The mapping's positions carry a
+   relative error of ~1e-16 / solid angle (1e-10 at 1e-6 sr). */
 bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey);
 /* Point on the rectangle for (u, v) in [0,1)^2; the direction from o to it
    has solid-angle pdf 1 / r->solid_angle. */
@@ -36,7 +38,8 @@ struct sphtri {
     double cos_c;            /* cosine of the arc from a to b */
 };
 
-/* False for a degenerate triangle (area below a small threshold). */
+/* False for a degenerate triangle (area below 1e-16 sr). Either winding.
+   The sampler stays accurate for tiny triangles (see spherical.c). */
 bool sphtri_init(struct sphtri *t, struct vec3 a, struct vec3 b, struct vec3 c);
 /* Unit direction for (u, v) in [0,1)^2, pdf 1 / t->area (Arvo 1995). */
 struct vec3 sphtri_sample(const struct sphtri *t, double u, double v);
@@ -50,8 +53,9 @@ struct sphpoly {
     double solid_angle;
 };
 
-/* False when o is (nearly) in the polygon's plane or the polygon subtends no
-   measurable solid angle. */
+/* False when o is (nearly) in the polygon's plane or the polygon subtends
+   less than 1e-12 sr. The polygon must be convex (the fan is taken from
+   vertex 0); degenerate fan triangles are skipped. */
 bool sphpoly_init(struct sphpoly *sp, const struct polygon *poly, struct vec3 o);
 /* Unit direction from o; pdf 1 / sp->solid_angle. u_select picks a triangle
    with probability proportional to its solid angle, then (u, v) sample that

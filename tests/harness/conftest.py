@@ -19,7 +19,8 @@ import yaml
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
-REAL_RENDERER = REPO / "renderer" / "build" / "render"
+# The real renderer: $PORTAL_RENDERER if set (as for the harness), else the build's.
+REAL_RENDERER = Path(os.environ.get("PORTAL_RENDERER") or REPO / "renderer" / "build" / "render")
 sys.path.insert(0, str(HERE))
 
 from exrwrite import write_snapshot  # noqa: E402

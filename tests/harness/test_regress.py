@@ -82,7 +82,7 @@ def test_03_real_renderer_passes_the_committed_baseline_and_catches_halved_sampl
     out = capsys.readouterr().out
     assert status == 0, out
     worse = tmp_path / "lampshade_regress_half.yaml"
-    text = config.read_text().replace("spp: 16", "spp: 8")
+    text = config.read_text().replace("spp: 32", "spp: 16")
     text = text.replace("../scenes/lampshade.yaml", str(REPO / "configs" / "scenes" / "lampshade.yaml"))
     text = text.replace("../../results/baselines/lampshade_regress.json", str(baseline))
     worse.write_text(text)

@@ -105,6 +105,12 @@ static inline void chi2_config_cap(struct chi2_config *cfg, const struct vec3 *d
 {
     struct vec3 mean = vec3_make(0.0, 0.0, 0.0);
     for (int i = 0; i < n; ++i) mean = vec3_add(mean, vec3_normalize(dirs[i]));
+    if (!(vec3_length(mean) > 1e-6 * n)) {
+        /* Directions that nearly cancel span about a hemisphere or more. */
+        cfg->frame = frame_from_normal(vec3_make(0.0, 0.0, 1.0));
+        cfg->cap_angle = M_PI;
+        return;
+    }
     struct vec3 axis = vec3_normalize(mean);
     double angle = 0.0;
     for (int i = 0; i < n; ++i) {

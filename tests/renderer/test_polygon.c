@@ -235,6 +235,18 @@ static void test_clip_plane(void)
     pl.offset = vec3_dot(pl.normal, vec3_add(vec3_make(10, -20, 30), rotate(vec3_make(0, 0.4, 0))));
     CHECK(polygon_clip_plane(&t, &pl, &out) == 4);
     CHECK_NEAR(polygon_area(&out), 0.6, 1e-12);
+    /* Near-duplicates are merged: a plane 5e-11 inside the hypotenuse of a
+       unit right triangle cuts the legs 5e-11 from the corners it keeps;
+       what remains is a sliver with no area worth a polygon. A plane 1e-13
+       off the corners snaps to them: the triangle is kept unchanged. */
+    const double rt[3][3] = { { 0, 0, 0 }, { 1, 0, 0 }, { 0, 1, 0 } };
+    struct polygon tri = poly_make(3, rt);
+    pl.normal = vec3_normalize(vec3_make(1, 1, 0));
+    pl.offset = (1.0 - 5e-11) / sqrt(2.0);
+    CHECK(polygon_clip_plane(&tri, &pl, &out) == 0);
+    pl.offset = 1e-13;
+    pl.normal = vec3_make(1, 0, 0);
+    CHECK(polygon_clip_plane(&tri, &pl, &out) == 3);
     /* A 24-gon losing one corner would need 25 vertices: capped at
        POLYGON_MAX by dropping the least significant vertex. */
     struct polygon big = regular_ngon(POLYGON_MAX, 1.0, 0.0);

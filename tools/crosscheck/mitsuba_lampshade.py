@@ -23,6 +23,7 @@ Exit status: 0 agreement within noise, 1 disagreement, 2 usage/setup error.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import os
@@ -41,11 +42,8 @@ REEXEC_GUARD = "PORTAL_XCHECK_REEXEC"
 
 def ensure_mitsuba() -> None:
     """Import mitsuba here, or re-run this script with the .venv-xcheck python."""
-    try:
-        import mitsuba  # noqa: F401
+    if importlib.util.find_spec("mitsuba") is not None:
         return
-    except ImportError:
-        pass
     python = XCHECK_VENV / "bin" / "python"
     if python.exists() and os.environ.get(REEXEC_GUARD) != "1":
         env = dict(os.environ, **{REEXEC_GUARD: "1"})
@@ -94,6 +92,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         "Mitsuba follows through the effective config")
     p.add_argument("--reuse-ours", action="store_true",
                    help="reuse OUT/ours/final.exr if present instead of rendering again")
+    p.add_argument("--mitsuba-cache", type=Path, default=None, metavar="FILE.npz",
+                   help="reuse Mitsuba's K renders from this file when scene, integrator, spp, runs "
+                        "and seed match (e.g. to compare several of our strategies); else render "
+                        "and store them there")
     p.add_argument("--out", type=Path, default=None,
                    help="output folder (default results/crosscheck/<integrator>_sL<s_L>)")
     args = p.parse_args(argv)
@@ -556,8 +558,27 @@ def main(argv: list[str] | None = None) -> int:
         spp_each = args.mitsuba_spp // args.mitsuba_runs
         integ = mitsuba_integrator(args)
         scene_dict = build_scene_dict(cfg, integ, out / "mitsuba" / "meshes", spp_each)
-        print("rendering Mitsuba: %d runs x %d spp ..." % (args.mitsuba_runs, spp_each), file=sys.stderr)
-        runs, load_s, render_s = render_mitsuba(scene_dict, args.mitsuba_runs, spp_each, args.seed * 1000)
+        # What determines Mitsuba's images: the scene (our render settings
+        # aside), its integrator, spp, runs and seeds.
+        key = json.dumps({"scene": {k: v for k, v in cfg.items() if k != "render"}, "integrator": integ,
+                          "spp_each": spp_each, "runs": args.mitsuba_runs, "seed": args.seed,
+                          "mitsuba": mi.__version__}, sort_keys=True)
+        cache = args.mitsuba_cache
+        cached = None
+        if cache is not None and cache.exists():
+            with np.load(cache) as z:
+                if str(z["key"]) == key:
+                    cached = (z["runs"].astype(np.float64), float(z["load_s"]), float(z["render_s"]))
+        if cached is not None:
+            runs, load_s, render_s = cached
+            print("reusing Mitsuba renders from %s" % cache, file=sys.stderr)
+        else:
+            print("rendering Mitsuba: %d runs x %d spp ..." % (args.mitsuba_runs, spp_each), file=sys.stderr)
+            runs, load_s, render_s = render_mitsuba(scene_dict, args.mitsuba_runs, spp_each, args.seed * 1000)
+            if cache is not None:
+                cache.parent.mkdir(parents=True, exist_ok=True)
+                np.savez_compressed(cache, key=key, runs=runs.astype(np.float32), load_s=load_s,
+                                    render_s=render_s)
         if runs.shape[1:] != ours.shape:
             raise SetupError("image sizes differ: ours %r, Mitsuba %r" % (ours.shape, runs.shape[1:]))
     except SetupError as e:
