@@ -248,7 +248,8 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
     if ((rc = exr_add_part(ctx, "", EXR_STORAGE_SCANLINE, &part)))
         return exr_fail(err, path, "exr_add_part", rc, s);
     if ((rc = exr_initialize_required_attr_simple(ctx, part, img->width, img->height,
-                                                  FILM_EXR_COMPRESSION)))
+                                                  info->compress ? FILM_EXR_COMPRESSION
+                                                                 : EXR_COMPRESSION_NONE)))
         return exr_fail(err, path, "exr_initialize_required_attr_simple", rc, s);
     for (int k = 0; k < 6; ++k)
         if ((rc = exr_add_channel(ctx, part, channel_names[k], EXR_PIXEL_FLOAT,

@@ -269,6 +269,7 @@ static void fill_info(struct snapshot_info *info, const struct config *cfg, doub
     info->renderer_version = RENDERER_VERSION;
     info->rays = pc->stats.rays;
     info->nonfinite_samples = pc->nonfinite;
+    info->compress = false;
 }
 
 bool render_run(const struct config *cfg, const struct scene *scene, FILE *json, struct render_result *result,
@@ -404,6 +405,7 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         char path[CONFIG_PATH_MAX + 64];
         film_snapshot(&film, &wr.image);
         fill_info(&info, cfg, elapsed, pass, &pc);
+        info.compress = true;
         snprintf(path, sizeof path, "%s/final.exr", rd->output);
         ok = film_write_exr(path, &wr.image, &info, err);
         if (ok) {
