@@ -51,10 +51,11 @@ bool film_init(struct film *f, int width, int height, struct error *err)
     size_t n = 3 * (size_t)width * (size_t)height;
     f->mean = calloc(n, sizeof *f->mean);
     f->m2 = calloc(n, sizeof *f->m2);
-    if (!f->mean || !f->m2) {
+    f->count = calloc(n / 3, sizeof *f->count);
+    if (!f->mean || !f->m2 || !f->count) {
         film_free(f);
         return error_set(err, "film %dx%d: cannot allocate %zu MiB", width, height,
-                         (2 * n * sizeof(double)) >> 20);
+                         (2 * n * sizeof(double) + n / 3 * sizeof(uint32_t)) >> 20);
     }
     f->width = width;
     f->height = height;
@@ -65,6 +66,7 @@ void film_free(struct film *f)
 {
     free(f->mean);
     free(f->m2);
+    free(f->count);
     memset(f, 0, sizeof *f);
 }
 
@@ -115,14 +117,16 @@ static float narrow_variance(double v)
 void film_snapshot(const struct film *f, struct film_image *img)
 {
     assert(img->width == f->width && img->height == f->height);
-    int64_t n = f->passes;
-    /* Variance of the mean of n samples: the unbiased sample variance
-       m2 / (n - 1), divided by n. Unknown below two samples: 0 by contract. */
-    double scale = n >= 2 ? 1.0 / ((double)n * (double)(n - 1)) : 0.0;
-    size_t count = 3 * (size_t)f->width * (size_t)f->height;
-    for (size_t i = 0; i < count; ++i) {
-        img->rgb[i] = narrow_mean(f->mean[i]);
-        img->variance[i] = n >= 2 ? narrow_variance(f->m2[i] * scale) : 0.0f;
+    size_t pixels = (size_t)f->width * (size_t)f->height;
+    for (size_t p = 0; p < pixels; ++p) {
+        /* Variance of the mean of n samples: the unbiased sample variance
+           m2 / (n - 1), divided by n. Unknown below two samples: 0 by contract. */
+        double n = (double)f->count[p];
+        double scale = n >= 2.0 ? 1.0 / (n * (n - 1.0)) : 0.0;
+        for (size_t k = 3 * p; k < 3 * p + 3; ++k) {
+            img->rgb[k] = narrow_mean(f->mean[k]);
+            img->variance[k] = n >= 2.0 ? narrow_variance(f->m2[k] * scale) : 0.0f;
+        }
     }
 }
 

@@ -17,6 +17,8 @@ struct film {
     int width, height;
     double *mean;      /* 3 per pixel, row-major, row 0 at the top */
     double *m2;        /* 3 per pixel: sum of squared deviations */
+    uint32_t *count;   /* 1 per pixel: samples accumulated (a non-finite
+                          sample is dropped, so a pixel may lag `passes`) */
     int64_t passes;    /* completed passes */
 };
 
@@ -30,12 +32,14 @@ struct film {
    sizes and on allocation failure. */
 bool film_init(struct film *f, int width, int height, struct error *err);
 void film_free(struct film *f);
-/* Adds the sample of pass number `pass` (0-based) to pixel (x, y). */
-static inline void film_add(struct film *f, int x, int y, struct rgb c, int64_t pass)
+/* Adds one sample to pixel (x, y) (Welford's update with the pixel's own
+   count). Callers drop non-finite samples instead of adding them. */
+static inline void film_add(struct film *f, int x, int y, struct rgb c)
 {
-    double *m = f->mean + 3 * ((int64_t)y * f->width + x);
-    double *s = f->m2 + 3 * ((int64_t)y * f->width + x);
-    double inv = 1.0 / (double)(pass + 1);
+    int64_t p = (int64_t)y * f->width + x;
+    double *m = f->mean + 3 * p;
+    double *s = f->m2 + 3 * p;
+    double inv = 1.0 / (double)(++f->count[p]);
     double v[3] = { c.r, c.g, c.b };
     for (int k = 0; k < 3; ++k) {
         double d = v[k] - m[k];

@@ -53,6 +53,7 @@ struct pass_control {
     int active;               /* workers still in the current pass */
     bool quit;
     int64_t pass;             /* index of the pass being rendered */
+    int64_t fault_nonfinite_every; /* test hook: poison ~1 sample in N (0: off) */
     uint64_t nonfinite;
     struct integrator_stats stats;
 };
@@ -87,13 +88,14 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
         double jx = rng_uniform(&rng), jy = rng_uniform(&rng);
         struct vec3 d = camera_ray(w->camera, x + jx, y + jy);
         struct rgb c = integrator_radiance(w->integrator, &w->scratch, w->camera->origin, d, &rng, stats);
-        if (!rgb_is_finite(c)) {
-            /* A NaN/Inf sample would poison the pixel forever: drop it to
-               zero and count it, so the count is visible in the output. */
-            ++*nonfinite;
-            c = rgb_make(0.0, 0.0, 0.0);
-        }
-        film_add(w->film, x, y, c, pass);
+        if (w->pc->fault_nonfinite_every > 0 &&
+            rng_mix64(rng.state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
+            c.g = NAN;
+        /* A NaN/Inf sample would poison the pixel forever: it is dropped
+           (the pixel keeps its own sample count) and counted, and the count
+           is reported in the JSON stream and the EXR header. */
+        if (!rgb_is_finite(c)) ++*nonfinite;
+        else film_add(w->film, x, y, c);
     }
 }
 
@@ -297,6 +299,10 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     int n_threads = thread_count(rd);
     struct pass_control pc;
     memset(&pc, 0, sizeof pc);
+    /* Fault injection for tests: PORTAL_LIGHTS_FAULT_NONFINITE=N makes about
+       one sample in N a NaN, to prove such samples never reach an image. */
+    const char *fault = getenv("PORTAL_LIGHTS_FAULT_NONFINITE");
+    if (fault) pc.fault_nonfinite_every = atoll(fault);
     pthread_mutex_init(&pc.lock, NULL);
     pthread_cond_init(&pc.start, NULL);
     pthread_cond_init(&pc.done, NULL);

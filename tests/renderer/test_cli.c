@@ -227,7 +227,43 @@ static void test_unwritable_output(void)
     CHECK_MSG(r.status == 1 && strstr(r.err, "/proc/portal-lights-test"), "status %d: %s", r.status, r.err);
 }
 
+/* Non-finite samples (provoked by the renderer's fault hook) are dropped and
+   counted: the count reaches the JSON stream and the EXR header, and no
+   NaN reaches the image. */
+static void test_nonfinite_dropped(void)
+{
+    char dir[] = "/tmp/portal-cli-XXXXXX";
+    make_tmpdir(dir);
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "8", "--set", "film.width=16",
+                  "--set", "film.height=16", "--quiet", NULL };
+    setenv("PORTAL_LIGHTS_FAULT_NONFINITE", "20", 1);
+    run_render(a, 0, 0, &r);
+    unsetenv("PORTAL_LIGHTS_FAULT_NONFINITE");
+    CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
+    const char *fin = strstr(r.out, "\"event\":\"final\"");
+    const char *nf = fin ? strstr(fin, "\"nonfinite\":") : NULL;
+    long count = nf ? strtol(nf + 12, NULL, 10) : 0;
+    /* 2048 samples, about 1 in 20 poisoned. */
+    CHECK_MSG(count > 40 && count < 200, "nonfinite count %ld", count);
+    CHECK(strstr(r.err, "non-finite samples dropped") != NULL);
+    char path[600];
+    snprintf(path, sizeof path, "%s/final.exr", dir);
+    struct film_image img = { 0 };
+    struct snapshot_read meta = { { 0 }, NULL };
+    struct error err;
+    CHECK(film_read_exr(path, &img, &meta, &err));
+    CHECK(meta.info.nonfinite_samples == (uint64_t)count);
+    int bad = 0;
+    for (int i = 0; i < 3 * img.width * img.height; ++i) bad += !isfinite(img.rgb[i]) || !isfinite(img.variance[i]);
+    CHECK(bad == 0);
+    film_image_free(&img);
+    free(meta.storage);
+    remove_tree(dir);
+}
+
 static const struct test_case tests[] = {
+    { "nonfinite_dropped", test_nonfinite_dropped },
     { "help_and_version", test_help_and_version },
     { "usage_errors", test_usage_errors },
     { "config_error_writes_nothing", test_config_error_writes_nothing },

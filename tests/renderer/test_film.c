@@ -288,7 +288,7 @@ static void test_welford_matches_two_pass(void)
                     v[k] = offsets[c] + scales[c] * -log(1.0 - rng_uniform(&r));
                     samples[((size_t)pixel * 3 + (size_t)k) * N + (size_t)pass] = v[k];
                 }
-                film_add(&f, x, y, rgb_make(v[0], v[1], v[2]), pass);
+                film_add(&f, x, y, rgb_make(v[0], v[1], v[2]));
             }
         f.passes = pass + 1;
     }
@@ -334,8 +334,8 @@ static void test_snapshot_variance_of_mean(void)
     for (int i = 0; i < 6; ++i) CHECK(img.rgb[i] == 0.0f && img.variance[i] == 0.0f);
     for (int64_t pass = 0; pass < 5; ++pass) {
         double v = (double)(pass + 1);
-        film_add(&f, 0, 0, rgb_make(v, 2 * v, -v), pass);
-        film_add(&f, 1, 0, rgb_make(7.0, 0.0, 1e20), pass);
+        film_add(&f, 0, 0, rgb_make(v, 2 * v, -v));
+        film_add(&f, 1, 0, rgb_make(7.0, 0.0, 1e20));
         f.passes = pass + 1;
         film_snapshot(&f, &img);
         if (pass == 0) {
@@ -362,7 +362,7 @@ static void test_snapshot_never_writes_nonfinite(void)
     CHECK(film_image_alloc(&img, 1, 1, &err));
     for (int64_t pass = 0; pass < 6; ++pass) {
         double v = (pass % 2 ? -1e308 : 1e308);
-        film_add(&f, 0, 0, rgb_make(v, 1e300 * (double)pass, 3e38), pass);
+        film_add(&f, 0, 0, rgb_make(v, 1e300 * (double)pass, 3e38));
         f.passes = pass + 1;
         film_snapshot(&f, &img);
         for (int k = 0; k < 3; ++k) {
@@ -686,7 +686,33 @@ static void test_exr_read_errors(void)
     scratch_remove(dir);
 }
 
+/* A pixel that lost samples (non-finite, dropped by the caller) uses its own
+   count: its variance of the mean is m2 / (n (n - 1)) with its n. */
+static void test_per_pixel_count(void)
+{
+    struct film f;
+    struct film_image img;
+    struct error err;
+    CHECK(film_init(&f, 2, 1, &err) && film_image_alloc(&img, 2, 1, &err));
+    const double v[] = { 1.0, 2.0, 4.0, 8.0 };
+    for (int i = 0; i < 4; ++i) {
+        film_add(&f, 0, 0, rgb_make(v[i], v[i], v[i]));
+        if (i != 2) film_add(&f, 1, 0, rgb_make(v[i], v[i], v[i])); /* pixel 1 lost one sample */
+    }
+    f.passes = 4;
+    film_snapshot(&f, &img);
+    CHECK(f.count[0] == 4 && f.count[1] == 3);
+    CHECK_NEAR(img.rgb[0], 15.0 / 4.0, 1e-6);
+    CHECK_NEAR(img.rgb[3], 11.0 / 3.0, 1e-6);
+    /* Sample variances: {1,2,4,8}: 9.5833; {1,2,8}: 14.3333. */
+    CHECK_NEAR(img.variance[0], (115.0 / 12.0) / 4.0, 1e-5);
+    CHECK_NEAR(img.variance[3], (43.0 / 3.0) / 3.0, 1e-5);
+    film_image_free(&img);
+    film_free(&f);
+}
+
 static const struct test_case film_tests[] = {
+    { "per_pixel_count", test_per_pixel_count },
     { "sizes_are_checked", test_sizes_are_checked },
     { "welford_matches_two_pass", test_welford_matches_two_pass },
     { "snapshot_variance_of_mean", test_snapshot_variance_of_mean },
