@@ -90,4 +90,6 @@ def test_03_real_renderer_passes_the_committed_baseline_and_catches_halved_sampl
                    "--no-progress"])
     out = capsys.readouterr().out
     assert status == 1, out
-    assert "RISE" in out and "regress FAILED" in out
+    rows = [line for line in out.splitlines() if line.startswith("s_L=")]
+    assert len(rows) == 12 and all(line.rstrip().endswith("RISE") for line in rows), out
+    assert "regress FAILED" in out
