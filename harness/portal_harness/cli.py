@@ -17,7 +17,8 @@ from typing import Any, Sequence
 from tqdm import tqdm
 
 from portal_harness import __version__, exr, index, measure, runs, store
-from portal_harness.config import load_experiment, spec_from_scene
+from portal_harness.config import load_experiment
+from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
 from portal_harness.metrics import Region
 from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results

@@ -8,15 +8,13 @@ relative to the experiment file's folder. The schema is in harness/README.md.
 from __future__ import annotations
 
 import itertools
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from portal_harness.errors import ConfigError
 from portal_harness.metrics import WHOLE_IMAGE, Region
+from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
     INTEGRATORS,
@@ -189,153 +187,7 @@ class Experiment:
         )
 
 
-class _Reader:
-    """Typed access to a YAML mapping with file/key-qualified errors."""
-
-    def __init__(self, file: str) -> None:
-        self.file = file
-
-    def fail(self, key: str, message: str) -> ConfigError:
-        return ConfigError(self.file, key, message)
-
-    def mapping(self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
-                ) -> dict[str, Any]:
-        if not isinstance(node, dict):
-            raise self.fail(key, f"expected a mapping, got {_kind(node)}")
-        for k in node:
-            if not isinstance(k, str) or k not in allowed:
-                raise self.fail(_join(key, str(k)), f"unknown key (expected one of {', '.join(sorted(allowed))})")
-        for k in sorted(required):
-            if k not in node:
-                raise self.fail(_join(key, k), "missing required key")
-        return node
-
-    def number(self, node: Any, key: str, minimum: float = 0.0, positive: bool = False) -> float:
-        if isinstance(node, bool) or not isinstance(node, (int, float)):
-            raise self.fail(key, f"expected a number, got {_kind(node)}")
-        if node < minimum or (positive and node <= 0):
-            bound = "> 0" if positive else f">= {minimum}"
-            raise self.fail(key, f"expected a number {bound}, got {node}")
-        return float(node)
-
-    def integer(self, node: Any, key: str, minimum: int = 0) -> int:
-        if isinstance(node, bool) or not isinstance(node, int):
-            raise self.fail(key, f"expected an integer, got {_kind(node)}")
-        if node < minimum:
-            raise self.fail(key, f"expected an integer >= {minimum}, got {node}")
-        return int(node)
-
-    def string(self, node: Any, key: str) -> str:
-        if not isinstance(node, str) or not node:
-            raise self.fail(key, f"expected a non-empty string, got {_kind(node)}")
-        return node
-
-    def choice(self, node: Any, key: str, choices: tuple[str, ...], what: str) -> str:
-        s = self.string(node, key)
-        if s not in choices:
-            raise self.fail(key, f"unknown {what} {s!r} (expected {'|'.join(choices)})")
-        return s
-
-    def scalar(self, node: Any, key: str) -> Any:
-        if isinstance(node, (dict, list)) or node is None:
-            raise self.fail(key, f"expected a scalar (number, string or boolean), got {_kind(node)}")
-        return node
-
-    def sequence(self, node: Any, key: str, non_empty: bool = True) -> list[Any]:
-        if not isinstance(node, list):
-            raise self.fail(key, f"expected a list, got {_kind(node)}")
-        if non_empty and not node:
-            raise self.fail(key, "expected a non-empty list")
-        return node
-
-
-def _kind(node: Any) -> str:
-    if node is None:
-        return "nothing"
-    if isinstance(node, bool):
-        return f"a boolean ({node})"
-    if isinstance(node, dict):
-        return "a mapping"
-    if isinstance(node, list):
-        return "a list"
-    if isinstance(node, str):
-        return f"the string {node!r}"
-    return f"{type(node).__name__} {node!r}"
-
-
-def _join(prefix: str, key: str) -> str:
-    return f"{prefix}.{key}" if prefix else key
-
-
-def read_yaml(path: Path, what: str) -> Any:
-    """Parses a YAML file; a missing file or a syntax error is a ConfigError with file:line:column."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ConfigError(str(path), "", f"{what} not found") from None
-    except OSError as e:
-        raise ConfigError(str(path), "", f"cannot read {what}: {e.strerror}") from None
-    try:
-        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-    except yaml.MarkedYAMLError as e:
-        mark = e.problem_mark
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark is not None else str(path)
-        raise ConfigError(where, "", f"YAML syntax error: {e.problem}") from None
-    except yaml.YAMLError as e:
-        raise ConfigError(str(path), "", f"YAML error: {e}") from None
-
-
-def flatten(node: Any, prefix: str = "") -> dict[str, Any]:
-    """Dotted keys of every scalar in a YAML tree (sequence items by index)."""
-    out: dict[str, Any] = {}
-    if isinstance(node, dict):
-        for k, v in node.items():
-            out.update(flatten(v, _join(prefix, str(k))))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out.update(flatten(v, _join(prefix, str(i))))
-    else:
-        out[prefix] = node
-    return out
-
-
-@dataclass(frozen=True)
-class SceneInfo:
-    """What the harness needs to know of a scene file: its scalars and render defaults."""
-
-    path: Path
-    scalars: dict[str, Any]
-
-    @property
-    def width(self) -> int:
-        return int(self.scalars.get("film.width", 256))
-
-    @property
-    def height(self) -> int:
-        return int(self.scalars.get("film.height", 256))
-
-
-def read_scene(path: Path) -> SceneInfo:
-    tree = read_yaml(path, "scene file")
-    if not isinstance(tree, dict):
-        raise ConfigError(str(path), "", f"expected a mapping at the top of the scene, got {_kind(tree)}")
-    return SceneInfo(path=path, scalars=flatten(tree))
-
-
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
-def parse_threads(node: Any, reader: _Reader, key: str) -> int:
-    if node == "auto":
-        return _cores()
-    return reader.integer(node, key, minimum=1)
-
-
-def _check_override_key(reader: _Reader, key: str, where: str) -> None:
+def _check_override_key(reader: Reader, key: str, where: str) -> None:
     if not key or any(not part for part in key.split(".")):
         raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {key!r}")
     if key in HARNESS_RENDER_KEYS or key.startswith("render.snapshots"):
@@ -345,7 +197,7 @@ def _check_override_key(reader: _Reader, key: str, where: str) -> None:
 def load_experiment(path: Path | str) -> Experiment:
     """Reads and validates an experiment; raises ConfigError on the first problem."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
-    r = _Reader(str(path))
+    r = Reader(str(path))
     root = r.mapping(
         read_yaml(p, "experiment file"),
         "",
@@ -374,7 +226,7 @@ def load_experiment(path: Path | str) -> Experiment:
     if sweep_node is None or sweep_node == {}:
         raise r.fail("sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)")
     if not isinstance(sweep_node, dict):
-        raise r.fail("sweep", f"expected a mapping from parameter to list of values, got {_kind(sweep_node)}")
+        raise r.fail("sweep", f"expected a mapping from parameter to list of values, got {kind_of(sweep_node)}")
     sweep: list[tuple[str, tuple[Any, ...]]] = []
     for k, values in sweep_node.items():
         key = str(k)
@@ -386,7 +238,7 @@ def load_experiment(path: Path | str) -> Experiment:
 
     fixed_node = root.get("fixed", {}) or {}
     if not isinstance(fixed_node, dict):
-        raise r.fail("fixed", f"expected a mapping from parameter to value, got {_kind(fixed_node)}")
+        raise r.fail("fixed", f"expected a mapping from parameter to value, got {kind_of(fixed_node)}")
     fixed: dict[str, str] = {}
     for k, v in fixed_node.items():
         key = str(k)
@@ -467,7 +319,7 @@ def load_experiment(path: Path | str) -> Experiment:
             raise r.fail("axis.divide_by", f"{divide_by!r} has no numeric value in the sweep, fixed or scene") from None
     for i, v in enumerate(dict(sweep)[axis_param]):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {_kind(v)}")
+            raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {kind_of(v)}")
     default_label = f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
     axis = Axis(param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label"))
 
@@ -506,58 +358,4 @@ def load_experiment(path: Path | str) -> Experiment:
         equal_time_s=None if equal_time is None else r.number(equal_time, "figures.equal_time_s", positive=True),
         curve_metric=r.choice(fig.get("curve_metric", "rel_mse"), "figures.curve_metric", CURVE_METRICS, "metric"),
         scene_params=tuple((k, v) for k, v in scene_info.scalars.items() if k.startswith("params.")),
-    )
-
-
-def spec_from_scene(
-    scene: Path,
-    overrides: dict[str, str],
-    strategy: str | None = None,
-    integrator: str | None = None,
-    spp: int | None = None,
-    time_s: float | None = None,
-    seed: int | None = None,
-    threads: int | str | None = None,
-    snapshots: dict[str, str] | None = None,
-    reference: bool = False,
-) -> RunSpec:
-    """A RunSpec for `run`/`reference` on a scene file: unset settings come
-    from the scene's render section (with --set render.* applied), so the key
-    covers everything."""
-    scene = scene.resolve()
-    info = read_scene(scene)
-    r = _Reader(str(scene))
-    merged = dict(info.scalars)
-    for k, v in overrides.items():
-        try:
-            merged[k] = yaml.safe_load(v) if v != "" else v
-        except yaml.YAMLError:
-            raise ConfigError("--set", k, f"value {v!r} is not a YAML scalar") from None
-
-    def pick(given: Any, key: str, default: Any) -> Any:
-        return given if given is not None else merged.get(key, default)
-
-    chosen_strategy = r.choice(pick(strategy, "render.strategy", "light"), "render.strategy", STRATEGIES, "strategy")
-    chosen_integrator = r.choice(pick(integrator, "render.integrator", "direct"), "render.integrator",
-                                 INTEGRATORS, "integrator")
-    chosen_spp = r.integer(pick(spp, "render.spp", 0), "render.spp")
-    chosen_time = r.number(pick(time_s, "render.time", 0), "render.time")
-    if chosen_spp == 0 and chosen_time == 0:
-        raise r.fail("render", "expected spp > 0 or time > 0 (a run needs a limit)")
-    passed = {k: v for k, v in overrides.items() if k not in HARNESS_RENDER_KEYS and not k.startswith("render.snapshots")}
-    if snapshots is None:
-        snapshots = {k.split(".")[-1]: format_value(v) for k, v in merged.items()
-                     if k.startswith("render.snapshots.") and k.split(".")[-1] in SNAPSHOT_KEYS}
-    return RunSpec(
-        scene=str(scene),
-        scene_sha256=sha256_file(scene),
-        strategy=chosen_strategy,
-        integrator=chosen_integrator,
-        spp=chosen_spp,
-        time_s=chosen_time,
-        seed=r.integer(pick(seed, "render.seed", 1), "render.seed"),
-        threads=parse_threads(pick(threads, "render.threads", "auto"), r, "render.threads"),
-        overrides=tuple(sorted(passed.items())),
-        snapshots=tuple(sorted(snapshots.items())),
-        reference=reference,
     )

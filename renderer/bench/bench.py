@@ -25,6 +25,7 @@ import argparse
 import hashlib
 import json
 import math
+import os
 import subprocess
 import sys
 import time
@@ -72,6 +73,10 @@ def section_raw_embree(ctx: Context) -> dict[str, Any]:
         t = c["threads"]
         row[f"per_thread_rays_per_s_{t}t"] = c["median_rays_per_s_per_thread"]
         row[f"rays_per_cpu_s_{t}t"] = c["median_rays_per_cpu_s"]
+    nr = raw.get("mix_embree_1t_without_robust_flag")
+    if nr:
+        table["mix/embree_without_robust_flag"] = {"rays_per_cpu_s_1t": nr["median_rays_per_cpu_s"],
+                                                   "per_thread_rays_per_s_1t": nr["median_rays_per_s"]}
     ctx.machine["embree_version"] = raw["embree_version"]
     bl.write_result(ctx, "raw_embree", params, {"table": table, "raw": raw})
     return table
@@ -294,7 +299,11 @@ def section_scene_scaling(ctx: Context) -> dict[str, Any]:
         x = np.array(ns, dtype=float)
         y = np.array([rows[str(n)]["cpu_ns_per_sample"] for n in ns])
         b, a = np.polyfit(x, y, 1)
-        table[s] = {"by_n": rows, "fit_ns_per_sample": {"a": float(a), "b_per_lamp": float(b)}}
+        # Marginal cost per added lamp between the two largest N: the
+        # asymptotic slope, free of the near-lamp costs that saturate early.
+        marginal = (y[-1] - y[-2]) / (x[-1] - x[-2])
+        table[s] = {"by_n": rows, "fit_ns_per_sample": {"a": float(a), "b_per_lamp": float(b)},
+                    "marginal_ns_per_lamp": float(marginal)}
     bl.write_result(ctx, "scene_scaling", params, {"table": table, "runs": runs})
     return table
 
@@ -364,17 +373,22 @@ def reference(ctx: Context, config: Path, sets: list[str], secs: float, tag: str
     key = hashlib.sha1(json.dumps([file_digest(config), sets, ctx.version, "light", REF_SEED]).encode()).hexdigest()[:12]
     folder = TMP / "refs" / f"{tag}_v{ctx.version}_{key}"
     meta_path = folder / "meta.json"
-    if meta_path.exists():
+    binary = file_digest(ctx.render)
+    if meta_path.exists() and os.environ.get("BENCH_FRESH_REFS") != "1":
         meta = json.loads(meta_path.read_text())
         if meta.get("time_target_s", 0) >= secs and (folder / "final.exr").exists():
             log(f"reference {folder.name}: cached ({meta['time_target_s']} s, {meta['spp']} spp)")
+            if meta.get("render_binary_sha1") != binary:
+                log(f"reference {folder.name}: note: rendered by another build of renderer {ctx.version}; "
+                    "if images changed, bump RENDERER_VERSION or set BENCH_FRESH_REFS=1")
             return folder / "final.exr", meta
     log(f"reference {folder.name}: rendering {secs} s")
     args = [a for s in sets for a in ("--set", s)]
     run = bl.run_render(ctx, config, folder, "--strategy", "light", "--time", str(secs), "--spp", "0",
                         "--threads", "2", "--seed", str(REF_SEED), *args)
     meta = {"config": str(config), "sets": sets, "renderer_version": ctx.version, "time_target_s": secs,
-            "time_s": run.time_s, "cpu_s": run.cpu_s, "spp": run.final["spp"], "seed": REF_SEED}
+            "time_s": run.time_s, "cpu_s": run.cpu_s, "spp": run.final["spp"], "seed": REF_SEED,
+            "render_binary_sha1": binary}
     meta_path.write_text(json.dumps(meta, indent=1) + "\n")
     return folder / "final.exr", meta
 

@@ -17,7 +17,8 @@
    "embree" (rtcIntersect1 / rtcOccluded1 on prebuilt float rays: the
    floor of single-ray tracing). Each (kind, api, threads) cell runs for a
    fixed time, repeated round-robin, and the median is reported as JSON on
-   stdout. */
+   stdout. Last, the scene is rebuilt without RTC_SCENE_FLAG_ROBUST (which
+   scene.c sets) and the mix is timed again, to show what the flag costs. */
 #include <embree3/rtcore.h>
 #include <pmmintrin.h>
 #include <pthread.h>
@@ -325,6 +326,18 @@ int main(int argc, char **argv)
                 }
     }
 
+    /* The renderer builds with RTC_SCENE_FLAG_ROBUST (scene.c): rebuild
+       without it and time the mix again, to show what the flag costs. */
+    double nr_wall[64], nr_cpu[64];
+    rtcSetSceneFlags(sc.rtc_scene, RTC_SCENE_FLAG_NONE);
+    rtcCommitScene(sc.rtc_scene);
+    measure(&sc, &b[BATCH_MIX], API_EMBREE, 1, 0.05);
+    for (int r = 0; r < reps; ++r) {
+        struct measurement m = measure(&sc, &b[BATCH_MIX], API_EMBREE, 1, seconds);
+        nr_wall[r] = m.rays_per_s;
+        nr_cpu[r] = m.rays_per_cpu_s;
+    }
+
     printf("{\"embree_version\":\"%d.%d.%d\",\"config\":\"%s\",\"width\":%d,\"height\":%d,\"spp\":%d,"
            "\"seconds_per_cell\":%g,\"reps\":%d,\"api_note\":\"wrapper = scene_intersect/scene_occluded "
            "(renderer wrappers over rtcIntersect1/rtcOccluded1); embree = rtcIntersect1/rtcOccluded1 on "
@@ -350,7 +363,8 @@ int main(int argc, char **argv)
                        "\"median_rays_per_cpu_s\":%.1f}",
                        mw, mw / t, mc);
             }
-    printf("]}\n");
+    printf("],\"mix_embree_1t_without_robust_flag\":{\"median_rays_per_s\":%.1f,\"median_rays_per_cpu_s\":%.1f}}\n",
+           bench_median(nr_wall, reps), bench_median(nr_cpu, reps));
 
     for (int k = 0; k < BATCH_COUNT; ++k) {
         free(b[k].rays);

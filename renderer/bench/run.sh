@@ -7,6 +7,7 @@
 # usage: renderer/bench/run.sh BUILD_DIR
 #   BENCH_QUICK=1          smoke version (~2 minutes instead of ~10-15)
 #   BENCH_ONLY=a,b         only these sections (see bench.py --help)
+#   BENCH_FRESH_REFS=1     re-render the cached efficiency references
 #   BENCH_PYTHON=path      Python with numpy and the openexr bindings
 #                          (default: .venv/bin/python of the repository)
 set -euo pipefail

@@ -231,29 +231,38 @@ int polygon_clip_convex(const struct polygon *subject, const struct polygon *cli
 /* Inclusive of the boundary within POLYGON_CONTAINS_REL of the polygon's
    size, measured in the polygon's plane (the normal component of x - v_i is
    ignored). Valid for convex polygons of either winding. */
-bool polygon_contains(const struct polygon *poly, struct vec3 x)
+/* Inside test against the edges, given the (unnormalised) Newell normal.
+   The tolerance scales with sqrt(|nrm|) = sqrt(2 area), a size measure that
+   costs one square root instead of a bounding box per call (this runs for
+   every light sample and every pdf evaluation). */
+static bool contains_with_normal(const struct polygon *poly, struct vec3 nrm, struct vec3 x)
 {
     int n = poly->n;
-    struct vec3 nrm = polygon_normal(poly);
-    if (n < 3 || vec3_length2(nrm) == 0.0) return false;
-    double tol = POLYGON_CONTAINS_REL * polygon_size(poly);
+    double nrm_len2 = vec3_length2(nrm);
+    if (n < 3 || nrm_len2 == 0.0) return false;
+    double tol = POLYGON_CONTAINS_REL * sqrt(sqrt(nrm_len2));
     for (int i = 0; i < n; ++i) {
-        struct vec3 a = poly->v[i], e = vec3_sub(poly->v[(i + 1) % n], a);
-        double len = vec3_length(e);
-        if (len == 0.0) continue;
-        if (vec3_dot(vec3_cross(e, vec3_sub(x, a)), nrm) < -tol * len) return false;
+        struct vec3 a = poly->v[i], e = vec3_sub(poly->v[i + 1 < n ? i + 1 : 0], a);
+        double s = vec3_dot(vec3_cross(e, vec3_sub(x, a)), nrm);
+        /* s < -tol |e| |nrm|, compared squared to avoid two square roots. */
+        if (s < 0.0 && s * s > tol * tol * vec3_length2(e) * nrm_len2) return false;
     }
     return true;
 }
 
+bool polygon_contains(const struct polygon *poly, struct vec3 x)
+{
+    return contains_with_normal(poly, polygon_area_normal(poly), x);
+}
+
 bool polygon_intersect_ray(const struct polygon *poly, struct vec3 o, struct vec3 d, double *t)
 {
-    struct vec3 nrm = polygon_normal(poly);
+    struct vec3 nrm = polygon_area_normal(poly);
     double denom = vec3_dot(nrm, d);
-    if (vec3_length2(nrm) == 0.0 || !(fabs(denom) > 1e-15 * vec3_length(d))) return false;
+    if (vec3_length2(nrm) == 0.0 || !(fabs(denom) > 1e-15 * vec3_length(d) * vec3_length(nrm))) return false;
     double tt = vec3_dot(nrm, vec3_sub(poly->v[0], o)) / denom;
     if (!(tt > 0.0) || !isfinite(tt)) return false;
-    if (!polygon_contains(poly, vec3_madd(o, d, tt))) return false;
+    if (!contains_with_normal(poly, nrm, vec3_madd(o, d, tt))) return false;
     *t = tt;
     return true;
 }

@@ -232,6 +232,15 @@ void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch
     if (!uses_portals(s->kind)) return;
     double acc = 0.0;
     memset(scratch->vis_state, VIS_UNKNOWN, (size_t)s->n_pairs);
+    if (s->n_pairs == 1 && classifies(s->kind)) {
+        /* One pair: its weight is only needed to tell zero from non-zero,
+           and the region answers that without the irradiance. */
+        const struct strategy_pair *pair = &s->pairs[0];
+        scratch->region[0] = pair->portal < 0 ? REGION_ANTI_PENUMBRA
+                           : (unsigned char)antishadow_classify(&s->scene->portals[pair->portal].antishadow, p);
+        pt->total = scratch->cdf[0] = scratch->region[0] == REGION_OUTSIDE ? 0.0 : 1.0;
+        return;
+    }
     for (int i = 0; i < s->n_pairs; ++i) {
         double w = pair_weight(s, pt, i);
         if (!(w > 0.0) || !isfinite(w)) w = 0.0;

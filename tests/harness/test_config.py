@@ -8,7 +8,8 @@ from typing import Any, Callable
 
 import pytest
 
-from portal_harness.config import load_experiment, spec_from_scene
+from portal_harness.config import load_experiment
+from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError
 
 REPO = Path(__file__).resolve().parent.parent.parent

@@ -11,7 +11,7 @@ from typing import Callable
 import pytest
 
 from portal_harness import exr, measure, runs, store
-from portal_harness.config import spec_from_scene
+from portal_harness.scene import spec_from_scene
 from portal_harness.metrics import Region
 from portal_harness.paths import ResultsLayout, RunLayout
 from portal_harness.renderer import renderer_version

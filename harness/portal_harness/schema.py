@@ -1,0 +1,160 @@
+"""Validation primitives for YAML configs: typed access with file- and
+key-qualified errors, YAML reading with line:column, and what the harness
+reads of a scene file."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from portal_harness.errors import ConfigError
+
+
+class Reader:
+    """Typed access to a YAML mapping with file/key-qualified errors."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+
+    def fail(self, key: str, message: str) -> ConfigError:
+        return ConfigError(self.file, key, message)
+
+    def mapping(self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
+                ) -> dict[str, Any]:
+        if not isinstance(node, dict):
+            raise self.fail(key, f"expected a mapping, got {kind_of(node)}")
+        for k in node:
+            if not isinstance(k, str) or k not in allowed:
+                raise self.fail(join_key(key, str(k)), f"unknown key (expected one of {', '.join(sorted(allowed))})")
+        for k in sorted(required):
+            if k not in node:
+                raise self.fail(join_key(key, k), "missing required key")
+        return node
+
+    def number(self, node: Any, key: str, minimum: float = 0.0, positive: bool = False) -> float:
+        if isinstance(node, bool) or not isinstance(node, (int, float)):
+            raise self.fail(key, f"expected a number, got {kind_of(node)}")
+        if node < minimum or (positive and node <= 0):
+            bound = "> 0" if positive else f">= {minimum}"
+            raise self.fail(key, f"expected a number {bound}, got {node}")
+        return float(node)
+
+    def integer(self, node: Any, key: str, minimum: int = 0) -> int:
+        if isinstance(node, bool) or not isinstance(node, int):
+            raise self.fail(key, f"expected an integer, got {kind_of(node)}")
+        if node < minimum:
+            raise self.fail(key, f"expected an integer >= {minimum}, got {node}")
+        return int(node)
+
+    def string(self, node: Any, key: str) -> str:
+        if not isinstance(node, str) or not node:
+            raise self.fail(key, f"expected a non-empty string, got {kind_of(node)}")
+        return node
+
+    def choice(self, node: Any, key: str, choices: tuple[str, ...], what: str) -> str:
+        s = self.string(node, key)
+        if s not in choices:
+            raise self.fail(key, f"unknown {what} {s!r} (expected {'|'.join(choices)})")
+        return s
+
+    def scalar(self, node: Any, key: str) -> Any:
+        if isinstance(node, (dict, list)) or node is None:
+            raise self.fail(key, f"expected a scalar (number, string or boolean), got {kind_of(node)}")
+        return node
+
+    def sequence(self, node: Any, key: str, non_empty: bool = True) -> list[Any]:
+        if not isinstance(node, list):
+            raise self.fail(key, f"expected a list, got {kind_of(node)}")
+        if non_empty and not node:
+            raise self.fail(key, "expected a non-empty list")
+        return node
+
+
+def kind_of(node: Any) -> str:
+    if node is None:
+        return "nothing"
+    if isinstance(node, bool):
+        return f"a boolean ({node})"
+    if isinstance(node, dict):
+        return "a mapping"
+    if isinstance(node, list):
+        return "a list"
+    if isinstance(node, str):
+        return f"the string {node!r}"
+    return f"{type(node).__name__} {node!r}"
+
+
+def join_key(prefix: str, key: str) -> str:
+    return f"{prefix}.{key}" if prefix else key
+
+
+def read_yaml(path: Path, what: str) -> Any:
+    """Parses a YAML file; a missing file or a syntax error is a ConfigError with file:line:column."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(str(path), "", f"{what} not found") from None
+    except OSError as e:
+        raise ConfigError(str(path), "", f"cannot read {what}: {e.strerror}") from None
+    try:
+        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except yaml.MarkedYAMLError as e:
+        mark = e.problem_mark
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark is not None else str(path)
+        raise ConfigError(where, "", f"YAML syntax error: {e.problem}") from None
+    except yaml.YAMLError as e:
+        raise ConfigError(str(path), "", f"YAML error: {e}") from None
+
+
+def flatten(node: Any, prefix: str = "") -> dict[str, Any]:
+    """Dotted keys of every scalar in a YAML tree (sequence items by index)."""
+    out: dict[str, Any] = {}
+    if isinstance(node, dict):
+        for k, v in node.items():
+            out.update(flatten(v, join_key(prefix, str(k))))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            out.update(flatten(v, join_key(prefix, str(i))))
+    else:
+        out[prefix] = node
+    return out
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """What the harness needs to know of a scene file: its scalars and render defaults."""
+
+    path: Path
+    scalars: dict[str, Any]
+
+    @property
+    def width(self) -> int:
+        return int(self.scalars.get("film.width", 256))
+
+    @property
+    def height(self) -> int:
+        return int(self.scalars.get("film.height", 256))
+
+
+def read_scene(path: Path) -> SceneInfo:
+    tree = read_yaml(path, "scene file")
+    if not isinstance(tree, dict):
+        raise ConfigError(str(path), "", f"expected a mapping at the top of the scene, got {kind_of(tree)}")
+    return SceneInfo(path=path, scalars=flatten(tree))
+
+
+def available_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def parse_threads(node: Any, reader: Reader, key: str) -> int:
+    if node == "auto":
+        return available_cores()
+    return reader.integer(node, key, minimum=1)
