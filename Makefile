@@ -27,6 +27,7 @@ DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
+.SECONDARY:
 .PHONY: all deps venv test test-c test-c-san test-py figures bench fuzz clean
 .DEFAULT_GOAL := all
 

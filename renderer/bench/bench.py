@@ -67,7 +67,7 @@ def section_raw_embree(ctx: Context) -> dict[str, Any]:
               "reps": 3 if q else 5, "spp": 1 if q else 2, "threads": [1, 2]}
     raw = bl.run_json([str(ctx.bins["raw_embree"]), str(LAMPSHADE), "--seconds", str(params["seconds_per_cell"]),
                        "--reps", str(params["reps"]), "--spp", str(params["spp"]), "--max-threads", "2"])
-    table = {}
+    table: dict[str, dict[str, float]] = {}
     for c in raw["cells"]:
         row = table.setdefault(f"{c['kind']}/{c['api']}", {})
         t = c["threads"]
@@ -152,7 +152,7 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
     table = {}
     for key, rs in runs.items():
         integ, s = key.split("/")
-        row = {k: median([x[k] for x in rs]) for k in ("samples_per_s", "rays_per_s", "cpu_share")}
+        row: dict[str, Any] = {k: median([x[k] for x in rs]) for k in ("samples_per_s", "rays_per_s", "cpu_share")}
         row.update({k: median([x["diff"][k] for x in rs]) for k in
                     ("samples_per_cpu_s", "rays_per_cpu_s", "fixed_cpu_s")})
         row["rays_per_sample"] = median([x["rays"] / x["samples"] for x in rs])
@@ -443,8 +443,8 @@ def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants:
             rows[name][f"{c}_share"] = float(per[r0:r1].sum() / total) if total > 0 else math.nan
             crop_rows[c][name] = {**bl.rel_error(x[r0:r1], x_var[r0:r1], ref[r0:r1], ref_var[r0:r1]), **clocks}
     add_efficiency(rows)
-    for c in crop_rows.values():
-        add_efficiency(c)
+    for crop in crop_rows.values():
+        add_efficiency(crop)
     if crops:
         rows["_crops"] = {c: {"rows": list(crops[c]), "strategies": crop_rows[c]} for c in crops}
     return rows

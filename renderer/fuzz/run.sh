@@ -11,6 +11,12 @@ if ! command -v clang >/dev/null; then
   echo "fuzz: installing clang with apt-get" >&2
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq clang >/dev/null
 fi
+# libFuzzer's runtime lives in libclang-rt-N-dev, only recommended by clang.
+major=$(clang -dumpversion | cut -d. -f1)
+if ! ls /usr/lib/llvm-"$major"/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a >/dev/null 2>&1; then
+  echo "fuzz: installing libclang-rt-$major-dev with apt-get" >&2
+  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "libclang-rt-$major-dev" >/dev/null
+fi
 out=renderer/build-fuzz
 mkdir -p "$out" renderer/fuzz/crashes
 srcs=(renderer/src/config.c renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c)
