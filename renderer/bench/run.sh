@@ -43,6 +43,7 @@ args=("$BUILD")
 
 status=0
 "$PY" renderer/bench/bench.py "${args[@]}" || status=$?
+[ $status -eq 2 ] && exit 2  # usage error: nothing was measured
 "$PY" renderer/bench/summary.py || status=$?
 [ $status -eq 0 ] || echo "bench: some sections failed (see the messages above)" >&2
 exit $status

@@ -135,6 +135,8 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
         for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
         if (!add_mesh(s, poly->v, poly->n, fan, poly->n - 2, 3, info, err)) goto fail;
     }
+    s->bounds_lo = lo;
+    s->bounds_hi = hi;
     s->scale = vec3_length(vec3_sub(hi, lo));
     if (!(s->scale > 0.0) || !isfinite(s->scale)) s->scale = 1.0;
     rtcCommitScene(s->rtc_scene);

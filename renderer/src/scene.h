@@ -37,6 +37,7 @@ struct scene {
     struct portal *portals;       /* grouped by light: light.first_portal.. */
     int n_geometries;
     struct geometry_info *geometries; /* indexed by Embree geomID */
+    struct vec3 bounds_lo, bounds_hi; /* of all geometry and lights */
     double scale;                 /* bounding-box diagonal, for ray offsets */
     void *device;                 /* RTCDevice */
     void *rtc_scene;              /* RTCScene, committed */

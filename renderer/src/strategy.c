@@ -25,6 +25,42 @@ static bool classifies(enum strategy_kind k)
     return k == STRATEGY_ANTISHADOW || k == STRATEGY_ANTISHADOW_EXACT;
 }
 
+/* The region each pair can light, as a box: a portal's anti-penumbra (the
+   portal plane and the separating planes), a one-sided light's front half
+   space, a two-sided light's whole scene; all within the scene's bounds,
+   padded so that points on the bounding surfaces stay inside. */
+static bool build_bvh(struct strategy *s, struct error *err)
+{
+    const struct scene *sc = s->scene;
+    double pad = 1e-3 * sc->scale + 1e-9;
+    struct aabb scene_box = { vec3_sub(sc->bounds_lo, vec3_make(pad, pad, pad)),
+                              vec3_add(sc->bounds_hi, vec3_make(pad, pad, pad)) };
+    struct aabb *boxes = malloc(sizeof *boxes * (size_t)s->n_pairs);
+    if (!boxes) return error_set(err, "out of memory for %d light/portal pairs", s->n_pairs);
+    for (int i = 0; i < s->n_pairs; ++i) {
+        const struct strategy_pair *pair = &s->pairs[i];
+        struct plane planes[1 + ANTISHADOW_SEPARATING_MAX];
+        int n = 0;
+        if (pair->portal >= 0) {
+            const struct antishadow *a = &sc->portals[pair->portal].antishadow;
+            planes[n++] = a->portal_plane;
+            for (int k = 0; k < a->n_separating; ++k) planes[n++] = a->separating[k];
+        } else if (!sc->lights[pair->light].two_sided) {
+            const struct target *t = &sc->lights[pair->light].target;
+            planes[n++] = (struct plane){ t->normal, vec3_dot(t->normal, t->polygon.v[0]) };
+        }
+        if (aabb_of_region(planes, n, scene_box, &boxes[i])) {
+            boxes[i].lo = vec3_sub(boxes[i].lo, vec3_make(pad, pad, pad));
+            boxes[i].hi = vec3_add(boxes[i].hi, vec3_make(pad, pad, pad));
+        } else {
+            boxes[i] = (struct aabb){ vec3_make(1, 1, 1), vec3_make(-1, -1, -1) }; /* lights nothing */
+        }
+    }
+    bool ok = pair_bvh_build(&s->bvh, boxes, s->n_pairs, err);
+    free(boxes);
+    return ok;
+}
+
 bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err)
 {
     s->kind = rd->strategy;
@@ -34,6 +70,8 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
     s->pairs = NULL;
     s->first_pair = NULL;
     s->n_pairs = 0;
+    s->use_bvh = false;
+    s->bvh = (struct pair_bvh){ 0, NULL, NULL, NULL };
     double *power = malloc(sizeof *power * (size_t)scene->n_lights);
     if (!power) return error_set(err, "out of memory for %d lights", scene->n_lights);
     for (int i = 0; i < scene->n_lights; ++i) power[i] = scene->lights[i].power;
@@ -63,40 +101,54 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
         }
     }
     s->first_pair[scene->n_lights] = s->n_pairs;
-    return true;
+    s->use_bvh = classifies(s->kind);
+    return s->use_bvh ? build_bvh(s, err) : true;
 }
 
 void strategy_free(struct strategy *s)
 {
     alias_free(&s->power);
+    pair_bvh_free(&s->bvh);
     free(s->pairs);
     free(s->first_pair);
     s->pairs = NULL;
     s->first_pair = NULL;
     s->n_pairs = 0;
+    s->use_bvh = false;
+    s->bvh = (struct pair_bvh){ 0, NULL, NULL, NULL };
 }
 
 enum { VIS_UNKNOWN, VIS_EMPTY, VIS_READY };
 
 bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err)
 {
-    scratch->cdf = malloc(sizeof *scratch->cdf * (size_t)s->n_pairs);
-    scratch->region = malloc((size_t)s->n_pairs);
-    scratch->vis_state = calloc((size_t)s->n_pairs, 1);
-    scratch->vis = malloc(sizeof *scratch->vis * (size_t)s->n_pairs);
-    if (!scratch->cdf || !scratch->region || !scratch->vis_state || !scratch->vis) {
+    size_t n = (size_t)s->n_pairs;
+    scratch->n_cand = 0;
+    scratch->cand = malloc(sizeof *scratch->cand * n);
+    scratch->cand_pos = malloc(sizeof *scratch->cand_pos * n);
+    scratch->cdf = malloc(sizeof *scratch->cdf * n);
+    scratch->region = malloc(n);
+    scratch->vis_state = calloc(n, 1);
+    scratch->vis = malloc(sizeof *scratch->vis * n);
+    if (!scratch->cand || !scratch->cand_pos || !scratch->cdf || !scratch->region || !scratch->vis_state ||
+        !scratch->vis) {
         strategy_scratch_free(scratch);
         return error_set(err, "out of memory for strategy scratch");
     }
+    for (size_t i = 0; i < n; ++i) scratch->cand_pos[i] = -1;
     return true;
 }
 
 void strategy_scratch_free(struct strategy_scratch *scratch)
 {
+    free(scratch->cand);
+    free(scratch->cand_pos);
     free(scratch->cdf);
     free(scratch->region);
     free(scratch->vis_state);
     free(scratch->vis);
+    scratch->cand = NULL;
+    scratch->cand_pos = NULL;
     scratch->cdf = NULL;
     scratch->region = NULL;
     scratch->vis_state = NULL;
@@ -196,6 +248,8 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     if (classify) {
         *region = (unsigned char)antishadow_classify(&pt->antishadow, p);
         if (*region == REGION_OUTSIDE) return 0.0;
+        /* A lone pair needs no weight beyond "can light p". */
+        if (s->n_pairs == 1) return 1.0;
     }
     switch (heuristic) {
     case PORTAL_WEIGHT_AREA: {
@@ -230,26 +284,28 @@ void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch
     pt->scratch = scratch;
     pt->total = 0.0;
     if (!uses_portals(s->kind)) return;
-    double acc = 0.0;
-    memset(scratch->vis_state, VIS_UNKNOWN, (size_t)s->n_pairs);
-    if (s->n_pairs == 1 && classifies(s->kind)) {
-        /* One pair: its weight is only needed to tell zero from non-zero,
-           and the region answers that without the irradiance. */
-        const struct strategy_pair *pair = &s->pairs[0];
-        scratch->region[0] = pair->portal < 0 ? REGION_ANTI_PENUMBRA
-                           : (unsigned char)antishadow_classify(&s->scene->portals[pair->portal].antishadow, p);
-        pt->total = scratch->cdf[0] = scratch->region[0] == REGION_OUTSIDE ? 0.0 : 1.0;
-        return;
+    /* Forget the previous point's candidates (only those were touched). */
+    for (int k = 0; k < scratch->n_cand; ++k) {
+        scratch->cand_pos[scratch->cand[k]] = -1;
+        scratch->vis_state[scratch->cand[k]] = VIS_UNKNOWN;
     }
-    for (int i = 0; i < s->n_pairs; ++i) {
+    if (s->use_bvh) {
+        scratch->n_cand = pair_bvh_query(&s->bvh, p, scratch->cand);
+    } else {
+        scratch->n_cand = s->n_pairs;
+        for (int i = 0; i < s->n_pairs; ++i) scratch->cand[i] = i;
+    }
+    double acc = 0.0;
+    for (int k = 0; k < scratch->n_cand; ++k) {
+        int i = scratch->cand[k];
+        scratch->cand_pos[i] = k;
         double w = pair_weight(s, pt, i);
         if (!(w > 0.0) || !isfinite(w)) w = 0.0;
         acc += w;
-        scratch->cdf[i] = acc;
+        scratch->cdf[k] = acc;
     }
     pt->total = acc;
 }
-
 
 /* Density of wi under one pair's technique (0 when it cannot produce wi);
    pair_index is -1 for the defensive light-only pair. */
@@ -317,8 +373,10 @@ static int region_of(const struct strategy_point *pt, int pair)
 
 static double pair_probability(const struct strategy_point *pt, int i)
 {
-    double lo = i > 0 ? pt->scratch->cdf[i - 1] : 0.0;
-    return (pt->scratch->cdf[i] - lo) / pt->total;
+    int k = pt->scratch->cand_pos[i];
+    if (k < 0) return 0.0;
+    double lo = k > 0 ? pt->scratch->cdf[k - 1] : 0.0;
+    return (pt->scratch->cdf[k] - lo) / pt->total;
 }
 
 /* Mixture density of wi reaching `light`: the defensive light-sampling
@@ -384,7 +442,7 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
         /* Rescale u0 to [0,1) and pick a pair by the point's weights. */
         if (!(pt->total > 0.0)) return false;
         u0 = (u0 - s->defensive) / (1.0 - s->defensive);
-        index = cdf_find(pt->scratch->cdf, s->n_pairs, u0 * pt->total);
+        index = pt->scratch->cand[cdf_find(pt->scratch->cdf, pt->scratch->n_cand, u0 * pt->total)];
         pair = &s->pairs[index];
         t = strategy_technique(s, pair, region_of(pt, index));
     } else {

@@ -16,6 +16,7 @@
 #include "alias.h"
 #include "config.h"
 #include "error.h"
+#include "pair_bvh.h"
 #include "scene.h"
 #include "vec.h"
 
@@ -43,6 +44,8 @@ struct strategy {
     int n_pairs;
     struct strategy_pair *pairs;
     int *first_pair;          /* per light: index of its first pair */
+    bool use_bvh;             /* antishadow strategies: candidates from the BVH */
+    struct pair_bvh bvh;      /* over the pairs' lit regions */
 };
 
 bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err);
@@ -52,8 +55,11 @@ void strategy_free(struct strategy *s);
    visible part of each pair's light is computed at most once per shading
    point, when a weight, a sample or a pdf first needs it. */
 struct strategy_scratch {
-    double *cdf;              /* cumulative pair weights */
-    unsigned char *region;    /* enum region per pair */
+    int n_cand;               /* pairs that may light the point */
+    int *cand;                /* their indices */
+    int *cand_pos;            /* per pair: position in cand, or -1 */
+    double *cdf;              /* cumulative weights of the candidates */
+    unsigned char *region;    /* enum region per pair (candidates only) */
     unsigned char *vis_state; /* VIS_UNKNOWN, VIS_EMPTY or VIS_READY */
     struct target *vis;       /* the clipped projection, when VIS_READY */
 };

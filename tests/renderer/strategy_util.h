@@ -35,6 +35,10 @@ static inline void ts_init(struct test_scene *ts)
     memset(ts, 0, sizeof *ts);
     ts->scene.lights = ts->lights;
     ts->scene.portals = ts->portals;
+    /* Bounds as scene_create would set them: a room around everything. */
+    ts->scene.bounds_lo = vec3_make(-5, -1, -5);
+    ts->scene.bounds_hi = vec3_make(5, 5, 5);
+    ts->scene.scale = vec3_length(vec3_sub(ts->scene.bounds_hi, ts->scene.bounds_lo));
 }
 
 /* Adds a light; its portals must be added right after it. */
@@ -80,6 +84,7 @@ struct strategy_chi2 {
     const struct strategy *s;
     struct strategy_point pt;
     struct rng rng;            /* the fourth uniform */
+    long successes;            /* samples that reached a light */
     long pdf_mismatches;       /* samples whose reported pdf differs from strategy_pdf */
     long light_mismatches;     /* samples whose light is not the first light along wi */
 };
@@ -96,6 +101,7 @@ static inline bool strategy_chi2_sample(void *ctx, double u1, double u2, double 
     if (ts_first_light(c->ts, c->pt.p, ls.wi, &dist) != ls.light || fabs(dist - ls.dist) > 1e-6 * dist)
         ++c->light_mismatches;
     *dir = ls.wi;
+    ++c->successes;
     return true;
 }
 
@@ -140,6 +146,12 @@ static inline bool strategy_chi2_run(const struct test_scene *ts, enum strategy_
     cfg.seed = seed;
     cfg.significance = significance;
     bool ok = chi2_test(&cfg, strategy_chi2_sample, strategy_chi2_pdf, &c, p_value, report, report_len);
+    /* Every point tested is lit: a strategy that samples nothing would pass
+       the chi-square test trivially (no samples, zero pdf), so demand light. */
+    if (c.successes < cfg.samples / 20) {
+        snprintf(report, report_len, "only %ld of %ld samples reached a light", c.successes, cfg.samples);
+        ok = false;
+    }
     if (c.pdf_mismatches || c.light_mismatches) {
         snprintf(report, report_len, "%ld samples report a pdf != strategy_pdf, %ld a wrong light/distance",
                  c.pdf_mismatches, c.light_mismatches);

@@ -103,7 +103,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         "and seed match (e.g. to compare several of our strategies); else render "
                         "and store them there")
     p.add_argument("--out", type=Path, default=None,
-                   help="output folder (default results/crosscheck/<integrator>_sL<s_L>)")
+                   help="output folder (default results/tmp/crosscheck/<integrator>_sL<s_L>)")
     args = p.parse_args(argv)
     if args.mitsuba_runs < 2 or args.mitsuba_spp % args.mitsuba_runs != 0:
         p.error("--mitsuba-runs must be >= 2 and divide --mitsuba-spp")
@@ -113,7 +113,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         p.error("--max-depth must be >= 1")
     if args.out is None:
         tag = "scene" if args.s_L is None else "sL%g" % args.s_L
-        args.out = ROOT / "results" / "crosscheck" / ("%s_%s" % (args.integrator, tag))
+        args.out = ROOT / "results" / "tmp" / "crosscheck" / ("%s_%s" % (args.integrator, tag))
     return args
 
 
@@ -121,11 +121,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 # Our renderer
 
 
-def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
-    """Renders with our binary; returns its final JSON event plus wall time."""
-    if not args.renderer.exists():
-        raise SetupError("renderer binary %s not found (build it: make BUILD=renderer/build-xcheck "
-                         "renderer/build-xcheck/render)" % args.renderer)
+def ours_command(args: argparse.Namespace, out_dir: Path) -> list[str]:
+    """Our renderer's command line for these options (also the key of --reuse-ours)."""
     cmd = [str(args.renderer), str(args.scene), "--out", str(out_dir), "--spp", str(args.ours_spp),
            "--seed", str(args.seed), "--threads", str(args.threads), "--strategy", args.strategy,
            "--integrator", args.integrator, "--quiet", "--set", "render.time=0",
@@ -136,6 +133,15 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
         cmd += ["--set", "render.max_depth=%d" % args.max_depth, "--set", "render.rr_depth=%d" % args.rr_depth]
     for s in args.sets:
         cmd += ["--set", s]
+    return cmd
+
+
+def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
+    """Renders with our binary; returns its final JSON event plus wall time."""
+    if not args.renderer.exists():
+        raise SetupError("renderer binary %s not found (build it: make BUILD=renderer/build-xcheck "
+                         "renderer/build-xcheck/render)" % args.renderer)
+    cmd = ours_command(args, out_dir)
     t0 = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.monotonic() - t0
@@ -581,10 +587,15 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     try:
         final_exr = ours_dir / "final.exr"
+        ours_run = None
         if args.reuse_ours and final_exr.exists() and (ours_dir / "ours_run.json").exists():
             ours_run = json.loads((ours_dir / "ours_run.json").read_text())
-            print("reusing %s" % final_exr, file=sys.stderr)
-        else:
+            if ours_run.get("command") != ours_command(args, ours_dir):
+                print("not reusing %s: rendered with other options" % final_exr, file=sys.stderr)
+                ours_run = None
+            else:
+                print("reusing %s" % final_exr, file=sys.stderr)
+        if ours_run is None:
             print("rendering ours: %d spp ..." % args.ours_spp, file=sys.stderr)
             ours_run = run_ours(args, ours_dir)
             (ours_dir / "ours_run.json").write_text(json.dumps(ours_run, indent=1))

@@ -1,0 +1,44 @@
+/* pair_bvh.h: a bounding volume hierarchy over the parts of space that each
+   light/portal pair can light (a portal's anti-penumbra, a light's lit half
+   space, each clipped to the scene's bounds), so that a shading point finds
+   the pairs that may reach it in O(log n + k) instead of testing them all. */
+#ifndef PAIR_BVH_H
+#define PAIR_BVH_H
+
+#include <stdbool.h>
+
+#include "error.h"
+#include "polygon.h"
+#include "vec.h"
+
+struct aabb {
+    struct vec3 lo, hi;
+};
+
+/* Bounding box of the convex region {x in box : plane_distance(p_i, x) >= 0
+   for all i}; false when the region is empty. Found by clipping a polygon on
+   each bounding plane by all the others: the region's vertices lie on them. */
+bool aabb_of_region(const struct plane *planes, int n, struct aabb box, struct aabb *out);
+
+struct pair_bvh_node {
+    struct aabb box;
+    int first;   /* leaf: first index into items; inner: left child (right = left + 1) */
+    int count;   /* leaf: number of items; inner: 0 */
+};
+
+struct pair_bvh {
+    int n_nodes;
+    struct pair_bvh_node *nodes;
+    int *items;  /* pair indices, grouped by leaf */
+    struct aabb *boxes; /* each item's own box, by item index */
+};
+
+/* Builds over n boxes (item i has box boxes[i]; an empty box, lo > hi, is
+   never returned). */
+bool pair_bvh_build(struct pair_bvh *b, const struct aabb *boxes, int n, struct error *err);
+void pair_bvh_free(struct pair_bvh *b);
+/* Writes the items whose box contains p into out (capacity: n items) and
+   returns how many. */
+int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out);
+
+#endif
