@@ -219,7 +219,7 @@ def section_threads(ctx: Context) -> dict[str, Any]:
 
 def section_snapshots(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
-    secs, reps, every = (1.5 if q else 3.0), (1 if q else 3), 0.25
+    secs, reps, every = (1.5 if q else 2.0), (1 if q else 5), 0.25
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "strategy": "light", "integrator": "direct",
               "time_s": secs, "reps": reps, "every_s": every, "threads": 2}
     out = TMP / "runs" / "snapshots"

@@ -3,6 +3,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Beyond the antishadow's four regions: p lies on the light's side of every
+   portal plane of its light (inside the shade, say), where the light is
+   reached directly, not through a portal. The antishadow strategies sample
+   the light itself there; the first pair of the light carries it. */
+#define PAIR_LIGHT_SIDE (REGION_ANTI_ANTUMBRA + 1)
+
 static bool uses_portals(enum strategy_kind k)
 {
     switch (k) {
@@ -49,9 +55,31 @@ static bool build_bvh(struct strategy *s, struct error *err)
             const struct target *t = &sc->lights[pair->light].target;
             planes[n++] = (struct plane){ t->normal, vec3_dot(t->normal, t->polygon.v[0]) };
         }
-        if (aabb_of_region(planes, n, scene_box, &boxes[i])) {
-            boxes[i].lo = vec3_sub(boxes[i].lo, vec3_make(pad, pad, pad));
-            boxes[i].hi = vec3_add(boxes[i].hi, vec3_make(pad, pad, pad));
+        struct aabb box = { vec3_make(INFINITY, INFINITY, INFINITY), vec3_make(-INFINITY, -INFINITY, -INFINITY) };
+        bool any = aabb_of_region(planes, n, scene_box, &box);
+        const struct light *l = &sc->lights[pair->light];
+        if (pair->portal >= 0 && pair->portal == l->first_portal) {
+            /* The first pair also lights the light's side of all its portals. */
+            struct plane side[POLYGON_INPUT_MAX + 1];
+            int m = 0;
+            for (int k = l->first_portal; k < l->first_portal + l->n_portals && m < POLYGON_INPUT_MAX; ++k) {
+                struct plane q = sc->portals[k].antishadow.portal_plane;
+                side[m++] = (struct plane){ vec3_neg(q.normal), -q.offset };
+            }
+            if (!l->two_sided) side[m++] = (struct plane){ l->target.normal, vec3_dot(l->target.normal, l->target.polygon.v[0]) };
+            struct aabb inside;
+            if (aabb_of_region(side, m, scene_box, &inside)) {
+                box = any ? (struct aabb){ vec3_make(fmin(box.lo.x, inside.lo.x), fmin(box.lo.y, inside.lo.y),
+                                                     fmin(box.lo.z, inside.lo.z)),
+                                           vec3_make(fmax(box.hi.x, inside.hi.x), fmax(box.hi.y, inside.hi.y),
+                                                     fmax(box.hi.z, inside.hi.z)) }
+                          : inside;
+                any = true;
+            }
+        }
+        if (any) {
+            boxes[i].lo = vec3_sub(box.lo, vec3_make(pad, pad, pad));
+            boxes[i].hi = vec3_add(box.hi, vec3_make(pad, pad, pad));
         } else {
             boxes[i] = (struct aabb){ vec3_make(1, 1, 1), vec3_make(-1, -1, -1) }; /* lights nothing */
         }
@@ -170,6 +198,7 @@ enum technique strategy_technique(const struct strategy *s, const struct strateg
     case STRATEGY_ANTISHADOW_EXACT: {
         if (pair->portal < 0) return TECHNIQUE_LIGHT_SOLID;
         bool exact = s->kind == STRATEGY_ANTISHADOW_EXACT;
+        if (region == PAIR_LIGHT_SIDE) return TECHNIQUE_LIGHT_SOLID;
         switch ((enum region)region) {
         case REGION_OUTSIDE:
             return TECHNIQUE_NONE;
@@ -212,6 +241,33 @@ static double irradiance_factor(const struct polygon *poly, struct vec3 p, struc
     return polygon_solid_angle(poly, p);
 }
 
+/* True when p is on the light's side of every one of its portals' planes. */
+static bool on_light_side(const struct scene *sc, const struct light *l, struct vec3 p)
+{
+    for (int k = l->first_portal; k < l->first_portal + l->n_portals; ++k)
+        if (plane_distance(&sc->portals[k].antishadow.portal_plane, p) > 0.0) return false;
+    return l->n_portals > 0;
+}
+
+/* Weight of a light sampled by itself (no portal): facing test, then the
+   heuristic on the light's own polygon. */
+static double light_weight(const struct light *l, enum portal_weight_kind heuristic, struct vec3 p, struct vec3 n)
+{
+    struct vec3 to_p = vec3_sub(p, l->target.polygon.v[0]);
+    if (!l->two_sided && vec3_dot(to_p, l->target.normal) <= 0.0) return 0.0;
+    switch (heuristic) {
+    case PORTAL_WEIGHT_AREA:
+        return l->power;
+    case PORTAL_WEIGHT_DISTANCE: {
+        struct vec3 c = polygon_centroid(&l->target.polygon);
+        return l->power / fmax(vec3_length2(vec3_sub(c, p)), 1e-12);
+    }
+    case PORTAL_WEIGHT_IRRADIANCE:
+        return rgb_luminance(l->radiance) * irradiance_factor(&l->target.polygon, p, n);
+    }
+    return 0.0;
+}
+
 /* Weight of pair i at the point under the strategy's heuristic; sets the
    pair's region. */
 static double pair_weight(const struct strategy *s, const struct strategy_point *ptp, int i)
@@ -227,25 +283,16 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     enum portal_weight_kind heuristic = classify ? s->weight : PORTAL_WEIGHT_AREA;
     *region = REGION_ANTI_PENUMBRA;
 
-    if (pair->portal < 0) {
-        /* A light without portals: facing test, then the heuristic. */
-        struct vec3 to_p = vec3_sub(p, l->target.polygon.v[0]);
-        if (!l->two_sided && vec3_dot(to_p, l->target.normal) <= 0.0) return 0.0;
-        switch (heuristic) {
-        case PORTAL_WEIGHT_AREA:
-            return l->power;
-        case PORTAL_WEIGHT_DISTANCE: {
-            struct vec3 c = polygon_centroid(&l->target.polygon);
-            return l->power / fmax(vec3_length2(vec3_sub(c, p)), 1e-12);
-        }
-        case PORTAL_WEIGHT_IRRADIANCE:
-            return rgb_luminance(l->radiance) * irradiance_factor(&l->target.polygon, p, n);
-        }
-        return 0.0;
-    }
+    if (pair->portal < 0) return light_weight(l, heuristic, p, n);
 
     const struct portal *pt = &sc->portals[pair->portal];
     if (classify) {
+        if (on_light_side(sc, l, p)) {
+            /* Only the light's first pair samples it there. */
+            *region = PAIR_LIGHT_SIDE;
+            if (pair->portal != l->first_portal) return 0.0;
+            return s->n_pairs == 1 ? 1.0 : light_weight(l, heuristic, p, n);
+        }
         *region = (unsigned char)antishadow_classify(&pt->antishadow, p);
         if (*region == REGION_OUTSIDE) return 0.0;
         /* A lone pair needs no weight beyond "can light p". */
