@@ -185,6 +185,7 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
     memset(a, 0, sizeof *a);
     a->light = *light;
     a->portal = *portal;
+    polygon_clip_planes_init(portal, &a->portal_clip);
 
     struct vec3 c_light = polygon_centroid(light), c_portal = polygon_centroid(portal);
     double scale = polygon_extent(light) + polygon_extent(portal) + vec3_length(vec3_sub(c_light, c_portal));
@@ -337,7 +338,7 @@ int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enu
             out->n = 0;
             return 0;
         }
-        return polygon_clip_convex(&projected, &a->portal, out);
+        return polygon_clip_by_planes(&projected, &a->portal_clip, out);
     }
     }
     out->n = 0;

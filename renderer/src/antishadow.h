@@ -40,6 +40,7 @@ struct antishadow {
     int n_antumbra;               /* anti-antumbra if positive for all (one per light edge) */
     struct plane antumbra[POLYGON_INPUT_MAX];
     struct polygon light, portal; /* copies of the inputs, as given */
+    struct clip_planes portal_clip; /* the portal's edge planes, for clipping */
 };
 
 /* Precomputes the planes of a light/portal pair (once, at scene load). Both

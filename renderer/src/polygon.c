@@ -202,17 +202,14 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
    cross(N, edge) turns left of the edge, which is the inside for either
    winding because N follows the winding. The centroid check guards nearly
    degenerate clip polygons. */
-int polygon_clip_convex(const struct polygon *subject, const struct polygon *clip, struct polygon *out)
+void polygon_clip_planes_init(const struct polygon *clip, struct clip_planes *cp)
 {
+    cp->n = 0;
     struct vec3 nrm = polygon_normal(clip);
-    if (subject->n < 3 || clip->n < 3 || vec3_length2(nrm) == 0.0) {
-        out->n = 0;
-        return 0;
-    }
+    if (clip->n < 3 || vec3_length2(nrm) == 0.0) return;
     struct vec3 c = polygon_centroid(clip);
     double tol = POLYGON_DUP_REL * polygon_size(clip);
-    struct polygon work = *subject;
-    for (int i = 0; i < clip->n && work.n > 0; ++i) {
+    for (int i = 0; i < clip->n; ++i) {
         struct vec3 a = clip->v[i], e = vec3_sub(clip->v[(i + 1) % clip->n], a);
         if (!(vec3_length(e) > tol)) continue;
         struct plane pl;
@@ -222,15 +219,33 @@ int polygon_clip_convex(const struct polygon *subject, const struct polygon *cli
             pl.normal = vec3_neg(pl.normal);
             pl.offset = -pl.offset;
         }
-        polygon_clip_plane(&work, &pl, &work);
+        cp->plane[cp->n++] = pl;
     }
-    *out = work;
+}
+
+int polygon_clip_by_planes(const struct polygon *subject, const struct clip_planes *cp, struct polygon *out)
+{
+    if (subject->n < 3 || cp->n == 0) {
+        out->n = 0;
+        return 0;
+    }
+    *out = *subject;
+    for (int i = 0; i < cp->n && out->n > 0; ++i) polygon_clip_plane(out, &cp->plane[i], out);
     return out->n;
+}
+
+int polygon_clip_convex(const struct polygon *subject, const struct polygon *clip, struct polygon *out)
+{
+    struct clip_planes cp;
+    polygon_clip_planes_init(clip, &cp);
+    return polygon_clip_by_planes(subject, &cp, out);
 }
 
 /* Inclusive of the boundary within POLYGON_CONTAINS_REL of the polygon's
    size, measured in the polygon's plane (the normal component of x - v_i is
    ignored). Valid for convex polygons of either winding. */
+bool polygon_contains(const struct polygon *poly, struct vec3 x);
+
 /* Inside test against the edges, given the (unnormalised) Newell normal.
    The tolerance scales with sqrt(|nrm|) = sqrt(2 area), a size measure that
    costs one square root instead of a bounding box per call (this runs for

@@ -51,6 +51,16 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
    either way. Returns the vertex count of `out` (0 when they do not overlap). */
 int polygon_clip_convex(const struct polygon *subject, const struct polygon *clip, struct polygon *out);
 
+/* The inward edge planes of a convex clip polygon (perpendicular to its
+   plane), precomputed once when the same polygon clips many subjects. */
+struct clip_planes {
+    int n;
+    struct plane plane[POLYGON_MAX];
+};
+void polygon_clip_planes_init(const struct polygon *clip, struct clip_planes *cp);
+/* polygon_clip_convex with prepared planes. */
+int polygon_clip_by_planes(const struct polygon *subject, const struct clip_planes *cp, struct polygon *out);
+
 /* Ray o + t d (d need not be unit) against the polygon: true with *t when the
    ray hits the polygon's interior at t > 0 (either side). */
 bool polygon_intersect_ray(const struct polygon *poly, struct vec3 o, struct vec3 d, double *t);
