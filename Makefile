@@ -28,7 +28,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test test-c test-c-san test-py figures bench fuzz clean
+.PHONY: all deps venv test test-c test-c-san test-py figures bench fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -93,6 +93,12 @@ bench: $(BUILD)/render
 
 fuzz:
 	@renderer/fuzz/run.sh $(or $(FUZZ_SECONDS),60)
+
+# Independent-renderer check: the lampshade against Mitsuba 3 (own venv).
+crosscheck: $(BUILD)/render
+	@test -x .venv-xcheck/bin/python || python3 -m venv .venv-xcheck
+	@.venv-xcheck/bin/pip install -q mitsuba numpy openexr PyYAML pytest
+	.venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py
 
 clean:
 	rm -rf renderer/build renderer/build-san

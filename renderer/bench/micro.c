@@ -103,7 +103,7 @@ static void make_points(struct point_set *ps, const char *name, const struct sce
         ps->wi_light[i] = wi;
         ps->shadow_o[i] = scene_offset_origin(sc, p, up, wi);
         ps->shadow_d[i] = wi;
-        ps->shadow_tmax[i] = vec3_length(vec3_sub(y, ps->shadow_o[i])) * (1.0 - SCENE_SHADOW_EPS);
+        ps->shadow_tmax[i] = vec3_length(vec3_sub(y, ps->shadow_o[i])) * (1.0 - 1e-4) /* shadow rays stop short of the light */;
         struct polygon vis;
         if (antishadow_visible_polygon(a, p, &vis) >= 3) {
             ps->vis[ps->n_vis] = vis;

@@ -135,7 +135,7 @@ static void build_batches(const struct config *cfg, const struct scene *sc, int 
                     if (dist > 0.0 && facing && vec3_dot(wi, n) > 0.0) {
                         struct vec3 o = scene_offset_origin(sc, h.p, n, wi);
                         double len = vec3_length(vec3_sub(yl, o));
-                        double tmax = len * (1.0 - SCENE_SHADOW_EPS);
+                        double tmax = len * (1.0 - 1e-4) /* shadow rays stop short of the light */;
                         batch_push(&b[BATCH_SHADOW], o, wi, tmax, RAY_SHADOW);
                         batch_push(&b[BATCH_MIX], o, wi, tmax, RAY_SHADOW);
                     }

@@ -56,8 +56,13 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
     if (rgb_is_black(f)) return black;
     ++stats->rays;
     ++stats->shadow_rays;
+    /* Both ends of the shadow segment are moved along it until they clear
+       their surfaces: a relative shortening alone leaves the end within
+       float precision of the light's plane for points just below it. */
     struct vec3 origin = scene_offset_origin(it->scene, sp->p, sp->n, ls.wi);
-    if (scene_segment_occluded(it->scene, origin, vec3_madd(sp->p, ls.wi, ls.dist))) {
+    struct vec3 end = scene_offset_origin(it->scene, vec3_madd(sp->p, ls.wi, ls.dist),
+                                          it->scene->lights[ls.light].target.normal, vec3_neg(ls.wi));
+    if (scene_segment_occluded(it->scene, origin, end)) {
         ++stats->shadow_blocked;
         return black;
     }

@@ -211,7 +211,7 @@ bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3
     struct vec3 d = vec3_sub(to, from);
     double len = vec3_length(d);
     if (!(len > 0.0)) return false;
-    return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len * (1.0 - SCENE_SHADOW_EPS));
+    return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len);
 }
 
 struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)

@@ -60,15 +60,14 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
 /* True when anything blocks o + t d for t in (0, tmax). */
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
 
-/* True when anything blocks the open segment from `from` to `to` (the end
-   is pulled back by SCENE_SHADOW_EPS so the light it lies on does not count). */
+/* True when anything blocks the segment from `from` to `to`. Both ends are
+   expected to be clear of the surfaces they lie on already: use
+   scene_offset_origin at each end (towards the other end). */
 bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to);
 
 /* Origin for a ray leaving surface point p (geometric normal ng) along the
    unit direction d: moved along d itself until it clears the surface, so the
    ray stays on the line that was sampled and does not re-hit its surface. */
 struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d);
-/* Relative shortening of shadow segments, well above float ray precision. */
-#define SCENE_SHADOW_EPS 1e-4
 
 #endif

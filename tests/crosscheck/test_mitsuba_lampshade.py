@@ -194,3 +194,25 @@ def test_6_small_direct_render_agrees_with_mitsuba(tmp_path):
     assert proc.returncode == 0, proc.stdout
     for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]):
         assert abs(r - 1.0) < 5 * e
+
+
+def test_7_a_block_without_hits_tolerates_a_few_hits_worth_only():
+    # Mitsuba found no light in block (0, 0) (a thin penumbra sliver it never
+    # hit); ours found a little with a tiny variance. With the spp known, the
+    # zero side gets one hit's variance, (h / N)^2 with h ~ 1 and N = 64 * 256.
+    rng = np.random.default_rng(SEED + 4)
+    ours, var, runs = synthetic(rng, 0.0)
+    runs[:, :8, :8] = 0.0
+    ours[:8, :8] = 0.0
+    ours[0, 0] = 64 * 2.0 / (64 * 256)        # block mean: 2 hits' worth
+    var[:8, :8] = 0.0
+    var[0, 0] = (ours[0, 0] / 100) ** 2
+    without = xcheck.compare(ours, var, runs, 8, 1e-3)["stats"]
+    assert without["max_abs_z"] > 50             # the zero variance is not credible
+    s = xcheck.compare(ours, var, runs, 8, 1e-3, ours_spp=256, mits_spp=256)["stats"]
+    assert s["zero_hit_tests"] == 3
+    assert s["max_abs_z"] <= s["bound"]
+    # Fifty hits' worth is light the other renderer could not have missed.
+    ours[0, 0] *= 25
+    s = xcheck.compare(ours, var, runs, 8, 1e-3, ours_spp=256, mits_spp=256)["stats"]
+    assert s["max_abs_z"] > s["bound"]
