@@ -44,7 +44,7 @@ def mitsuba_python() -> str | None:
 
 
 def renderer() -> Path | None:
-    for build in ("build-lead", "build", "build-xcheck"):
+    for build in ("build",):
         p = REPO / "renderer" / build / "render"
         if p.exists():
             return p

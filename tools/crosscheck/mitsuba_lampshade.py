@@ -68,9 +68,7 @@ class SetupError(Exception):
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    default_renderer = ROOT / "renderer" / "build-lead" / "render"
-    if not default_renderer.exists():
-        default_renderer = ROOT / "renderer" / "build" / "render"
+    default_renderer = ROOT / "renderer" / "build" / "render"
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="scene YAML (default: lampshade)")
     p.add_argument("--renderer", type=Path, default=default_renderer, help="our render binary")
