@@ -863,10 +863,10 @@ static bool load_snapshots(struct loader *L, const yaml_node_t *map, struct snap
 {
     yaml_node_t *n;
     if (!check_keys(L, map, "render.snapshots", snapshot_keys, COUNT(snapshot_keys))) return false;
-    if ((n = map_get(L, map, "every")) && !get_number_in(L, n, 0.0, true, INFINITY, false, &s->every_s)) return false;
-    if ((n = map_get(L, map, "doubling")) && !get_number_in(L, n, 0.0, true, INFINITY, false, &s->doubling_s))
+    if ((n = map_get(L, map, "every")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->every_s)) return false;
+    if ((n = map_get(L, map, "doubling")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->doubling_s))
         return false;
-    if ((n = map_get(L, map, "every_spp")) && !get_int(L, n, 1, INT_MAX, &s->every_spp)) return false;
+    if ((n = map_get(L, map, "every_spp")) && !get_int(L, n, 0, INT_MAX, &s->every_spp)) return false;
     if (!get_optional(L, map, "times", YAML_SEQUENCE_NODE, &n) || (n && !get_times(L, n, s->times_s, &s->n_times)))
         return false;
     if (!get_optional(L, map, "spp", YAML_SEQUENCE_NODE, &n) || (n && !get_spps(L, n, s->spps, &s->n_spps)))
