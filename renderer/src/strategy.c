@@ -31,6 +31,31 @@ static bool classifies(enum strategy_kind k)
     return k == STRATEGY_ANTISHADOW || k == STRATEGY_ANTISHADOW_EXACT;
 }
 
+/* The box in which a light with portals counts a point as inside its shade:
+   the bounding box of the light and its portals, grown on every side by its
+   own diagonal. A shade wraps its lamp closely; without a bound, every
+   point between the portal and light planes of a lamp (the outside of other
+   shades, walls at that height) would sample that lamp through its shade. */
+static struct aabb shade_box(const struct scene *sc, const struct light *l)
+{
+    struct aabb b = { vec3_make(INFINITY, INFINITY, INFINITY), vec3_make(-INFINITY, -INFINITY, -INFINITY) };
+    const struct polygon *polys[1 + 64];
+    int n = 0;
+    polys[n++] = &l->target.polygon;
+    for (int k = l->first_portal; k < l->first_portal + l->n_portals && n < 65; ++k)
+        polys[n++] = &sc->portals[k].target.polygon;
+    for (int i = 0; i < n; ++i)
+        for (int v = 0; v < polys[i]->n; ++v) {
+            struct vec3 x = polys[i]->v[v];
+            b.lo = vec3_make(fmin(b.lo.x, x.x), fmin(b.lo.y, x.y), fmin(b.lo.z, x.z));
+            b.hi = vec3_make(fmax(b.hi.x, x.x), fmax(b.hi.y, x.y), fmax(b.hi.z, x.z));
+        }
+    double grow = vec3_length(vec3_sub(b.hi, b.lo));
+    b.lo = vec3_sub(b.lo, vec3_make(grow, grow, grow));
+    b.hi = vec3_add(b.hi, vec3_make(grow, grow, grow));
+    return b;
+}
+
 /* The region each pair can light, as a box: a portal's anti-penumbra (the
    portal plane and the separating planes), a one-sided light's front half
    space, a two-sided light's whole scene; all within the scene's bounds,
@@ -67,8 +92,12 @@ static bool build_bvh(struct strategy *s, struct error *err)
                 side[m++] = (struct plane){ vec3_neg(q.normal), -q.offset };
             }
             if (!l->two_sided) side[m++] = (struct plane){ l->target.normal, vec3_dot(l->target.normal, l->target.polygon.v[0]) };
-            struct aabb inside;
-            if (aabb_of_region(side, m, scene_box, &inside)) {
+            struct aabb inside, shade = s->shade[pair->light];
+            shade.lo = vec3_make(fmax(shade.lo.x, scene_box.lo.x), fmax(shade.lo.y, scene_box.lo.y),
+                                 fmax(shade.lo.z, scene_box.lo.z));
+            shade.hi = vec3_make(fmin(shade.hi.x, scene_box.hi.x), fmin(shade.hi.y, scene_box.hi.y),
+                                 fmin(shade.hi.z, scene_box.hi.z));
+            if (aabb_of_region(side, m, shade, &inside)) {
                 box = any ? (struct aabb){ vec3_make(fmin(box.lo.x, inside.lo.x), fmin(box.lo.y, inside.lo.y),
                                                      fmin(box.lo.z, inside.lo.z)),
                                            vec3_make(fmax(box.hi.x, inside.hi.x), fmax(box.hi.y, inside.hi.y),
@@ -99,6 +128,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
     s->first_pair = NULL;
     s->n_pairs = 0;
     s->use_bvh = false;
+    s->shade = NULL;
     s->bvh = (struct pair_bvh){ 0, NULL, NULL, NULL };
     double *power = malloc(sizeof *power * (size_t)scene->n_lights);
     if (!power) return error_set(err, "out of memory for %d lights", scene->n_lights);
@@ -129,6 +159,12 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
         }
     }
     s->first_pair[scene->n_lights] = s->n_pairs;
+    s->shade = malloc(sizeof *s->shade * (size_t)(scene->n_lights > 0 ? scene->n_lights : 1));
+    if (!s->shade) {
+        strategy_free(s);
+        return error_set(err, "out of memory for %d lights", scene->n_lights);
+    }
+    for (int i = 0; i < scene->n_lights; ++i) s->shade[i] = shade_box(scene, &scene->lights[i]);
     s->use_bvh = classifies(s->kind);
     return s->use_bvh ? build_bvh(s, err) : true;
 }
@@ -137,6 +173,8 @@ void strategy_free(struct strategy *s)
 {
     alias_free(&s->power);
     pair_bvh_free(&s->bvh);
+    free(s->shade);
+    s->shade = NULL;
     free(s->pairs);
     free(s->first_pair);
     s->pairs = NULL;
@@ -241,12 +279,16 @@ static double irradiance_factor(const struct polygon *poly, struct vec3 p, struc
     return polygon_solid_angle(poly, p);
 }
 
-/* True when p is on the light's side of every one of its portals' planes. */
-static bool on_light_side(const struct scene *sc, const struct light *l, struct vec3 p)
+/* True when p is inside the light's shade: on the light's side of every one
+   of its portals' planes and within its shade box. */
+static bool on_light_side(const struct strategy *s, const struct light *l, struct vec3 p)
 {
+    const struct scene *sc = s->scene;
+    if (l->n_portals == 0) return false;
     for (int k = l->first_portal; k < l->first_portal + l->n_portals; ++k)
         if (plane_distance(&sc->portals[k].antishadow.portal_plane, p) > 0.0) return false;
-    return l->n_portals > 0;
+    struct aabb b = s->shade[l - sc->lights];
+    return p.x >= b.lo.x && p.x <= b.hi.x && p.y >= b.lo.y && p.y <= b.hi.y && p.z >= b.lo.z && p.z <= b.hi.z;
 }
 
 /* Weight of a light sampled by itself (no portal): facing test, then the
@@ -287,7 +329,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
 
     const struct portal *pt = &sc->portals[pair->portal];
     if (classify) {
-        if (on_light_side(sc, l, p)) {
+        if (on_light_side(s, l, p)) {
             /* Only the light's first pair samples it there. */
             *region = PAIR_LIGHT_SIDE;
             if (pair->portal != l->first_portal) return 0.0;

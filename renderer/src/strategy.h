@@ -45,6 +45,7 @@ struct strategy {
     struct strategy_pair *pairs;
     int *first_pair;          /* per light: index of its first pair */
     bool use_bvh;             /* antishadow strategies: candidates from the BVH */
+    struct aabb *shade;       /* per light: where a point counts as inside its shade */
     struct pair_bvh bvh;      /* over the pairs' lit regions */
 };
 
