@@ -291,6 +291,16 @@ static bool on_light_side(const struct strategy *s, const struct light *l, struc
     return p.x >= b.lo.x && p.x <= b.hi.x && p.y >= b.lo.y && p.y <= b.hi.y && p.z >= b.lo.z && p.z <= b.hi.z;
 }
 
+/* True when some vertex of poly is strictly above the plane through p with
+   normal n (always, when n is zero). */
+static bool above_horizon(const struct polygon *poly, struct vec3 p, struct vec3 n)
+{
+    if (vec3_length2(n) == 0.0) return true;
+    for (int i = 0; i < poly->n; ++i)
+        if (vec3_dot(n, vec3_sub(poly->v[i], p)) > 0.0) return true;
+    return false;
+}
+
 /* Weight of a light sampled by itself (no portal): facing test, then the
    heuristic on the light's own polygon. */
 static double light_weight(const struct light *l, enum portal_weight_kind heuristic, struct vec3 p, struct vec3 n)
@@ -330,9 +340,11 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     const struct portal *pt = &sc->portals[pair->portal];
     if (classify) {
         if (on_light_side(s, l, p)) {
-            /* Only the light's first pair samples it there. */
+            /* Only the light's first pair samples it there, and only if some
+               of the light is above the receiver's horizon: the outside of
+               the shade and the underside of its opening face away. */
             *region = PAIR_LIGHT_SIDE;
-            if (pair->portal != l->first_portal) return 0.0;
+            if (pair->portal != l->first_portal || !above_horizon(&l->target.polygon, p, n)) return 0.0;
             return s->n_pairs == 1 ? 1.0 : light_weight(l, heuristic, p, n);
         }
         *region = (unsigned char)antishadow_classify(&pt->antishadow, p);
