@@ -147,26 +147,20 @@ void pair_bvh_free(struct pair_bvh *b)
     b->n_nodes = 0;
 }
 
-static bool contains(const struct aabb *box, struct vec3 p)
-{
-    return p.x >= box->lo.x && p.x <= box->hi.x && p.y >= box->lo.y && p.y <= box->hi.y && p.z >= box->lo.z &&
-           p.z <= box->hi.z;
-}
-
 int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out)
 {
     int stack[64], top = 0, found = 0;
-    if (b->n_nodes == 0 || !contains(&b->nodes[0].box, p)) return 0;
+    if (b->n_nodes == 0 || !aabb_contains(&b->nodes[0].box, p)) return 0;
     stack[top++] = 0;
     while (top > 0) {
         const struct pair_bvh_node *nd = &b->nodes[stack[--top]];
         if (nd->count > 0) {
             for (int i = nd->first; i < nd->first + nd->count; ++i)
-                if (contains(&b->boxes[b->items[i]], p)) out[found++] = b->items[i];
+                if (aabb_contains(&b->boxes[b->items[i]], p)) out[found++] = b->items[i];
             continue;
         }
         for (int c = nd->first; c <= nd->first + 1; ++c)
-            if (contains(&b->nodes[c].box, p) && top < 64) stack[top++] = c;
+            if (aabb_contains(&b->nodes[c].box, p) && top < 64) stack[top++] = c;
     }
     return found;
 }

@@ -15,6 +15,12 @@ struct aabb {
     struct vec3 lo, hi;
 };
 
+static inline bool aabb_contains(const struct aabb *box, struct vec3 p)
+{
+    return p.x >= box->lo.x && p.x <= box->hi.x && p.y >= box->lo.y && p.y <= box->hi.y && p.z >= box->lo.z &&
+           p.z <= box->hi.z;
+}
+
 /* Bounding box of the convex region {x in box : plane_distance(p_i, x) >= 0
    for all i}; false when the region is empty. Found by clipping a polygon on
    each bounding plane by all the others: the region's vertices lie on them. */

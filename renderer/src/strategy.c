@@ -287,8 +287,7 @@ static bool on_light_side(const struct strategy *s, const struct light *l, struc
     if (l->n_portals == 0) return false;
     for (int k = l->first_portal; k < l->first_portal + l->n_portals; ++k)
         if (plane_distance(&sc->portals[k].antishadow.portal_plane, p) > 0.0) return false;
-    struct aabb b = s->shade[l - sc->lights];
-    return p.x >= b.lo.x && p.x <= b.hi.x && p.y >= b.lo.y && p.y <= b.hi.y && p.z >= b.lo.z && p.z <= b.hi.z;
+    return aabb_contains(&s->shade[l - sc->lights], p);
 }
 
 /* True when some vertex of poly is strictly above the plane through p with
