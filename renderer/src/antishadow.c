@@ -61,17 +61,6 @@
    twice) when their normals and offsets agree to this. */
 #define ANTISHADOW_SAME_REL 1e-9
 
-static double polygon_extent(const struct polygon *poly)
-{
-    struct vec3 lo = poly->v[0], hi = poly->v[0];
-    for (int i = 1; i < poly->n; ++i) {
-        struct vec3 v = poly->v[i];
-        lo = vec3_make(fmin(lo.x, v.x), fmin(lo.y, v.y), fmin(lo.z, v.z));
-        hi = vec3_make(fmax(hi.x, v.x), fmax(hi.y, v.y), fmax(hi.z, v.z));
-    }
-    return vec3_length(vec3_sub(hi, lo));
-}
-
 static bool check_polygon(const struct polygon *poly, const char *what, struct error *err)
 {
     if (poly->n < 3 || poly->n > POLYGON_INPUT_MAX)
@@ -188,7 +177,7 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
     polygon_clip_planes_init(portal, &a->portal_clip);
 
     struct vec3 c_light = polygon_centroid(light), c_portal = polygon_centroid(portal);
-    double scale = polygon_extent(light) + polygon_extent(portal) + vec3_length(vec3_sub(c_light, c_portal));
+    double scale = polygon_size(light) + polygon_size(portal) + vec3_length(vec3_sub(c_light, c_portal));
     double tol = ANTISHADOW_SIDE_REL * scale;
 
     /* Orient the portal plane so that the light is on its negative side. */

@@ -13,7 +13,7 @@
 #define POLYGON_CONTAINS_REL 1e-9
 #define POLYGON_DEGENERATE_REL 1e-12
 
-static double polygon_size(const struct polygon *poly)
+double polygon_size(const struct polygon *poly)
 {
     if (poly->n <= 0) return 0.0;
     struct vec3 lo = poly->v[0], hi = poly->v[0];

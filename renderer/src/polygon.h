@@ -35,6 +35,8 @@ struct vec3 polygon_area_normal(const struct polygon *poly);
 struct vec3 polygon_normal(const struct polygon *poly);
 double polygon_area(const struct polygon *poly);
 struct vec3 polygon_centroid(const struct polygon *poly);
+/* Diagonal of the bounding box: the size that relative tolerances scale with. */
+double polygon_size(const struct polygon *poly);
 /* The supporting plane, oriented by the winding. */
 struct plane polygon_plane(const struct polygon *poly);
 
