@@ -104,3 +104,10 @@ clean:
 	rm -rf renderer/build renderer/build-san
 
 -include $(OBJS:.o=.d) $(BUILD)/obj/main.d $(TEST_BINS:=.d)
+
+# Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c
+# (kills at random moments, inside snapshot and final writes too) run
+# STRESS_ITERATIONS times (default 500); every EXR left must open.
+.PHONY: stress
+stress: $(BUILD)/render $(BUILD)/tests/test_faults
+	PORTAL_LIGHTS_KILL_ITERATIONS=$(or $(STRESS_ITERATIONS),500) $(BUILD)/tests/test_faults kill_loop

@@ -2,6 +2,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <inttypes.h>
 #include <limits.h>
 #include <math.h>
@@ -9,6 +10,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <unistd.h>
 
 #include <yaml.h>
 
@@ -26,8 +30,8 @@ static const char *const shape_kind_names[3] = { "quad", "box", "mesh" };
 
 #define COUNT(a) ((int)(sizeof(a) / sizeof((a)[0])))
 
-static const char *const top_keys[] = { "params", "camera", "film",    "materials",
-                                        "shapes", "lights", "portals", "render" };
+static const char *const top_keys[] = { "include", "params", "camera",  "film",  "materials",
+                                        "shapes",  "lights", "portals", "render" };
 static const char *const camera_keys[] = { "position", "look_at", "up", "fov_y" };
 static const char *const film_keys[] = { "width", "height" };
 static const char *const diffuse_keys[] = { "type", "albedo" };
@@ -51,6 +55,14 @@ static const char *const snapshot_keys[] = { "every", "doubling", "times", "ever
 #define FILM_SIZE_MAX 16384
 #define THREADS_MAX 256
 
+/* Bounds on building the merged document of an include tree: nesting of
+   copied nodes (the copy recurses), and nodes made by merging mappings
+   relative to nodes copied (aliases to mappings could otherwise multiply
+   the merged nodes exponentially). Real configs stay far below both. */
+#define COPY_DEPTH_MAX 1000
+#define MERGE_NODES_PER_COPY 16
+#define MERGE_NODES_SLACK 4096
+
 /* --set values become nodes without a place in the file; errors in them name
    the override instead. */
 struct override_mark {
@@ -58,11 +70,30 @@ struct override_mark {
     int override;
 };
 
+/* A file read for the config: the loaded file (index 0) or an include. */
+struct source {
+    char *path;             /* owned; as opened: the includer's folder joined with the include */
+    int parent;             /* the including source; -1 for the loaded file */
+    int line, column;       /* of the include entry in the parent, one-based */
+    bool have_id;           /* dev and ino identify the file (not for strings) */
+    dev_t dev;
+    ino_t ino;
+};
+
 struct loader {
-    const char *file;
+    const char *file;       /* the loaded file's name */
     struct error *err;
     yaml_document_t doc;
     bool have_doc;
+    int root;               /* node id of the root in doc; 0 when the document is empty */
+    bool from_string;       /* no folder to resolve includes against */
+    struct source *sources;
+    int n_sources;
+    /* Source of each node of doc (by id - 1), when doc was merged from an
+       include tree; NULL when doc is the loaded file's own document. */
+    int *node_source;
+    int n_node_source, cap_node_source;
+    long n_copied, n_merged;
     const struct config_override *overrides;
     int n_overrides;
     struct override_mark *marks;
@@ -149,6 +180,49 @@ static int override_of(const struct loader *L, const yaml_node_t *n)
     return -1;
 }
 
+static int source_of(const struct loader *L, const yaml_node_t *n)
+{
+    if (!L->node_source) return 0;
+    int id = (int)(n - L->doc.nodes.start) + 1;
+    return id >= 1 && id <= L->n_node_source ? L->node_source[id - 1] : 0;
+}
+
+/* Reports at line:column of source s: "file:line:column: ...", followed for
+   an included file by the include entries that led to it. */
+static bool report(struct loader *L, int s, int line, int column, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
+#endif
+    ;
+
+static bool report(struct loader *L, int s, int line, int column, const char *fmt, ...)
+{
+    char msg[ERROR_MESSAGE_MAX];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    /* The include entries from the file up to the loaded one; a long chain
+       keeps its two nearest links and the loaded file's. */
+    int links[CONFIG_INCLUDE_DEPTH_MAX + 1], n = 0;
+    for (int p = s; p > 0 && n <= CONFIG_INCLUDE_DEPTH_MAX; p = L->sources[p].parent) links[n++] = p;
+    char chain[ERROR_MESSAGE_MAX] = "";
+    size_t used = 0;
+    for (int i = 0; i < n && used < sizeof chain; ++i) {
+        if (n > 3 && i == 2) {
+            used += (size_t)snprintf(chain + used, sizeof chain - used, ", ...");
+            i = n - 1;
+        }
+        if (used >= sizeof chain) break;
+        const struct source *src = &L->sources[links[i]];
+        int k = snprintf(chain + used, sizeof chain - used, "%s %s:%d:%d", i ? ", from" : " (included from",
+                         L->sources[src->parent].path, src->line, src->column);
+        used += k > 0 ? (size_t)k : 0;
+    }
+    if (n && used < sizeof chain - 1) snprintf(chain + used, sizeof chain - used, ")");
+    return error_at(L->err, L->sources[s].path, line, column, "%s%s", msg, chain);
+}
+
 /* Reports at the node: "file:line:column: ..." (libyaml marks are zero-based),
    or "--set path=value: ..." for a node that came from an override. */
 static bool fail(struct loader *L, const yaml_node_t *n, const char *fmt, ...)
@@ -166,7 +240,15 @@ static bool fail(struct loader *L, const yaml_node_t *n, const char *fmt, ...)
     va_end(ap);
     int k = override_of(L, n);
     if (k >= 0) return error_set(L->err, "--set %s=%s: %s", L->overrides[k].path, L->overrides[k].value, msg);
-    return error_at(L->err, L->file, (int)n->start_mark.line + 1, (int)n->start_mark.column + 1, "%s", msg);
+    return report(L, source_of(L, n), (int)n->start_mark.line + 1, (int)n->start_mark.column + 1, "%s", msg);
+}
+
+/* Where the node is, for items that keep their location. */
+static struct source_loc loc_of(const struct loader *L, const yaml_node_t *n)
+{
+    struct source_loc loc = { (int)n->start_mark.line + 1, (int)n->start_mark.column + 1,
+                              L->sources[source_of(L, n)].path };
+    return loc;
 }
 
 static bool expect_type(struct loader *L, const yaml_node_t *n, yaml_node_type_t type, const char *expected)
@@ -515,8 +597,7 @@ static bool load_material(struct loader *L, const yaml_node_t *key, const yaml_n
     if (!get_string(L, key, m->name, sizeof m->name)) return false;
     char where[CONFIG_NAME_MAX + 16];
     snprintf(where, sizeof where, "material \"%s\"", m->name);
-    m->loc.line = (int)key->start_mark.line + 1;
-    m->loc.column = (int)key->start_mark.column + 1;
+    m->loc = loc_of(L, key);
     yaml_node_t *n;
     int kind = 0;
     if (!expect_type(L, map, YAML_MAPPING_NODE, "a mapping")) return false;
@@ -671,8 +752,7 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
     char where[CONFIG_NAME_MAX + 24];
     yaml_node_t *n;
     int kind = 0;
-    s->loc.line = (int)map->start_mark.line + 1;
-    s->loc.column = (int)map->start_mark.column + 1;
+    s->loc = loc_of(L, map);
     if (!expect_type(L, map, YAML_MAPPING_NODE, "a mapping")) return false;
     if ((n = map_get(L, map, "name")) && !get_string(L, n, name, CONFIG_NAME_MAX)) return false;
     if (name[0])
@@ -722,8 +802,7 @@ static bool load_light(struct loader *L, const yaml_node_t *map, int index, stru
     struct light_desc *l = &c->lights[index];
     char where[CONFIG_NAME_MAX + 16];
     yaml_node_t *name, *n;
-    l->loc.line = (int)map->start_mark.line + 1;
-    l->loc.column = (int)map->start_mark.column + 1;
+    l->loc = loc_of(L, map);
     snprintf(where, sizeof where, "light %d", index);
     if (!expect_type(L, map, YAML_MAPPING_NODE, "a mapping") ||
         !check_keys(L, map, where, light_keys, COUNT(light_keys)) || !(name = need(L, map, "name", where)) ||
@@ -785,8 +864,7 @@ static bool load_portal(struct loader *L, const yaml_node_t *map, int index, str
     struct portal_desc *p = &c->portals[index];
     char where[CONFIG_NAME_MAX + 16], light[CONFIG_NAME_MAX];
     yaml_node_t *n, *verts;
-    p->loc.line = (int)map->start_mark.line + 1;
-    p->loc.column = (int)map->start_mark.column + 1;
+    p->loc = loc_of(L, map);
     snprintf(where, sizeof where, "portal %d", index);
     if (!expect_type(L, map, YAML_MAPPING_NODE, "a mapping") ||
         !check_keys(L, map, where, portal_keys, COUNT(portal_keys)))
@@ -916,9 +994,10 @@ static bool get_threads(struct loader *L, const yaml_node_t *n, int *out)
     return true;
 }
 
-static bool load_render(struct loader *L, const yaml_node_t *root, struct render_desc *r)
+static bool load_render(struct loader *L, const yaml_node_t *root, struct config *c)
 {
     yaml_node_t *map = need(L, root, "render", "the top level"), *n;
+    struct render_desc *r = &c->render;
     int e;
     r->integrator = INTEGRATOR_DIRECT;
     r->strategy = STRATEGY_LIGHT;
@@ -959,6 +1038,8 @@ static bool load_render(struct loader *L, const yaml_node_t *root, struct render
     if ((n = map_get(L, map, "seed")) && !get_seed(L, n, &r->seed)) return false;
     if ((n = map_get(L, map, "threads")) && !get_threads(L, n, &r->threads)) return false;
     if ((n = map_get(L, map, "output")) && !get_string(L, n, r->output, sizeof r->output)) return false;
+    c->output_override = n ? override_of(L, n) : -1;
+    if (c->output_override < 0) c->output_loc = loc_of(L, n ? n : map);
     if (r->spp == 0 && r->time_s == 0.0)
         return fail(L, map, "spp and time are both 0 (expected a sample limit, a time limit or both)");
     return true;
@@ -966,14 +1047,14 @@ static bool load_render(struct loader *L, const yaml_node_t *root, struct render
 
 static bool load_sections(struct loader *L, struct config *c)
 {
-    const yaml_node_t *root = yaml_document_get_root_node(&L->doc);
+    const yaml_node_t *root = L->root ? node_get(L, L->root) : NULL;
     if (!root) return error_at(L->err, L->file, 1, 1, "empty document (expected a mapping with camera, film, lights "
                                                       "and render)");
     return expect_type(L, root, YAML_MAPPING_NODE, "a mapping at the top level") &&
            check_keys(L, root, "the top level", top_keys, COUNT(top_keys)) && load_params(L, root) &&
            load_camera(L, root, &c->camera) && load_film(L, root, c) && load_materials(L, root, c) &&
            load_shapes(L, root, c) && load_lights(L, root, c) && load_portals(L, root, c) &&
-           load_render(L, root, &c->render);
+           load_render(L, root, c);
 }
 
 
@@ -995,9 +1076,8 @@ static bool apply_override(struct loader *L, int k)
     char path[CONFIG_PATH_MAX], where[CONFIG_PATH_MAX] = "the top level";
     if (strlen(o->path) >= sizeof path) return error_set(L->err, "--set %.64s...: path too long", o->path);
     memcpy(path, o->path, strlen(o->path) + 1);
-    yaml_node_t *root = yaml_document_get_root_node(&L->doc);
-    if (!root) return error_set(L->err, "--set %s: the document is empty", o->path);
-    int cur = (int)(root - L->doc.nodes.start) + 1;
+    if (!L->root) return error_set(L->err, "--set %s: the document is empty", o->path);
+    int cur = L->root;
     char *comp = path;
     for (;;) {
         char *dot = strchr(comp, '.');
@@ -1350,73 +1430,488 @@ static void offset_to_mark(const char *text, size_t offset, int *line, int *colu
     }
 }
 
-static bool parse_error(struct loader *L, const yaml_parser_t *parser, const char *text)
+static bool parse_error(struct loader *L, int s, const yaml_parser_t *parser, const char *text)
 {
     int line, column;
-    if (parser->error == YAML_MEMORY_ERROR) return error_set(L->err, "%s: out of memory", L->file);
+    const char *problem = parser->problem ? parser->problem : "invalid YAML";
+    if (parser->error == YAML_MEMORY_ERROR) return error_set(L->err, "%s: out of memory", L->sources[s].path);
     if (parser->error == YAML_READER_ERROR) {
         offset_to_mark(text, parser->problem_offset, &line, &column);
-        return error_at(L->err, L->file, line, column, "%s", parser->problem ? parser->problem : "unreadable input");
+        return report(L, s, line, column, "%s", parser->problem ? parser->problem : "unreadable input");
     }
     line = (int)parser->problem_mark.line + 1;
     column = (int)parser->problem_mark.column + 1;
     if (parser->context)
-        return error_at(L->err, L->file, line, column, "%s (%s at line %d, column %d)", parser->problem,
-                        parser->context, (int)parser->context_mark.line + 1, (int)parser->context_mark.column + 1);
-    return error_at(L->err, L->file, line, column, "%s", parser->problem ? parser->problem : "invalid YAML");
+        return report(L, s, line, column, "%s (%s at line %d, column %d)", problem, parser->context,
+                      (int)parser->context_mark.line + 1, (int)parser->context_mark.column + 1);
+    return report(L, s, line, column, "%s", problem);
 }
 
-/* Loads the first document and makes sure it is the only one. */
-static bool parse_document(struct loader *L, const char *text, size_t length)
+/* Parses the one document of source s into doc; on success the caller
+   deletes doc. */
+static bool parse_document(struct loader *L, int s, const char *text, size_t length, yaml_document_t *doc)
 {
     yaml_parser_t parser;
-    if (!yaml_parser_initialize(&parser)) return error_set(L->err, "%s: out of memory", L->file);
+    if (!yaml_parser_initialize(&parser)) return error_set(L->err, "%s: out of memory", L->sources[s].path);
     yaml_parser_set_input_string(&parser, (const unsigned char *)text, length);
-    bool ok = yaml_parser_load(&parser, &L->doc) != 0;
+    /* On failure yaml_parser_load deletes the document itself. */
+    bool ok = yaml_parser_load(&parser, doc) != 0;
     if (!ok) {
-        parse_error(L, &parser, text);
+        parse_error(L, s, &parser, text);
     } else {
-        L->have_doc = true;
         yaml_document_t next;
         if (!yaml_parser_load(&parser, &next)) {
-            ok = parse_error(L, &parser, text);
+            ok = parse_error(L, s, &parser, text);
         } else {
             const yaml_node_t *root = yaml_document_get_root_node(&next);
             if (root)
-                ok = error_at(L->err, L->file, (int)root->start_mark.line + 1, (int)root->start_mark.column + 1,
-                              "a second YAML document (expected exactly one)");
+                ok = report(L, s, (int)root->start_mark.line + 1, (int)root->start_mark.column + 1,
+                            "a second YAML document (expected exactly one)");
             yaml_document_delete(&next);
         }
+        if (!ok) yaml_document_delete(doc);
     }
     yaml_parser_delete(&parser);
     return ok;
 }
 
-bool config_load_string(const char *text, size_t length, const char *name,
-                        const struct config_override *overrides, int n_overrides, struct config *out,
-                        struct error *err)
+/* The whole of a file that is not a folder; on failure *why says what was
+   wrong. */
+static bool read_text(const char *path, char **text, size_t *length, struct stat *st, const char **why)
+{
+    *text = NULL;
+    *length = 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        *why = strerror(errno);
+        return false;
+    }
+    /* Reading a folder would fail with EISDIR anyway; say so before. */
+    if (fstat(fd, st) != 0 || S_ISDIR(st->st_mode)) {
+        *why = strerror(S_ISDIR(st->st_mode) ? EISDIR : errno);
+        close(fd);
+        return false;
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *buf = malloc(cap);
+    *why = NULL;
+    while (buf) {
+        if (len == cap) {
+            char *grown = cap <= SIZE_MAX / 2 ? realloc(buf, cap * 2) : NULL;
+            if (!grown) break;
+            buf = grown;
+            cap *= 2;
+        }
+        ssize_t got = read(fd, buf + len, cap - len);
+        if (got < 0 && errno == EINTR) continue;
+        if (got < 0) {
+            *why = strerror(errno);
+            break;
+        }
+        if (got == 0) {
+            close(fd);
+            *text = buf;
+            *length = len;
+            return true;
+        }
+        len += (size_t)got;
+    }
+    if (!*why) *why = "out of memory";
+    free(buf);
+    close(fd);
+    return false;
+}
+
+
+/* Building the merged document of an include tree. Every node is copied
+   into L->doc with its marks, and L->node_source remembers its file, so
+   that messages name the file and position the value came from. */
+
+static bool out_of_memory(struct loader *L)
+{
+    return error_set(L->err, "%s: out of memory", L->file);
+}
+
+/* Adds to L->doc a node like n (a scalar with its value, an empty sequence
+   or mapping) with n's marks, from source s. n may be a node of L->doc:
+   everything is read from it before the node array can move. Returns the
+   new id, or 0. */
+static int add_like(struct loader *L, const yaml_node_t *n, int s)
+{
+    yaml_node_t copy = *n; /* the strings it points to do not move */
+    int id = 0;
+    switch (copy.type) {
+    case YAML_SCALAR_NODE:
+        if (copy.data.scalar.length > INT_MAX) return out_of_memory(L);
+        id = yaml_document_add_scalar(&L->doc, copy.tag, copy.data.scalar.value, (int)copy.data.scalar.length,
+                                      copy.data.scalar.style);
+        break;
+    case YAML_SEQUENCE_NODE: id = yaml_document_add_sequence(&L->doc, copy.tag, copy.data.sequence.style); break;
+    case YAML_MAPPING_NODE: id = yaml_document_add_mapping(&L->doc, copy.tag, copy.data.mapping.style); break;
+    case YAML_NO_NODE: break;
+    }
+    if (!id) return out_of_memory(L);
+    if (id > L->cap_node_source) {
+        int cap = L->cap_node_source ? 2 * L->cap_node_source : 1024;
+        while (cap < id) cap *= 2;
+        int *grown = realloc(L->node_source, (size_t)cap * sizeof *grown);
+        if (!grown) return out_of_memory(L);
+        L->node_source = grown;
+        L->cap_node_source = cap;
+    }
+    L->node_source[id - 1] = s;
+    L->n_node_source = id;
+    yaml_node_t *c = node_get(L, id);
+    c->start_mark = copy.start_mark;
+    c->end_mark = copy.end_mark;
+    return id;
+}
+
+static bool is_include_key(const yaml_node_t *key)
+{
+    return key->type == YAML_SCALAR_NODE && strcmp(text_of(key), "include") == 0;
+}
+
+/* Copies node id of source s's document into L->doc, once per node (memo,
+   by id - 1), so that aliases stay shared and cannot multiply; the top
+   level (depth 0) leaves out its include key. Returns the copy's id, or 0. */
+static int copy_node(struct loader *L, int s, yaml_document_t *doc, int id, int *memo, int depth)
+{
+    if (memo[id - 1]) return memo[id - 1];
+    const yaml_node_t *n = yaml_document_get_node(doc, id);
+    if (depth > COPY_DEPTH_MAX) {
+        report(L, s, (int)n->start_mark.line + 1, (int)n->start_mark.column + 1,
+               "nested more than %d levels deep (expected a flatter document)", COPY_DEPTH_MAX);
+        return 0;
+    }
+    int c = add_like(L, n, s);
+    if (!c) return 0;
+    memo[id - 1] = c;
+    ++L->n_copied;
+    if (n->type == YAML_SEQUENCE_NODE) {
+        for (const yaml_node_item_t *it = n->data.sequence.items.start; it < n->data.sequence.items.top; ++it) {
+            int item = copy_node(L, s, doc, *it, memo, depth + 1);
+            if (!item) return 0;
+            if (!yaml_document_append_sequence_item(&L->doc, c, item)) return out_of_memory(L);
+        }
+    } else if (n->type == YAML_MAPPING_NODE) {
+        for (const yaml_node_pair_t *p = n->data.mapping.pairs.start; p < n->data.mapping.pairs.top; ++p) {
+            if (depth == 0 && is_include_key(yaml_document_get_node(doc, p->key))) continue;
+            int key = copy_node(L, s, doc, p->key, memo, depth + 1);
+            int value = key ? copy_node(L, s, doc, p->value, memo, depth + 1) : 0;
+            if (!value) return 0;
+            if (!yaml_document_append_mapping_pair(&L->doc, c, key, value)) return out_of_memory(L);
+        }
+    }
+    return c;
+}
+
+/* Index of the pair of mapping `map` (in L->doc) whose key is the scalar
+   `key`, or -1. */
+static int find_key(struct loader *L, int map, const yaml_node_t *key)
+{
+    if (key->type != YAML_SCALAR_NODE) return -1;
+    const yaml_node_t *m = node_get(L, map);
+    for (int i = 0; i < map_count(m); ++i) {
+        const yaml_node_t *k = node_get(L, m->data.mapping.pairs.start[i].key);
+        if (k->type == YAML_SCALAR_NODE && strcmp(text_of(k), text_of(key)) == 0) return i;
+    }
+    return -1;
+}
+
+/* `over` merged onto `base`, both in L->doc: two mappings merge key by key
+   (base's keys first, in its order, with over's value where over has the
+   key, merged again when both values are mappings; then over's other keys,
+   in its order); anything else is over, whole. Returns the result's id (a
+   new mapping, or over itself), or 0. Each file's keys are unique
+   (check_unique_keys), so a merged mapping has unique keys too. */
+static int merge(struct loader *L, int base, int over, int depth)
+{
+    const yaml_node_t *b = node_get(L, base), *o = node_get(L, over);
+    if (b->type != YAML_MAPPING_NODE || o->type != YAML_MAPPING_NODE) return over;
+    if (depth > COPY_DEPTH_MAX) {
+        fail(L, o, "mappings nested more than %d levels deep (expected a flatter document)", COPY_DEPTH_MAX);
+        return 0;
+    }
+    if (L->n_merged >= MERGE_NODES_PER_COPY * L->n_copied + MERGE_NODES_SLACK) {
+        fail(L, o, "merging the includes makes more than %ld mappings (expected fewer aliases of mappings)",
+             L->n_merged);
+        return 0;
+    }
+    int m = add_like(L, o, source_of(L, o));
+    if (!m) return 0;
+    ++L->n_merged;
+    int n_base = map_count(node_get(L, base)), n_over = map_count(node_get(L, over));
+    for (int i = 0; i < n_base; ++i) {
+        yaml_node_pair_t p = node_get(L, base)->data.mapping.pairs.start[i];
+        int j = find_key(L, over, node_get(L, p.key));
+        if (j >= 0) {
+            yaml_node_pair_t q = node_get(L, over)->data.mapping.pairs.start[j];
+            /* The key as the including file wrote it: messages point there. */
+            p.key = q.key;
+            p.value = merge(L, p.value, q.value, depth + 1);
+            if (!p.value) return 0;
+        }
+        if (!yaml_document_append_mapping_pair(&L->doc, m, p.key, p.value)) return out_of_memory(L);
+    }
+    for (int j = 0; j < n_over; ++j) {
+        yaml_node_pair_t q = node_get(L, over)->data.mapping.pairs.start[j];
+        if (find_key(L, base, node_get(L, q.key)) >= 0) continue;
+        if (!yaml_document_append_mapping_pair(&L->doc, m, q.key, q.value)) return out_of_memory(L);
+    }
+    return m;
+}
+
+/* Every mapping of a file in an include tree has unique keys, checked
+   before merging: a merged mapping keeps one value per key. */
+static bool check_unique_keys(struct loader *L, int s, yaml_document_t *doc)
+{
+    for (const yaml_node_t *n = doc->nodes.start; n < doc->nodes.top; ++n) {
+        if (n->type != YAML_MAPPING_NODE) continue;
+        const yaml_node_pair_t *pairs = n->data.mapping.pairs.start;
+        for (int i = 1; i < map_count(n); ++i) {
+            const yaml_node_t *key = yaml_document_get_node(doc, pairs[i].key);
+            if (key->type != YAML_SCALAR_NODE) continue;
+            for (int j = 0; j < i; ++j) {
+                const yaml_node_t *other = yaml_document_get_node(doc, pairs[j].key);
+                if (other->type == YAML_SCALAR_NODE && strcmp(text_of(other), text_of(key)) == 0)
+                    return report(L, s, (int)key->start_mark.line + 1, (int)key->start_mark.column + 1,
+                                  "duplicate key \"%.64s\" (first at line %d, column %d)", text_of(key),
+                                  (int)other->start_mark.line + 1, (int)other->start_mark.column + 1);
+            }
+        }
+    }
+    return true;
+}
+
+static int resolve(struct loader *L, int s, yaml_document_t *doc, int depth);
+
+/* A path in an include entry: a string, not a number, boolean or null. */
+static bool include_path_ok(struct loader *L, int s, const yaml_node_t *entry)
+{
+    int line = (int)entry->start_mark.line + 1, column = (int)entry->start_mark.column + 1;
+    char buf[64];
+    const char *expected = "expected a path (a string) or a list of paths";
+    if (entry->type != YAML_SCALAR_NODE || is_null(entry))
+        return report(L, s, line, column, "%s, got %s", expected, describe(entry, buf, sizeof buf));
+    const char *name = text_of(entry);
+    double number;
+    bool boolean = !strcmp(name, "true") || !strcmp(name, "True") || !strcmp(name, "TRUE") ||
+                   !strcmp(name, "false") || !strcmp(name, "False") || !strcmp(name, "FALSE");
+    if (entry->data.scalar.style == YAML_PLAIN_SCALAR_STYLE && (boolean || parse_literal(name, &number)))
+        return report(L, s, line, column, "%s, got %.40s (quote it if it is a file name)", expected, name);
+    if (strlen(name) != entry->data.scalar.length) return report(L, s, line, column, "path contains a NUL character");
+    if (!name[0]) return report(L, s, line, column, "%s, got an empty string", expected);
+    return true;
+}
+
+/* Appends " -> path" (or the path first) to a chain of file names. */
+static void chain_add(struct line *chain, const char *path)
+{
+    if (chain->n >= sizeof chain->s - 1) return;
+    int k = snprintf(chain->s + chain->n, sizeof chain->s - chain->n, "%s%s", chain->n ? " -> " : "", path);
+    if (k > 0) chain->n += (size_t)k;
+    if (chain->n > sizeof chain->s - 1) chain->n = sizeof chain->s - 1;
+}
+
+/* Reads, parses and resolves the file named by include entry `entry` of
+   source s (at include depth `depth`). Returns the id of its merged top
+   level in L->doc, or 0. */
+static int include_one(struct loader *L, int s, const yaml_node_t *entry, int depth)
+{
+    int line = (int)entry->start_mark.line + 1, column = (int)entry->start_mark.column + 1;
+    if (!include_path_ok(L, s, entry)) return 0;
+    const char *name = text_of(entry), *parent = L->sources[s].path, *slash = strrchr(parent, '/');
+    /* Relative to the folder of the including file, as #include "..." is. */
+    size_t dir_len = name[0] == '/' || !slash ? 0 : (size_t)(slash - parent) + 1, len = dir_len + strlen(name);
+    if (len >= CONFIG_PATH_MAX) {
+        report(L, s, line, column, "include \"%.64s...\": path too long (expected at most %d bytes)", name,
+               CONFIG_PATH_MAX - 1);
+        return 0;
+    }
+    char *path = malloc(len + 1);
+    if (!path) return out_of_memory(L);
+    memcpy(path, parent, dir_len);
+    memcpy(path + dir_len, name, strlen(name) + 1);
+
+    char *text;
+    size_t length;
+    struct stat st;
+    const char *why;
+    if (!read_text(path, &text, &length, &st, &why)) {
+        report(L, s, line, column, "include \"%s\": cannot read %s: %s (expected a YAML file; a relative path is "
+                                   "relative to the folder of the file that includes it)", name, path, why);
+        free(path);
+        return 0;
+    }
+    for (int p = s; p >= 0; p = L->sources[p].parent) {
+        if (!L->sources[p].have_id || L->sources[p].dev != st.st_dev || L->sources[p].ino != st.st_ino) continue;
+        int stack[CONFIG_INCLUDE_DEPTH_MAX + 1], n = 0;
+        for (int q = s; n <= CONFIG_INCLUDE_DEPTH_MAX; q = L->sources[q].parent) {
+            stack[n++] = q;
+            if (q == p) break;
+        }
+        struct line chain = { "", 0 };
+        while (n > 0) chain_add(&chain, L->sources[stack[--n]].path);
+        chain_add(&chain, path);
+        report(L, s, line, column, "include \"%s\": include cycle %s (expected files that do not include each "
+                                   "other)", name, chain.s);
+        free(path);
+        free(text);
+        return 0;
+    }
+    if (depth >= CONFIG_INCLUDE_DEPTH_MAX) {
+        report(L, s, line, column, "include \"%s\": includes nested more than %d levels deep (expected at most %d)",
+               name, CONFIG_INCLUDE_DEPTH_MAX, CONFIG_INCLUDE_DEPTH_MAX);
+        free(path);
+        free(text);
+        return 0;
+    }
+    struct source *grown = realloc(L->sources, (size_t)(L->n_sources + 1) * sizeof *grown);
+    if (!grown) {
+        free(path);
+        free(text);
+        return out_of_memory(L);
+    }
+    L->sources = grown;
+    int t = L->n_sources++;
+    struct source src = { path, s, line, column, true, st.st_dev, st.st_ino };
+    L->sources[t] = src;
+
+    yaml_document_t doc;
+    bool parsed = parse_document(L, t, text, length, &doc);
+    free(text);
+    if (!parsed) return 0;
+    int r = resolve(L, t, &doc, depth + 1);
+    yaml_document_delete(&doc);
+    return r;
+}
+
+/* The merged top level of source s (whose document is doc, at include depth
+   `depth`): its includes, in order, each merged over the previous ones,
+   then the file itself merged over them. Returns its id in L->doc, or 0. */
+static int resolve(struct loader *L, int s, yaml_document_t *doc, int depth)
+{
+    char buf[64];
+    const yaml_node_t *root = yaml_document_get_root_node(doc), *inc = NULL;
+    if (!root) {
+        report(L, s, 1, 1, "empty document (expected a mapping of config keys)");
+        return 0;
+    }
+    if (root->type != YAML_MAPPING_NODE) {
+        report(L, s, (int)root->start_mark.line + 1, (int)root->start_mark.column + 1,
+               "expected a mapping at the top level, got %s", describe(root, buf, sizeof buf));
+        return 0;
+    }
+    if (!check_unique_keys(L, s, doc)) return 0;
+    for (const yaml_node_pair_t *p = root->data.mapping.pairs.start; p < root->data.mapping.pairs.top; ++p)
+        if (is_include_key(yaml_document_get_node(doc, p->key))) inc = yaml_document_get_node(doc, p->value);
+    int merged = 0;
+    if (inc && !is_null(inc)) {
+        if (inc->type == YAML_MAPPING_NODE) {
+            report(L, s, (int)inc->start_mark.line + 1, (int)inc->start_mark.column + 1,
+                   "expected a path (a string) or a list of paths, got a mapping");
+            return 0;
+        }
+        bool list = inc->type == YAML_SEQUENCE_NODE;
+        int count = list ? seq_count(inc) : 1;
+        for (int i = 0; i < count; ++i) {
+            const yaml_node_t *entry = list ? yaml_document_get_node(doc, inc->data.sequence.items.start[i]) : inc;
+            int r = include_one(L, s, entry, depth);
+            if (!r) return 0;
+            merged = merged ? merge(L, merged, r, 0) : r;
+            if (!merged) return 0;
+        }
+    }
+    int *memo = calloc((size_t)(doc->nodes.top - doc->nodes.start), sizeof *memo);
+    if (!memo) return out_of_memory(L);
+    int self = copy_node(L, s, doc, (int)(root - doc->nodes.start) + 1, memo, 0);
+    free(memo);
+    if (!self) return 0;
+    return merged ? merge(L, merged, self, 0) : self;
+}
+
+/* Source 0's document as L->doc: its own, or the merged document of its
+   include tree. */
+static bool load_document(struct loader *L, const char *text, size_t length)
+{
+    yaml_document_t doc;
+    if (!parse_document(L, 0, text, length, &doc)) return false;
+    const yaml_node_t *root = yaml_document_get_root_node(&doc), *include_key = NULL;
+    if (root && root->type == YAML_MAPPING_NODE)
+        for (const yaml_node_pair_t *p = root->data.mapping.pairs.start; p < root->data.mapping.pairs.top; ++p) {
+            const yaml_node_t *key = yaml_document_get_node(&doc, p->key);
+            if (is_include_key(key)) include_key = key;
+        }
+    if (!include_key) {
+        L->doc = doc;
+        L->have_doc = true;
+        L->root = root ? 1 : 0;
+        return true;
+    }
+    bool ok;
+    if (L->from_string) {
+        ok = report(L, 0, (int)include_key->start_mark.line + 1, (int)include_key->start_mark.column + 1,
+                    "include is not available for a config given as a string (expected a config file: includes "
+                    "are relative to its folder)");
+    } else {
+        ok = yaml_document_initialize(&L->doc, NULL, NULL, NULL, 1, 1) || out_of_memory(L);
+        L->have_doc = ok;
+        ok = ok && (L->root = resolve(L, 0, &doc, 0)) != 0;
+    }
+    yaml_document_delete(&doc);
+    return ok;
+}
+
+/* A load from text, named `name`; st identifies the file, NULL for a string. */
+static bool load_text(const char *text, size_t length, const char *name, const struct stat *st,
+                      const struct config_override *overrides, int n_overrides, struct config *out, struct error *err)
 {
     memset(out, 0, sizeof *out);
     struct loader L;
     memset(&L, 0, sizeof L);
-    L.file = name ? name : "<string>";
+    L.file = name;
     L.err = err;
     L.overrides = overrides;
     L.n_overrides = n_overrides > 0 ? n_overrides : 0;
+    L.from_string = st == NULL;
     if (strlen(L.file) >= sizeof out->path) return error_set(err, "%.64s...: path too long", L.file);
     snprintf(out->path, sizeof out->path, "%s", L.file);
 
+    L.sources = calloc(1, sizeof *L.sources);
+    char *copy = strdup(name);
+    if (!L.sources || !copy) {
+        free(L.sources);
+        free(copy);
+        return error_set(err, "%s: out of memory", L.file);
+    }
+    struct source src = { copy, -1, 0, 0, st != NULL, st ? st->st_dev : 0, st ? st->st_ino : 0 };
+    L.sources[0] = src;
+    L.n_sources = 1;
     bool ok = true;
     if (L.n_overrides) {
         /* Each override marks at most a key and a value node. */
         L.marks = calloc((size_t)L.n_overrides * 2, sizeof *L.marks);
         ok = L.marks != NULL || error_set(err, "%s: out of memory", L.file);
     }
-    ok = ok && parse_document(&L, text ? text : "", text ? length : 0);
+    ok = ok && load_document(&L, text, length);
     for (int k = 0; ok && k < L.n_overrides; ++k) ok = apply_override(&L, k);
     ok = ok && load_sections(&L, out) && emit_effective(&L, out);
+    if (ok) {
+        /* The file names move to the config: the locations point at them. */
+        out->files = malloc((size_t)L.n_sources * sizeof *out->files);
+        ok = out->files != NULL || error_set(err, "%s: out of memory", L.file);
+        for (int i = 0; ok && i < L.n_sources; ++i) {
+            out->files[i] = L.sources[i].path;
+            L.sources[i].path = NULL;
+        }
+        if (ok) out->n_files = L.n_sources;
+    }
 
     if (L.have_doc) yaml_document_delete(&L.doc);
+    for (int i = 0; i < L.n_sources; ++i) free(L.sources[i].path);
+    free(L.sources);
+    free(L.node_source);
     free(L.marks);
     free(L.params);
     free(L.shape_names);
@@ -1424,40 +1919,24 @@ bool config_load_string(const char *text, size_t length, const char *name,
     return ok;
 }
 
+bool config_load_string(const char *text, size_t length, const char *name,
+                        const struct config_override *overrides, int n_overrides, struct config *out,
+                        struct error *err)
+{
+    return load_text(text ? text : "", text ? length : 0, name ? name : "<string>", NULL, overrides, n_overrides,
+                     out, err);
+}
+
 bool config_load(const char *path, const struct config_override *overrides, int n_overrides, struct config *out,
                  struct error *err)
 {
     memset(out, 0, sizeof *out);
-    FILE *f = fopen(path, "rb");
-    if (!f) return error_set(err, "%s: %s", path, strerror(errno));
-    size_t cap = 1 << 16, len = 0;
-    char *text = malloc(cap);
-    bool ok = text != NULL;
-    while (ok) {
-        if (len == cap) {
-            char *grown = realloc(text, cap * 2);
-            if (!grown) {
-                ok = false;
-                break;
-            }
-            text = grown;
-            cap *= 2;
-        }
-        size_t got = fread(text + len, 1, cap - len, f);
-        len += got;
-        if (got == 0) break;
-    }
-    bool read_error = ferror(f) != 0;
-    fclose(f);
-    if (!ok) {
-        free(text);
-        return error_set(err, "%s: out of memory", path);
-    }
-    if (read_error) {
-        free(text);
-        return error_set(err, "%s: read error", path);
-    }
-    ok = config_load_string(text, len, path, overrides, n_overrides, out, err);
+    char *text;
+    size_t length;
+    struct stat st;
+    const char *why;
+    if (!read_text(path, &text, &length, &st, &why)) return error_set(err, "%s: %s", path, why);
+    bool ok = load_text(text, length, path, &st, overrides, n_overrides, out, err);
     free(text);
     return ok;
 }
@@ -1465,6 +1944,8 @@ bool config_load(const char *path, const struct config_override *overrides, int 
 void config_free(struct config *c)
 {
     if (!c) return;
+    for (int i = 0; i < c->n_files; ++i) free(c->files[i]);
+    free(c->files);
     for (int i = 0; i < c->n_shapes; ++i) {
         free(c->shapes[i].vertices);
         free(c->shapes[i].triangles);

@@ -1,6 +1,7 @@
 /* config.h: the validated description of a scene and a render, as read from
-   one YAML file plus command-line overrides. Plain data: no Embree, no I/O
-   beyond reading the file. Every error names file:line:column. */
+   one YAML file (and the files it includes) plus command-line overrides.
+   Plain data: no Embree, no I/O beyond reading the files. Every error names
+   file:line:column. */
 #ifndef CONFIG_H
 #define CONFIG_H
 
@@ -15,6 +16,7 @@
 #define CONFIG_NAME_MAX 64
 #define CONFIG_PATH_MAX 1024
 #define CONFIG_SCHEDULE_MAX 256
+#define CONFIG_INCLUDE_DEPTH_MAX 16  /* include: nesting levels below the loaded file */
 
 enum integrator_kind { INTEGRATOR_DIRECT, INTEGRATOR_PATH };
 
@@ -45,6 +47,7 @@ extern const char *const material_names[2];
 
 struct source_loc {
     int line, column; /* one-based, of the YAML node that defined the item */
+    const char *file; /* the file it is in (one of config.files) */
 };
 
 struct material_desc {
@@ -121,6 +124,8 @@ struct render_desc {
 
 struct config {
     char path[CONFIG_PATH_MAX];   /* the file it came from */
+    int n_files;
+    char **files;                 /* owned: path, then every included file in load order */
     int width, height;
     struct camera_desc camera;
     int n_materials;
@@ -136,6 +141,11 @@ struct config {
        overrides applied, defaults filled); loads back to the same config. */
     char *effective_yaml;
     uint64_t hash;                /* FNV-1a 64 of effective_yaml */
+    /* Where render.output was set, for messages about the folder: the value
+       in a file (output_override < 0; the render mapping when the default
+       applies), or the index of the --set override that set it. */
+    struct source_loc output_loc;
+    int output_override;
 };
 
 /* One --set key.path=value. Paths are dot-separated mapping keys and
@@ -146,10 +156,16 @@ struct config_override {
 };
 
 /* Reads, validates and fills `out`. On failure `out` is left empty (nothing to
-   free) and err holds "file:line:column: what was wrong (expected ...)". */
+   free) and err holds "file:line:column: what was wrong (expected ...)".
+   A top-level `include: path` or `include: [paths]` (relative to the folder
+   of the file that names them) loads those files first, in order, each
+   merged over the previous ones, then merges the file itself over them:
+   mappings merge key by key (the including file wins), sequences and
+   scalars are replaced whole. Overrides apply to the merged result. */
 bool config_load(const char *path, const struct config_override *overrides, int n_overrides,
                  struct config *out, struct error *err);
-/* Same from memory; `name` is used as the file name in messages. */
+/* Same from memory; `name` is used as the file name in messages. There is no
+   folder to resolve includes against: `include:` is an error. */
 bool config_load_string(const char *text, size_t length, const char *name,
                         const struct config_override *overrides, int n_overrides,
                         struct config *out, struct error *err);

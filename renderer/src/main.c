@@ -36,37 +36,64 @@ static const char usage[] =
     "  --quiet               no progress messages on stderr\n"
     "  --help, --version\n"
     "\n"
-    "exit status: 0 done, 1 runtime error, 2 usage or config error (nothing is\n"
-    "written), 3 interrupted by SIGINT/SIGTERM (final.exr holds the passes done).\n";
+    "exit status: 0 done, 1 runtime error, 2 usage or config error, including an\n"
+    "output folder that cannot be created or written (nothing is written), 3\n"
+    "interrupted by SIGINT/SIGTERM (final.exr holds the passes done).\n";
 
-/* Creates dir and its parents (mkdir -p). */
-static bool make_dirs(const char *dir, struct error *err)
+/* The folders make_dirs created, deepest last, so that a failure can
+   remove them again. */
+struct made_dirs {
+    char path[CONFIG_PATH_MAX];
+    int n;
+    size_t ends[CONFIG_PATH_MAX / 2]; /* length of each created prefix of path */
+};
+
+/* Creates dir and its parents (mkdir -p), recording what it created. The
+   message completes "output folder X ...". */
+static bool make_dirs(const char *dir, struct made_dirs *made, struct error *err)
 {
-    char buf[CONFIG_PATH_MAX];
-    if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf) return error_set(err, "output path too long: %s", dir);
+    char *buf = made->path;
+    made->n = 0;
+    if (!dir[0]) return error_set(err, "cannot be created: the path is empty");
+    if (snprintf(buf, sizeof made->path, "%s", dir) >= (int)sizeof made->path)
+        return error_set(err, "cannot be created: the path is too long");
     for (char *p = buf + 1;; ++p) {
         if (*p == '/' || *p == '\0') {
             char c = *p;
             *p = '\0';
-            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
-                return error_set(err, "cannot create output folder %s: %s", buf, strerror(errno));
+            if (mkdir(buf, 0777) == 0)
+                made->ends[made->n++] = (size_t)(p - buf);
+            else if (errno != EEXIST && c == '\0')
+                return error_set(err, "cannot be created: %s", strerror(errno));
+            else if (errno != EEXIST)
+                return error_set(err, "cannot be created: %s: %s", buf, strerror(errno));
             *p = c;
             if (c == '\0') break;
         }
     }
     struct stat st;
-    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode)) return error_set(err, "output path %s is not a folder", dir);
+    if (stat(dir, &st) != 0) return error_set(err, "cannot be created: %s", strerror(errno));
+    if (!S_ISDIR(st.st_mode)) return error_set(err, "cannot be created: it exists and is not a folder");
     return true;
 }
 
-/* DIR/config.yaml: the effective configuration, written atomically. */
+static void unmake_dirs(struct made_dirs *made)
+{
+    while (made->n > 0) {
+        made->path[made->ends[--made->n]] = '\0';
+        rmdir(made->path);
+    }
+}
+
+/* DIR/config.yaml: the effective configuration, written atomically. The
+   message completes "output folder X ...". */
 static bool write_effective_config(const struct config *cfg, struct error *err)
 {
     char path[CONFIG_PATH_MAX + 32], tmp[CONFIG_PATH_MAX + 64];
     snprintf(path, sizeof path, "%s/config.yaml", cfg->render.output);
     snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
     FILE *f = fopen(tmp, "w");
-    if (!f) return error_set(err, "cannot write %s: %s", tmp, strerror(errno));
+    if (!f) return error_set(err, "cannot be written: %s: %s", strrchr(tmp, '/') + 1, strerror(errno));
     size_t len = strlen(cfg->effective_yaml);
     bool ok = fwrite(cfg->effective_yaml, 1, len, f) == len;
     ok = (fflush(f) == 0) && ok;
@@ -76,9 +103,30 @@ static bool write_effective_config(const struct config *cfg, struct error *err)
     if (!ok || rename(tmp, path) != 0) {
         if (ok) saved = errno;
         unlink(tmp);
-        return error_set(err, "cannot write %s: %s", path, strerror(saved));
+        return error_set(err, "cannot be written: config.yaml: %s", strerror(saved));
     }
     return true;
+}
+
+/* The output folder, made and proven writable (config.yaml is its first
+   file) before anything renders. A folder that cannot be made or written is
+   a config error: reported where render.output was set, with every folder
+   made on the way removed again, so that nothing is left behind. */
+static bool prepare_output(const struct config *cfg, const struct config_override *ov, const char *const *ov_flag,
+                           struct error *err)
+{
+    struct made_dirs made;
+    struct error why;
+    if (make_dirs(cfg->render.output, &made, &why) && write_effective_config(cfg, &why)) return true;
+    unmake_dirs(&made);
+    const char *out = cfg->render.output, *expected = "expected a folder that can be created and written";
+    int k = cfg->output_override;
+    if (k >= 0 && ov_flag[k])
+        return error_set(err, "%s %s: output folder %s (%s)", ov_flag[k], ov[k].value, why.message, expected);
+    if (k >= 0)
+        return error_set(err, "--set %s=%s: output folder %s (%s)", ov[k].path, ov[k].value, why.message, expected);
+    return error_at(err, cfg->output_loc.file, cfg->output_loc.line, cfg->output_loc.column,
+                    "output folder \"%s\" %s (%s)", out, why.message, expected);
 }
 
 int main(int argc, char **argv)
@@ -86,10 +134,11 @@ int main(int argc, char **argv)
     const char *config_path = NULL;
     bool quiet = false;
     struct config_override *ov = calloc((size_t)argc, sizeof *ov);
+    const char **ov_flag = calloc((size_t)argc, sizeof *ov_flag); /* the shorthand that set it, or NULL */
     char **owned = calloc((size_t)argc, sizeof *owned);
     int n_ov = 0;
     int status = EXIT_USAGE;
-    if (!ov || !owned) {
+    if (!ov || !ov_flag || !owned) {
         fprintf(stderr, "render: out of memory\n");
         return EXIT_RUNTIME;
     }
@@ -139,6 +188,7 @@ int main(int argc, char **argv)
             }
             ov[n_ov].path = shorthands[k].key;
             ov[n_ov].value = argv[++i];
+            ov_flag[n_ov] = shorthands[k].flag;
             ++n_ov;
             matched = true;
         }
@@ -170,10 +220,10 @@ int main(int argc, char **argv)
         config_free(&cfg);
         goto done;
     }
-    status = EXIT_RUNTIME;
-    if (!make_dirs(cfg.render.output, &err) || !write_effective_config(&cfg, &err)) {
-        fprintf(stderr, "render: %s\n", err.message);
+    if (!prepare_output(&cfg, ov, ov_flag, &err)) {
+        fprintf(stderr, "%s\n", err.message);
     } else {
+        status = EXIT_RUNTIME;
         struct render_result res;
         render_catch_signals();
         if (!quiet)
@@ -203,6 +253,7 @@ oom:
 done:
     for (int i = 0; i < argc; ++i) free(owned[i]);
     free(owned);
+    free(ov_flag);
     free(ov);
     return status;
 }

@@ -1,6 +1,8 @@
 /* The command line as a user and the harness see it: exit codes, messages,
    the output folder, the JSON stream, and SIGTERM/SIGINT handling. Runs the
    `render` binary that sits next to this test's folder. */
+#include <dirent.h>
+
 #include "cli_util.h"
 #include "film.h"
 #include "testlib.h"
@@ -131,14 +133,119 @@ static void test_signals(void)
     }
 }
 
-/* An output folder that cannot be created: runtime error, exit 1. */
+/* An output folder that cannot be created is a config error (exit 2) that
+   names the option that set it; nothing is written. */
 static void test_unwritable_output(void)
 {
     struct run r;
     char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", "/proc/portal-lights-test", "--spp", "1",
                   "--set", "film.width=8", "--set", "film.height=8", NULL };
     run_render(a, 0, 0, &r);
-    CHECK_MSG(r.status == 1 && strstr(r.err, "/proc/portal-lights-test"), "status %d: %s", r.status, r.err);
+    CHECK_MSG(r.status == 2 && strstr(r.err, "--out /proc/portal-lights-test: output folder cannot be created: No such "
+                                             "file or directory (expected a folder that can be created and written)"),
+              "status %d: %s", r.status, r.err);
+    CHECK(r.out[0] == '\0');
+    char *b[] = { NULL, "configs/scenes/lampshade.yaml", "--set", "render.output=/proc/portal-lights-test/x", NULL };
+    run_render(b, 0, 0, &r);
+    CHECK_MSG(r.status == 2 && strstr(r.err, "--set render.output=/proc/portal-lights-test/x: output folder cannot be "
+                                             "created: /proc/portal-lights-test: No such file or directory"),
+              "status %d: %s", r.status, r.err);
+}
+
+/* Folders made on the way to one that cannot be made are removed again:
+   here the last name is longer than a file name may be. */
+static void test_output_rollback(void)
+{
+    char dir[] = "/tmp/portal-cli-XXXXXX";
+    make_tmpdir(dir);
+    char out[900], first[700];
+    snprintf(first, sizeof first, "%s/a", dir);
+    int n = snprintf(out, sizeof out, "%s/a/b/", dir);
+    for (int i = 0; i < 300; ++i) out[n++] = 'x';
+    out[n] = '\0';
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", out, "--quiet", NULL };
+    run_render(a, 0, 0, &r);
+    CHECK_MSG(r.status == 2 && strncmp(r.err, "--out ", 6) == 0 && strstr(r.err, "File name too long"),
+              "status %d: %s", r.status, r.err);
+    CHECK_MSG(!exists(first), "%s was left behind", first);
+    CHECK(exists(dir));
+    /* Permissions stop only non-root users: an existing folder that cannot
+       be written, and one in which no folder can be made. */
+    if (geteuid() != 0) {
+        char ro[700], sub[720];
+        snprintf(ro, sizeof ro, "%s/ro", dir);
+        snprintf(sub, sizeof sub, "%s/ro/sub", dir);
+        CHECK(mkdir(ro, 0555) == 0);
+        char *b[] = { NULL, "configs/scenes/lampshade.yaml", "--out", ro, "--quiet", NULL };
+        run_render(b, 0, 0, &r);
+        CHECK_MSG(r.status == 2 && strstr(r.err, "output folder cannot be written: config.yaml.tmp-") &&
+                      strstr(r.err, "Permission denied"),
+                  "%s", r.err);
+        char *c[] = { NULL, "configs/scenes/lampshade.yaml", "--out", sub, "--quiet", NULL };
+        run_render(c, 0, 0, &r);
+        CHECK_MSG(r.status == 2 && strstr(r.err, "Permission denied") && !exists(sub), "%s", r.err);
+        chmod(ro, 0755);
+    } else {
+        printf("  unwritable output folders by permission: not checked as root\n");
+    }
+    remove_tree(dir);
+}
+
+/* The bad configs marked "# stage: output": valid configs whose output
+   folder cannot be made. Exit 2, the expected message (with the location of
+   render.output), nothing on stdout, and no folder on the way made. */
+static void test_bad_output_catalogue(void)
+{
+    DIR *d = opendir("tests/configs/bad");
+    int n = 0;
+    CHECK(d != NULL);
+    for (struct dirent *e; d && (e = readdir(d)) != NULL;) {
+        size_t len = strlen(e->d_name);
+        if (len < 6 || strcmp(e->d_name + len - 5, ".yaml")) continue;
+        char path[600], expect[1100], line[1100], out[1100] = "";
+        snprintf(path, sizeof path, "tests/configs/bad/%s", e->d_name);
+        FILE *f = fopen(path, "r");
+        bool output_stage = f && fgets(expect, sizeof expect, f) && fgets(line, sizeof line, f) &&
+                            strncmp(line, "# stage: output", 15) == 0;
+        while (output_stage && fgets(line, sizeof line, f))
+            if (strncmp(line, "  output: ", 10) == 0) snprintf(out, sizeof out, "%s", line + 10);
+        if (f) fclose(f);
+        if (!output_stage) continue;
+        ++n;
+        expect[strcspn(expect, "\n")] = '\0';
+        out[strcspn(out, "\n")] = '\0';
+        CHECK_MSG(out[0] != '\0', "%s: no render.output line", path);
+        /* Which folders on the way exist before and after. */
+        bool before[64], after[64];
+        int k = 0;
+        for (char *p = out + 1; *p && k < 64; ++p)
+            if (*p == '/' || !p[1]) {
+                char c = p[1];
+                p[1] = '\0';
+                before[k++] = exists(out);
+                p[1] = c;
+            }
+        struct run r;
+        char *a[] = { NULL, path, "--quiet", NULL };
+        run_render(a, 0, 0, &r);
+        CHECK_MSG(r.status == 2, "%s: status %d", path, r.status);
+        CHECK_MSG(strstr(r.err, expect + 10) != NULL, "\n    got:      %s    expected: %s", r.err, expect + 10);
+        CHECK(r.out[0] == '\0');
+        k = 0;
+        for (char *p = out + 1; *p && k < 64; ++p)
+            if (*p == '/' || !p[1]) {
+                char c = p[1];
+                p[1] = '\0';
+                after[k] = exists(out);
+                CHECK_MSG(after[k] == before[k], "%s: %s %s", path, out, after[k] ? "was made" : "vanished");
+                ++k;
+                p[1] = c;
+            }
+    }
+    if (d) closedir(d);
+    CHECK_MSG(n >= 3, "only %d output-stage bad configs", n);
+    printf("  %d bad output folders\n", n);
 }
 
 /* Non-finite samples (provoked by the renderer's fault hook) are dropped and
@@ -184,5 +291,7 @@ static const struct test_case tests[] = {
     { "render_outputs", test_render_outputs },
     { "signals", test_signals },
     { "unwritable_output", test_unwritable_output },
+    { "output_rollback", test_output_rollback },
+    { "bad_output_catalogue", test_bad_output_catalogue },
 };
 TEST_MAIN(tests)

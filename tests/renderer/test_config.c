@@ -3,7 +3,10 @@
    catalogues of good and bad configs in tests/configs/ (each bad file names
    the exact message it must produce in its first line). */
 #include <dirent.h>
+#include <errno.h>
 #include <stdint.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "config.h"
 #include "expr.h"
@@ -12,6 +15,7 @@
 #define LAMPSHADE "configs/scenes/lampshade.yaml"
 #define GOOD_DIR "tests/configs/good"
 #define BAD_DIR "tests/configs/bad"
+#define FUZZ_DIR "tests/configs/fuzz"
 #define COUNT_OF(a) ((int)(sizeof(a) / sizeof((a)[0])))
 
 static bool is_zeroed(const struct config *c)
@@ -348,21 +352,34 @@ static void test_bad_catalogue(void)
 {
     char *names[512];
     int n = list_yaml(BAD_DIR, names, 512);
+    int n_output = 0;
     CHECK_MSG(n >= 45, "only %d bad configs", n);
     for (int i = 0; i < n; ++i) {
         char path[512], line[ERROR_MESSAGE_MAX];
         snprintf(path, sizeof path, "%s/%s", BAD_DIR, names[i]);
         FILE *f = fopen(path, "r");
         bool have = f && fgets(line, sizeof line, f) && strncmp(line, "# expect: ", 10) == 0;
+        /* "# stage: output" on the second line: the config is valid, its
+           output folder is not; test_cli.c runs the renderer on it. */
+        char second[128];
+        bool output_stage = have && fgets(second, sizeof second, f) && strncmp(second, "# stage: output", 15) == 0;
         if (f) fclose(f);
         CHECK_MSG(have, "%s: no \"# expect: \" first line", path);
-        if (have) {
+        if (have && output_stage) {
+            struct config c;
+            struct error err = { "" };
+            bool ok = config_load(path, NULL, 0, &c, &err);
+            CHECK_MSG(ok, "%s (stage: output) does not load: %s", path, err.message);
+            if (ok) config_free(&c);
+            ++n_output;
+        } else if (have) {
             line[strcspn(line, "\n")] = '\0';
             const char *expect = line + 10;
             char location[300];
             snprintf(location, sizeof location, "bad/%s:", names[i]);
-            CHECK_MSG(strncmp(expect, location, strlen(location)) == 0, "%s: expectation must start with %s", path,
-                      location);
+            /* The location, or (for an error in an included file) the
+               include entry that led there. */
+            CHECK_MSG(strstr(expect, location) != NULL, "%s: expectation must name %s", path, location);
             struct config c;
             struct error err = { "" };
             bool ok = config_load(path, NULL, 0, &c, &err);
@@ -373,6 +390,7 @@ static void test_bad_catalogue(void)
         }
         free(names[i]);
     }
+    printf("  %d bad configs, %d of them for the output folder (test_cli)\n", n, n_output);
 }
 
 static void test_good_catalogue(void)
@@ -512,6 +530,238 @@ static void test_load_string_and_files(void)
 }
 
 
+/* include: the merged result of good/include_merge.yaml (two includes, one
+   of them nested) equals the same config written out by hand, and every
+   item keeps the file it came from. */
+static void test_include_merge(void)
+{
+    struct config c, e;
+    struct error err = { "" };
+    bool ok = config_load(GOOD_DIR "/include_merge.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    ok = config_load(GOOD_DIR "/include_merge_expected.yaml", NULL, 0, &e, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        CHECK(config_same(&c, &e));
+        CHECK_MSG(strcmp(c.effective_yaml, e.effective_yaml) == 0, "merged:\n%s\nexpected:\n%s", c.effective_yaml,
+                  e.effective_yaml);
+        CHECK(c.hash == e.hash);
+        config_free(&e);
+    }
+    CHECK(strstr(c.effective_yaml, "include:") == NULL);
+    /* Load order: the file, then its includes depth first. */
+    static const char *const order[] = { "good/include_merge.yaml", "include/mid.yaml", "include/base_room.yaml",
+                                         "include/render_quick.yaml" };
+    CHECK(c.n_files == 4 && strcmp(c.files[0], c.path) == 0);
+    for (int i = 0; i < c.n_files && i < 4; ++i)
+        CHECK_MSG(strstr(c.files[i], order[i]) != NULL, "file %d: %s", i, c.files[i]);
+    CHECK(strcmp(c.files[2], GOOD_DIR "/include/base_room.yaml") == 0);
+    /* Where each item was defined: the file and position that won. */
+    CHECK(c.n_materials == 3 && strstr(c.materials[0].loc.file, "base_room.yaml") && c.materials[0].loc.line == 9);
+    CHECK(strstr(c.materials[1].loc.file, "mid.yaml") && c.materials[1].loc.line == 5);
+    CHECK(strstr(c.materials[2].loc.file, "mid.yaml") && c.materials[2].loc.line == 6);
+    CHECK(strstr(c.lights[0].loc.file, "base_room.yaml") && c.lights[0].loc.line == 14);
+    CHECK(c.shapes[1].loc.file == c.files[0] && c.shapes[1].loc.line == 10);
+    CHECK(c.output_override == -1 && c.output_loc.file == c.files[0] && c.output_loc.line == 15 &&
+          c.output_loc.column == 11);
+    config_free(&c);
+    CHECK(is_zeroed(&c));
+}
+
+/* The canonical scene included whole and partly overridden equals the
+   scene with the same values given as --set overrides. */
+static void test_include_lampshade(void)
+{
+    static const struct config_override o[] = {
+        { "params.s_L", "1.2" },
+        { "film.width", "64" },
+        { "render.strategy", "antishadow" },
+        { "render.spp", "16" },
+        { "render.snapshots.every_spp", "4" },
+        { "render.output", "results/renders/lampshade_include" },
+    };
+    struct config c, e;
+    struct error err = { "" };
+    bool ok = config_load(GOOD_DIR "/include_lampshade.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    ok = config_load(LAMPSHADE, o, COUNT_OF(o), &e, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        CHECK(config_same(&c, &e));
+        CHECK(strcmp(c.effective_yaml, e.effective_yaml) == 0 && c.hash == e.hash);
+        CHECK(c.render.snapshots.every_s == 0.5 && c.render.snapshots.every_spp == 4 && c.height == 256);
+        config_free(&e);
+    }
+    CHECK(c.n_files == 2 && strcmp(c.files[1], GOOD_DIR "/../../../configs/scenes/lampshade.yaml") == 0);
+    config_free(&c);
+}
+
+/* --set applies to the merged result, whichever file a value came from;
+   an error that an override causes in an included value names that file
+   and the include chain. */
+static void test_include_overrides(void)
+{
+    const struct config_override o[] = {
+        { "camera.position.1", "3" },  /* camera.position is only in base_room.yaml */
+        { "params.y", "2.5" },         /* a param of base_room.yaml that only it uses */
+        { "materials.red.albedo.0", "0.25" },
+    };
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load(GOOD_DIR "/include_merge.yaml", o, COUNT_OF(o), &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (ok) {
+        CHECK(c.camera.position.y == 3.0 && c.camera.fov_y_deg == 30.0);
+        CHECK(c.lights[0].polygon.v[0].y == 2.5 && c.lights[0].polygon.v[1].x == 0.25);
+        CHECK(c.materials[1].albedo.r == 0.25 && c.materials[1].albedo.g == 0.1);
+        check_round_trip(&c, "include + overrides");
+        config_free(&c);
+    }
+    struct config_override zero = { "params.size", "0" };
+    ok = config_load(GOOD_DIR "/include_merge.yaml", &zero, 1, &c, &err);
+    CHECK(!ok);
+    CHECK_MSG(strstr(err.message, GOOD_DIR "/include/base_room.yaml:15:15: light \"sky\" is degenerate") &&
+                  strstr(err.message, "(included from " GOOD_DIR "/include/mid.yaml:3:10, from " GOOD_DIR
+                                      "/include_merge.yaml:5:11)"),
+              "got: %s", err.message);
+    struct config_override bad = { "render.integrator", "pth" };
+    ok = config_load(GOOD_DIR "/include_merge.yaml", &bad, 1, &c, &err);
+    CHECK(!ok && strncmp(err.message, "--set render.integrator=pth: unknown integrator", 47) == 0);
+}
+
+static bool write_text(const char *dir, const char *name, const char *text)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "w");
+    if (!f) return false;
+    bool ok = fputs(text, f) >= 0;
+    return (fclose(f) == 0) && ok;
+}
+
+/* Includes found through the file system: a diamond (two files include the
+   same one) is not a cycle, a cycle through another spelling of a path is
+   one, an unreadable file is an error at the include entry, and a config
+   given as a string cannot include. */
+static void test_include_files(void)
+{
+    char dir[] = "/tmp/portal-include-XXXXXX";
+    if (!mkdtemp(dir)) {
+        CHECK_MSG(false, "mkdtemp: %s", strerror(errno));
+        return;
+    }
+    static const char room[] =
+        "camera: {position: [0, 1, 5], look_at: [0, 1, 0], up: [0, 1, 0], fov_y: 40}\n"
+        "film: {width: 4, height: 4}\n"
+        "lights: [{name: sky, vertices: [[-1, 2, -1], [1, 2, -1], [1, 2, 1], [-1, 2, 1]], radiance: [1, 1, 1]}]\n"
+        "render: {spp: 1}\n";
+    char path[700];
+    CHECK(write_text(dir, "d.yaml", room));
+    CHECK(write_text(dir, "b.yaml", "include: d.yaml\nfilm: {width: 8}\n"));
+    CHECK(write_text(dir, "c.yaml", "include: ./d.yaml\nfilm: {height: 2}\n"));
+    CHECK(write_text(dir, "a.yaml", "include: [b.yaml, c.yaml]\n"));
+    CHECK(write_text(dir, "loop.yaml", "include: ./loop.yaml\n"));
+    CHECK(write_text(dir, "secret.yaml", room));
+    CHECK(write_text(dir, "uses_secret.yaml", "include: secret.yaml\n"));
+    CHECK(write_text(dir, "uses_mem.yaml", "include: /proc/self/mem\n"));
+    struct config c;
+    struct error err = { "" };
+    snprintf(path, sizeof path, "%s/a.yaml", dir);
+    bool ok = config_load(path, NULL, 0, &c, &err);
+    CHECK_MSG(ok, "diamond: %s", err.message);
+    if (ok) {
+        /* c.yaml re-includes d.yaml, whose width 4 then wins over b.yaml's 8. */
+        CHECK(c.width == 4 && c.height == 2 && c.n_files == 5);
+        config_free(&c);
+    }
+    snprintf(path, sizeof path, "%s/loop.yaml", dir);
+    CHECK(!config_load(path, NULL, 0, &c, &err));
+    CHECK_MSG(strstr(err.message, "loop.yaml:1:10: include \"./loop.yaml\": include cycle"), "%s", err.message);
+
+    /* Permissions do not stop root: then only the message is not checked. */
+    snprintf(path, sizeof path, "%s/secret.yaml", dir);
+    CHECK(chmod(path, 0) == 0);
+    snprintf(path, sizeof path, "%s/uses_secret.yaml", dir);
+    ok = config_load(path, NULL, 0, &c, &err);
+    if (geteuid() != 0) {
+        CHECK_MSG(!ok && strstr(err.message, "uses_secret.yaml:1:10: include \"secret.yaml\": cannot read") &&
+                      strstr(err.message, "Permission denied"),
+                  "%s", err.message);
+    } else {
+        printf("  include of a chmod 000 file: not checked as root (it loads)\n");
+        if (ok) config_free(&c);
+    }
+    /* A file that opens but cannot be read, even by root: reading
+       /proc/self/mem at offset 0 fails with EIO. */
+    snprintf(path, sizeof path, "%s/uses_mem.yaml", dir);
+    CHECK(!config_load(path, NULL, 0, &c, &err));
+    CHECK_MSG(strstr(err.message, "uses_mem.yaml:1:10: include \"/proc/self/mem\": cannot read /proc/self/mem: "
+                                  "Input/output error"),
+              "%s", err.message);
+    CHECK(is_zeroed(&c));
+
+    /* Aliases of mappings, 40 levels each doubling the paths: copying keeps
+       them shared, and merging two such trees stops at a bound instead of
+       making 2^40 mappings. */
+    static char bomb[8192];
+    int len = snprintf(bomb, sizeof bomb, "params:\n  x0: &a0 {k: 1}\n");
+    for (int i = 1; i <= 40; ++i)
+        len += snprintf(bomb + len, sizeof bomb - (size_t)len, "  x%d: &a%d {p: *a%d, q: *a%d}\n", i, i, i - 1, i - 1);
+    CHECK(write_text(dir, "bomb.yaml", bomb));
+    CHECK(write_text(dir, "bomb_base.yaml", bomb));
+    snprintf(bomb + len, sizeof bomb - (size_t)len, "include: bomb_base.yaml\n");
+    CHECK(write_text(dir, "bomb_over.yaml", bomb));
+    snprintf(path, sizeof path, "%s/bomb_over.yaml", dir);
+    CHECK(!config_load(path, NULL, 0, &c, &err));
+    CHECK_MSG(strstr(err.message, "bomb_over.yaml:") && strstr(err.message, "merging the includes makes more than"),
+              "%s", err.message);
+    CHECK(write_text(dir, "bomb_top.yaml", "include: bomb.yaml\n"));
+    snprintf(path, sizeof path, "%s/bomb_top.yaml", dir);
+    CHECK(!config_load(path, NULL, 0, &c, &err));
+    CHECK_MSG(strstr(err.message, "bomb.yaml:2:7: expected a number, got a mapping (included from"), "%s",
+              err.message);
+
+    const char text[] = "# a comment\ninclude: d.yaml\n";
+    CHECK(!config_load_string(text, strlen(text), "memory", NULL, 0, &c, &err));
+    CHECK_MSG(strstr(err.message, "memory:2:1: include is not available for a config given as a string"), "%s",
+              err.message);
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    CHECK(system(cmd) == 0);
+}
+
+/* Inputs the fuzzer once crashed on (tests/configs/fuzz/): each must load or
+   fail cleanly, and what loads must round-trip. */
+static void test_fuzz_regressions(void)
+{
+    DIR *d = opendir(FUZZ_DIR);
+    int n = 0;
+    if (!d) return;
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        if (e->d_name[0] == '.') continue;
+        char path[512];
+        snprintf(path, sizeof path, "%s/%s", FUZZ_DIR, e->d_name);
+        FILE *f = fopen(path, "rb");
+        if (!f) continue;
+        static char text[1 << 16];
+        size_t len = fread(text, 1, sizeof text, f);
+        fclose(f);
+        struct config c;
+        struct error err = { "" };
+        if (config_load_string(text, len, e->d_name, NULL, 0, &c, &err)) {
+            check_round_trip(&c, path);
+            config_free(&c);
+        } else {
+            CHECK_MSG(err.message[0] != '\0' && is_zeroed(&c), "%s: failed without a message", path);
+        }
+        ++n;
+    }
+    closedir(d);
+    printf("  %d fuzz regression inputs\n", n);
+}
+
 static void test_expressions(void)
 {
     const struct expr_var vars[] = { { "a", 2.0 }, { "b_2", 3.0 } };
@@ -587,5 +837,10 @@ static const struct test_case config_tests[] = {
     { "tolerances_are_relative", test_tolerances_are_relative },
     { "load_string_and_files", test_load_string_and_files },
     { "expressions", test_expressions },
+    { "include_merge", test_include_merge },
+    { "include_lampshade", test_include_lampshade },
+    { "include_overrides", test_include_overrides },
+    { "include_files", test_include_files },
+    { "fuzz_regressions", test_fuzz_regressions },
 };
 TEST_MAIN(config_tests)
