@@ -196,6 +196,18 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
     return true;
 }
 
+int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    ray_setup(&rh.ray, o, d, tmax);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(s->rtc_scene, &ctx, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : s->geometries[rh.hit.geomID].light;
+}
+
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
     struct RTCIntersectContext ctx;
@@ -214,7 +226,7 @@ bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3
     return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len);
 }
 
-struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+double scene_offset_step(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
 {
     /* Float geometry (Embree) has a relative error of ~1e-7 in coordinates,
        so a ray must start clear of the surface it leaves. Moving the origin
@@ -224,5 +236,10 @@ struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec
        step is chosen so the height above the surface is at least eps. */
     double eps = 1e-5 * s->scale + 1e-6 * vec3_max_abs(p);
     double cos_n = fabs(vec3_dot(ng, d));
-    return vec3_madd(p, d, eps / fmax(cos_n, 1e-3));
+    return eps / fmax(cos_n, 1e-3);
+}
+
+struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+{
+    return vec3_madd(p, d, scene_offset_step(s, p, ng, d));
 }
