@@ -123,8 +123,9 @@ struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scr
     return L;
 }
 
-struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
-                               struct vec3 d, struct rng *rng, struct integrator_stats *stats)
+struct rgb integrator_radiance_from(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
+                                    struct vec3 d, const struct hit *first, struct rng *rng,
+                                    struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
     struct rgb L = rgb_make(0.0, 0.0, 0.0), beta = rgb_make(1.0, 1.0, 1.0);
@@ -135,7 +136,12 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
     for (int depth = 0;; ++depth) {
         struct hit h;
         ++stats->rays;
-        if (!scene_intersect(sc, ray_o, ray_d, INFINITY, &h)) break;
+        if (depth == 0) {
+            if (!first) break;
+            h = *first;
+        } else if (!scene_intersect(sc, ray_o, ray_d, INFINITY, &h)) {
+            break;
+        }
         if (h.light >= 0) {
             /* Lights emit and reflect nothing. Seen directly: full weight;
                reached by BSDF sampling: weighted against the strategy. */
@@ -170,4 +176,12 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
         }
     }
     return L;
+}
+
+struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
+                               struct vec3 d, struct rng *rng, struct integrator_stats *stats)
+{
+    struct hit h;
+    bool found = scene_intersect(it->scene, o, d, INFINITY, &h);
+    return integrator_radiance_from(it, scratch, o, d, found ? &h : NULL, rng, stats);
 }

@@ -115,12 +115,12 @@ bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 e
    where 1 - b0^2 = z0^2 / (z0^2 + y0^2) is formed without cancellation.
    v is then uniform in h = cos of the elevation along that edge line,
    i.e. in solid angle.
-   Guards: h is clamped into [-1, 1] and xu, yv into the rectangle; a zero
+   Guards: h is clamped into [-1, 1] and xu into the rectangle; a zero
    root is the limit xu -> +-inf. For tiny solid angles au is close to pi
    and sin(au) carries an absolute error of about 1e-16, i.e. xu moves by
    ~1e-16 / S of the rectangle's width; init refuses S < 1e-12 for that
    reason. */
-static void sphrect_local(const struct sphrect *r, double u, double v, double *xu_out, double *yv_out, double *dd_out)
+struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist)
 {
     double z0 = r->z0, z0sq = z0 * z0;
     double su = sin(u * r->solid_angle), cu_ = cos(u * r->solid_angle);
@@ -132,29 +132,34 @@ static void sphrect_local(const struct sphrect *r, double u, double v, double *x
     double xu = den2 > 0.0 ? num / sqrt(den2) : (num > 0.0 ? r->x1 : r->x0);
     xu = clamp(xu, r->x0, r->x1);
 
+    /* h is the y component of the unit direction itself: the direction is
+       (xu / d sin, h, z0 / d sin) with sin = sqrt(1 - h^2), d = |(xu, z0)|,
+       and the point lies at distance d / sin. */
     double dd = xu * xu + z0sq, d = sqrt(dd);
     double h0 = r->y0 / sqrt(dd + r->y0 * r->y0);
     double h1 = r->y1 / sqrt(dd + r->y1 * r->y1);
     double hv = clamp(h0 + v * (h1 - h0), -1.0, 1.0);
-    double one_minus = (1.0 - hv) * (1.0 + hv);
-    double yv = one_minus > 1e-300 ? hv * d / sqrt(one_minus) : (hv > 0.0 ? r->y1 : r->y0);
-    *xu_out = xu;
-    *yv_out = clamp(yv, r->y0, r->y1);
-    *dd_out = dd;
-}
-
-struct vec3 sphrect_sample_offset(const struct sphrect *r, double u, double v, double *dist)
-{
-    double xu, yv, dd;
-    sphrect_local(r, u, v, &xu, &yv, &dd);
-    *dist = sqrt(dd + yv * yv);
-    return vec3_add(vec3_add(vec3_scale(r->x, xu), vec3_scale(r->y, yv)), vec3_scale(r->z, r->z0));
+    double sin_e = sqrt((1.0 - hv) * (1.0 + hv));
+    struct vec3 local;
+    if (sin_e > 1e-150) {
+        double f = sin_e / d;
+        local = vec3_make(xu * f, hv, z0 * f);
+        *dist = d / sin_e;
+    } else {
+        /* Rounding put h on a pole, which only a point at infinity along y
+           reaches: take the rectangle's edge instead. */
+        struct vec3 q = vec3_make(xu, hv > 0.0 ? r->y1 : r->y0, z0);
+        *dist = vec3_length(q);
+        local = vec3_scale(q, 1.0 / *dist);
+    }
+    return vec3_add(vec3_add(vec3_scale(r->x, local.x), vec3_scale(r->y, local.y)), vec3_scale(r->z, local.z));
 }
 
 struct vec3 sphrect_sample(const struct sphrect *r, double u, double v)
 {
     double dist;
-    return vec3_add(r->o, sphrect_sample_offset(r, u, v, &dist));
+    struct vec3 w = sphrect_sample_dir(r, u, v, &dist);
+    return vec3_madd(r->o, w, dist);
 }
 
 /* Tangent at the unit vector p towards q, of length sin(arc), formed from the

@@ -42,9 +42,9 @@ bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 e
 /* Point on the rectangle for (u, v) in [0,1)^2; the direction from o to it
    has solid-angle pdf 1 / r->solid_angle. */
 struct vec3 sphrect_sample(const struct sphrect *r, double u, double v);
-/* The same point as an offset from o, with its length: saves the caller
-   the subtraction and keeps the direction exact to rounding. */
-struct vec3 sphrect_sample_offset(const struct sphrect *r, double u, double v, double *dist);
+/* The same sample as the unit direction from o and the distance to the
+   point: cheaper than forming the point and normalising. */
+struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist);
 
 /* Spherical triangle with unit vertex directions a, b, c. */
 struct sphtri {

@@ -130,11 +130,11 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     if (omega == 0.0) return target_sample_area(t, p, u_tri, u, v, out);
     if (t->is_rectangle) {
         double dist;
-        struct vec3 d = sphrect_sample_offset(&r, u, v, &dist);
-        if (!(dist > 0.0)) return false;
-        out->y = vec3_add(p, d);
+        struct vec3 wi = sphrect_sample_dir(&r, u, v, &dist);
+        if (!(dist > 0.0) || !isfinite(dist)) return false;
+        out->wi = wi;
         out->dist = dist;
-        out->wi = vec3_scale(d, 1.0 / dist);
+        out->y = vec3_madd(p, wi, dist);
     } else {
         struct vec3 wi = sphpoly_sample(&sp, u_tri, u, v);
         double dist;
