@@ -15,8 +15,11 @@ endif
 
 CFLAGS ?= -O2 -g
 WARN := -std=c99 -Wall -Wextra -Wpedantic -Wshadow
+# Nothing reads errno after a libm call: without the flag every sqrt keeps a
+# branch to the library for negative arguments (measured: 3% of a render).
+MATH := -fno-math-errno
 CPPFLAGS := -D_POSIX_C_SOURCE=200809L -Irenderer/src -MMD -MP
-ALL_CFLAGS := $(WARN) $(CFLAGS) $(SAN_FLAGS) -pthread
+ALL_CFLAGS := $(WARN) $(MATH) $(CFLAGS) $(SAN_FLAGS) -pthread
 LDLIBS := -lembree3 -lOpenEXRCore -lyaml -lm -pthread
 
 SRCS := $(filter-out renderer/src/main.c,$(wildcard renderer/src/*.c))

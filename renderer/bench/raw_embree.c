@@ -11,11 +11,13 @@
      mix     the three interleaved per camera sample in the renderer's order
              (camera, shadow, bounce), i.e. the renderer's own ray mix.
 
-   Two APIs are timed on the same batches: "wrapper" (scene_intersect /
+   Three APIs are timed on the same batches: "wrapper" (scene_intersect /
    scene_occluded, the renderer's thin wrappers over rtcIntersect1 /
-   rtcOccluded1: double->float conversion, normal normalisation) and
-   "embree" (rtcIntersect1 / rtcOccluded1 on prebuilt float rays: the
-   floor of single-ray tracing). Each (kind, api, threads) cell runs for a
+   rtcOccluded1: double->float conversion, normal normalisation), "embree"
+   (rtcIntersect1 / rtcOccluded1 on prebuilt float rays: the floor of
+   single-ray tracing, the renderer's API) and "stream" (rtcIntersect1M /
+   rtcOccluded1M over chunks of 1024 rays split by kind: what a wavefront
+   renderer would get, to tell whether restructuring for streams pays). Each (kind, api, threads) cell runs for a
    fixed time, repeated round-robin, and the median is reported as JSON on
    stdout. Last, the scene is rebuilt without RTC_SCENE_FLAG_ROBUST (which
    scene.c sets) and the mix is timed again, to show what the flag costs. */
@@ -34,8 +36,8 @@
 enum ray_kind { RAY_CAMERA, RAY_BOUNCE, RAY_SHADOW };
 enum batch_id { BATCH_CAMERA, BATCH_BOUNCE, BATCH_SHADOW, BATCH_MIX, BATCH_COUNT };
 static const char *const batch_names[BATCH_COUNT] = { "camera", "bounce", "shadow", "mix" };
-enum api_id { API_WRAPPER, API_EMBREE, API_COUNT };
-static const char *const api_names[API_COUNT] = { "wrapper", "embree" };
+enum api_id { API_WRAPPER, API_EMBREE, API_STREAM, API_COUNT };
+static const char *const api_names[API_COUNT] = { "wrapper", "embree", "stream" };
 
 struct ray_rec {
     struct vec3 o, d;
@@ -151,6 +153,8 @@ static void build_batches(const struct config *cfg, const struct scene *sc, int 
     for (int k = 0; k < BATCH_COUNT; ++k) batch_finish(&b[k]);
 }
 
+#define CHUNK 1024
+
 /* Traces rays [i0, i1) of a batch; returns the number of hits (occluded rays
    count as hits), so the work cannot be optimised away. */
 static uint64_t trace_range(const struct scene *sc, const struct batch *b, int api, int i0, int i1)
@@ -164,6 +168,29 @@ static uint64_t trace_range(const struct scene *sc, const struct batch *b, int a
             } else {
                 struct hit h;
                 hits += scene_intersect(sc, r->o, r->d, r->tmax, &h);
+            }
+        }
+    } else if (api == API_STREAM) {
+        /* What a wavefront renderer would do with the chunk: the rays of
+           each kind in one rtcIntersect1M / rtcOccluded1M call, in order. */
+        struct RTCRayHit x[CHUNK];
+        RTCScene rs = sc->rtc_scene;
+        for (int kind = RAY_CAMERA; kind <= RAY_SHADOW; ++kind) {
+            int m = 0;
+            for (int i = i0; i < i1; ++i)
+                if (b->rays[i].kind == kind) x[m++] = b->rh[i];
+            if (m == 0) continue;
+            struct RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            /* Camera rays of neighbouring pixels are coherent: Embree may
+               then trace them as packets. */
+            if (kind == RAY_CAMERA) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+            if (kind == RAY_SHADOW) {
+                rtcOccluded1M(rs, &ctx, &x[0].ray, (unsigned)m, sizeof x[0]);
+                for (int k = 0; k < m; ++k) hits += x[k].ray.tfar < 0.0f;
+            } else {
+                rtcIntersect1M(rs, &ctx, x, (unsigned)m, sizeof x[0]);
+                for (int k = 0; k < m; ++k) hits += x[k].hit.geomID != RTC_INVALID_GEOMETRY_ID;
             }
         }
     } else {
@@ -194,8 +221,6 @@ struct worker {
     uint64_t rays, hits;
     double wall_s, cpu_s;
 };
-
-#define CHUNK 1024
 
 static void *worker_main(void *arg)
 {
@@ -341,9 +366,10 @@ int main(int argc, char **argv)
     printf("{\"embree_version\":\"%d.%d.%d\",\"config\":\"%s\",\"width\":%d,\"height\":%d,\"spp\":%d,"
            "\"seconds_per_cell\":%g,\"reps\":%d,\"api_note\":\"wrapper = scene_intersect/scene_occluded "
            "(renderer wrappers over rtcIntersect1/rtcOccluded1); embree = rtcIntersect1/rtcOccluded1 on "
-           "prebuilt float rays\",\"batches\":{",
+           "prebuilt float rays; stream = rtcIntersect1M/rtcOccluded1M on the same rays, each chunk of %d "
+           "split by kind\",\"batches\":{",
            (int)(ver / 10000), (int)(ver / 100 % 100), (int)(ver % 100), path, cfg.width, cfg.height, spp, seconds,
-           reps);
+           reps, CHUNK);
     for (int k = 0; k < BATCH_COUNT; ++k)
         printf("%s\"%s\":{\"rays\":%d,\"hit_fraction\":%.6f}", k ? "," : "", batch_names[k], b[k].n,
                hit_fraction[k]);

@@ -9,13 +9,14 @@ void camera_init(struct camera *c, const struct camera_desc *d, int width, int h
     c->tan_half_fov = tan(0.5 * d->fov_y_deg * M_PI / 180.0);
     c->width = width;
     c->height = height;
+    /* Square pixels: the vertical extent spans the field of view. */
+    double half_h = c->tan_half_fov, half_w = half_h * (double)width / (double)height;
+    c->top_left = vec3_add(c->forward, vec3_add(vec3_scale(c->right, -half_w), vec3_scale(c->up, half_h)));
+    c->dx = vec3_scale(c->right, 2.0 * half_w / width);
+    c->dy = vec3_scale(c->up, -2.0 * half_h / height);
 }
 
 struct vec3 camera_ray(const struct camera *c, double px, double py)
 {
-    /* Square pixels: the vertical extent spans the field of view. */
-    double aspect = (double)c->width / (double)c->height;
-    double sx = (2.0 * px / c->width - 1.0) * aspect * c->tan_half_fov;
-    double sy = (1.0 - 2.0 * py / c->height) * c->tan_half_fov;
-    return vec3_normalize(vec3_add(c->forward, vec3_add(vec3_scale(c->right, sx), vec3_scale(c->up, sy))));
+    return vec3_normalize(vec3_add(c->top_left, vec3_add(vec3_scale(c->dx, px), vec3_scale(c->dy, py))));
 }

@@ -11,6 +11,9 @@ struct camera {
     struct vec3 forward, right, up; /* unit */
     double tan_half_fov;
     int width, height;
+    /* Film plane at distance 1: the (unnormalised) direction through film
+       position (px, py) is top_left + px * dx + py * dy. */
+    struct vec3 top_left, dx, dy;
 };
 
 void camera_init(struct camera *c, const struct camera_desc *d, int width, int height);

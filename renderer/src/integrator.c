@@ -59,10 +59,11 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
     /* Both ends of the shadow segment are moved along it until they clear
        their surfaces: a relative shortening alone leaves the end within
        float precision of the light's plane for points just below it. */
-    struct vec3 origin = scene_offset_origin(it->scene, sp->p, sp->n, ls.wi);
-    struct vec3 end = scene_offset_origin(it->scene, vec3_madd(sp->p, ls.wi, ls.dist),
-                                          it->scene->lights[ls.light].target.normal, vec3_neg(ls.wi));
-    if (scene_segment_occluded(it->scene, origin, end)) {
+    const struct scene *sc = it->scene;
+    double t0 = scene_offset_step(sc, sp->p, sp->n, ls.wi);
+    struct vec3 y = vec3_madd(sp->p, ls.wi, ls.dist);
+    double t1 = ls.dist - scene_offset_step(sc, y, sc->lights[ls.light].target.normal, ls.wi);
+    if (t1 > t0 && scene_occluded(sc, vec3_madd(sp->p, ls.wi, t0), ls.wi, t1 - t0)) {
         ++stats->shadow_blocked;
         return black;
     }
@@ -92,12 +93,12 @@ static bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, i
 }
 
 /* Emission found by a BSDF-sampled ray, weighted against the strategy. */
-static struct rgb bsdf_hit_light(const struct integrator *it, const struct strategy_point *sp, const struct hit *h,
+static struct rgb bsdf_hit_light(const struct integrator *it, const struct strategy_point *sp, int light,
                                  struct vec3 d, double bsdf_pdf_value)
 {
-    struct rgb le = light_emitted(&it->scene->lights[h->light], vec3_neg(d));
+    struct rgb le = light_emitted(&it->scene->lights[light], vec3_neg(d));
     if (it->mis == MIS_NONE || rgb_is_black(le)) return rgb_make(0.0, 0.0, 0.0);
-    double pdf_light = strategy_pdf(it->strategy, sp, h->light, d);
+    double pdf_light = strategy_pdf(it->strategy, sp, light, d);
     return rgb_scale(le, mis_weight(it->mis, bsdf_pdf_value, pdf_light));
 }
 
@@ -115,15 +116,16 @@ struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scr
     struct bsdf_sample bs;
     if (!bsdf_sample(v.m, v.wo_local, rng_uniform(rng), rng_uniform(rng), &bs)) return L;
     struct vec3 d = frame_to_world(&v.frame, bs.wi);
-    struct hit h;
     ++stats->rays;
-    if (scene_intersect(it->scene, scene_offset_origin(it->scene, p, v.n, d), d, INFINITY, &h) && h.light >= 0)
-        L = rgb_add(L, rgb_mul(rgb_scale(bs.f, bs.wi.z / bs.pdf), bsdf_hit_light(it, &sp, &h, d, bs.pdf)));
+    int light = scene_first_light(it->scene, scene_offset_origin(it->scene, p, v.n, d), d, INFINITY);
+    if (light >= 0)
+        L = rgb_add(L, rgb_mul(rgb_scale(bs.f, bs.wi.z / bs.pdf), bsdf_hit_light(it, &sp, light, d, bs.pdf)));
     return L;
 }
 
-struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
-                               struct vec3 d, struct rng *rng, struct integrator_stats *stats)
+struct rgb integrator_radiance_from(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
+                                    struct vec3 d, const struct hit *first, struct rng *rng,
+                                    struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
     struct rgb L = rgb_make(0.0, 0.0, 0.0), beta = rgb_make(1.0, 1.0, 1.0);
@@ -134,12 +136,17 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
     for (int depth = 0;; ++depth) {
         struct hit h;
         ++stats->rays;
-        if (!scene_intersect(sc, ray_o, ray_d, INFINITY, &h)) break;
+        if (depth == 0) {
+            if (!first) break;
+            h = *first;
+        } else if (!scene_intersect(sc, ray_o, ray_d, INFINITY, &h)) {
+            break;
+        }
         if (h.light >= 0) {
             /* Lights emit and reflect nothing. Seen directly: full weight;
                reached by BSDF sampling: weighted against the strategy. */
             if (depth == 0) L = rgb_add(L, light_emitted(&sc->lights[h.light], vec3_neg(ray_d)));
-            else L = rgb_add(L, rgb_mul(beta, bsdf_hit_light(it, &sp, &h, ray_d, bsdf_pdf_prev)));
+            else L = rgb_add(L, rgb_mul(beta, bsdf_hit_light(it, &sp, h.light, ray_d, bsdf_pdf_prev)));
             break;
         }
         if (depth >= it->max_depth) break;
@@ -169,4 +176,12 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
         }
     }
     return L;
+}
+
+struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
+                               struct vec3 d, struct rng *rng, struct integrator_stats *stats)
+{
+    struct hit h;
+    bool found = scene_intersect(it->scene, o, d, INFINITY, &h);
+    return integrator_radiance_from(it, scratch, o, d, found ? &h : NULL, rng, stats);
 }

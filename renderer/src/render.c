@@ -66,7 +66,33 @@ struct worker {
     const struct integrator *integrator;
     struct film *film;
     struct strategy_scratch scratch;
+    /* One film row in flight: each pixel's random stream, camera ray and
+       its hit, so that the row's camera rays are traced as one stream. */
+    struct rng *row_rng;
+    struct vec3 *row_dir;
+    struct hit *row_hit;
+    bool *row_found;
 };
+
+static bool worker_alloc_row(struct worker *w, int width, struct error *err)
+{
+    size_t n = (size_t)width;
+    w->row_rng = malloc(n * sizeof *w->row_rng);
+    w->row_dir = malloc(n * sizeof *w->row_dir);
+    w->row_hit = malloc(n * sizeof *w->row_hit);
+    w->row_found = malloc(n * sizeof *w->row_found);
+    if (w->row_rng && w->row_dir && w->row_hit && w->row_found) return true;
+    return error_set(err, "out of memory for a film row of %d pixels", width);
+}
+
+static void worker_free(struct worker *w)
+{
+    strategy_scratch_free(&w->scratch);
+    free(w->row_rng);
+    free(w->row_dir);
+    free(w->row_hit);
+    free(w->row_found);
+}
 
 static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
 {
@@ -81,15 +107,20 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
 {
     const struct config *cfg = w->cfg;
     for (int x = 0; x < cfg->width; ++x) {
-        struct rng rng;
+        struct rng *rng = &w->row_rng[x];
         /* One stream per (pixel, pass): pixels never depend on which thread
            rendered them, so fixed-spp renders are bit-identical. */
-        rng_seed(&rng, cfg->render.seed, (uint64_t)y * (uint64_t)cfg->width + (uint64_t)x, (uint64_t)pass);
-        double jx = rng_uniform(&rng), jy = rng_uniform(&rng);
-        struct vec3 d = camera_ray(w->camera, x + jx, y + jy);
-        struct rgb c = integrator_radiance(w->integrator, &w->scratch, w->camera->origin, d, &rng, stats);
+        rng_seed(rng, cfg->render.seed, (uint64_t)y * (uint64_t)cfg->width + (uint64_t)x, (uint64_t)pass);
+        double jx = rng_uniform(rng), jy = rng_uniform(rng);
+        w->row_dir[x] = camera_ray(w->camera, x + jx, y + jy);
+    }
+    scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit,
+                             w->row_found);
+    for (int x = 0; x < cfg->width; ++x) {
+        struct rgb c = integrator_radiance_from(w->integrator, &w->scratch, w->camera->origin, w->row_dir[x],
+                                                w->row_found[x] ? &w->row_hit[x] : NULL, &w->row_rng[x], stats);
         if (w->pc->fault_nonfinite_every > 0 &&
-            rng_mix64(rng.state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
+            rng_mix64(w->row_rng[x].state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
             c.g = NAN;
         /* A NaN/Inf sample would poison the pixel forever: it is dropped
            (the pixel keeps its own sample count) and counted, and the count
@@ -319,9 +350,11 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         w->camera = &camera;
         w->integrator = &integrator;
         w->film = &film;
-        if (!strategy_scratch_init(&strategy, &w->scratch, err)) ok = false;
-        else if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
-            strategy_scratch_free(&w->scratch);
+        if (!strategy_scratch_init(&strategy, &w->scratch, err) || !worker_alloc_row(w, cfg->width, err)) {
+            worker_free(w);
+            ok = false;
+        } else if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+            worker_free(w);
             ok = error_set(err, "cannot start render thread %d", i);
         } else ++started;
     }
@@ -393,7 +426,7 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     pthread_mutex_unlock(&pc.lock);
     for (int i = 0; i < started; ++i) {
         pthread_join(workers[i].thread, NULL);
-        strategy_scratch_free(&workers[i].scratch);
+        worker_free(&workers[i]);
     }
     if (writer_started) {
         writer_wait_idle(&wr);

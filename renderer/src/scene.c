@@ -177,6 +177,17 @@ static void ray_setup(struct RTCRay *r, struct vec3 o, struct vec3 d, double tma
     r->flags = 0;
 }
 
+static void hit_from_embree(const struct scene *s, struct vec3 o, struct vec3 d, const struct RTCRayHit *rh,
+                            struct hit *h)
+{
+    const struct geometry_info *g = &s->geometries[rh->hit.geomID];
+    h->t = rh->ray.tfar;
+    h->p = vec3_madd(o, d, h->t);
+    h->ng = vec3_normalize(vec3_make(rh->hit.Ng_x, rh->hit.Ng_y, rh->hit.Ng_z));
+    h->material = g->material;
+    h->light = g->light;
+}
+
 bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h)
 {
     struct RTCIntersectContext ctx;
@@ -187,13 +198,46 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(s->rtc_scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    const struct geometry_info *g = &s->geometries[rh.hit.geomID];
-    h->t = rh.ray.tfar;
-    h->p = vec3_madd(o, d, h->t);
-    h->ng = vec3_normalize(vec3_make(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
-    h->material = g->material;
-    h->light = g->light;
+    hit_from_embree(s, o, d, &rh, h);
     return true;
+}
+
+/* Rays per rtcIntersect1M call: enough for Embree's packets, small enough
+   for the stack. */
+#define COHERENT_CHUNK 128
+
+void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n, struct hit *hits,
+                              bool *found)
+{
+    struct RTCRayHit rh[COHERENT_CHUNK];
+    for (int i0 = 0; i0 < n; i0 += COHERENT_CHUNK) {
+        int m = n - i0 < COHERENT_CHUNK ? n - i0 : COHERENT_CHUNK;
+        for (int k = 0; k < m; ++k) {
+            ray_setup(&rh[k].ray, o, d[i0 + k], INFINITY);
+            rh[k].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh[k].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        }
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        rtcIntersect1M(s->rtc_scene, &ctx, rh, (unsigned)m, sizeof rh[0]);
+        for (int k = 0; k < m; ++k) {
+            found[i0 + k] = rh[k].hit.geomID != RTC_INVALID_GEOMETRY_ID;
+            if (found[i0 + k]) hit_from_embree(s, o, d[i0 + k], &rh[k], &hits[i0 + k]);
+        }
+    }
+}
+
+int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    ray_setup(&rh.ray, o, d, tmax);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(s->rtc_scene, &ctx, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : s->geometries[rh.hit.geomID].light;
 }
 
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
@@ -214,7 +258,7 @@ bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3
     return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len);
 }
 
-struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+double scene_offset_step(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
 {
     /* Float geometry (Embree) has a relative error of ~1e-7 in coordinates,
        so a ray must start clear of the surface it leaves. Moving the origin
@@ -224,5 +268,10 @@ struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec
        step is chosen so the height above the surface is at least eps. */
     double eps = 1e-5 * s->scale + 1e-6 * vec3_max_abs(p);
     double cos_n = fabs(vec3_dot(ng, d));
-    return vec3_madd(p, d, eps / fmax(cos_n, 1e-3));
+    return eps / fmax(cos_n, 1e-3);
+}
+
+struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+{
+    return vec3_madd(p, d, scene_offset_step(s, p, ng, d));
 }

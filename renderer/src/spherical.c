@@ -17,31 +17,50 @@ static double clamp(double x, double lo, double hi)
     return x < lo ? lo : (x > hi ? hi : x);
 }
 
+bool sphrect_frame_init(struct sphrect_frame *f, struct vec3 s, struct vec3 ex, struct vec3 ey)
+{
+    double exl = vec3_length(ex), eyl = vec3_length(ey);
+    if (!(exl > 0.0) || !(eyl > 0.0) || !isfinite(exl) || !isfinite(eyl)) return false;
+    f->corner = s;
+    f->ex_len = exl;
+    f->ey_len = eyl;
+    f->x = vec3_scale(ex, 1.0 / exl);
+    f->y = vec3_scale(ey, 1.0 / eyl);
+    f->z = vec3_cross(f->x, f->y);
+    return true;
+}
+
 /* Urena, Fajardo, King 2013, section 3 and algorithm 1. In the local frame
    (x along ex, y along ey, z towards o's side flipped so that the rectangle
    lies at z = z0 < 0) the corners are v00 = (x0, y0, z0) ... v11 = (x1, y1, z0).
    The unit normals of the planes through o and each edge have the closed
    forms n0 ~ (0, z0, -y0), n1 ~ (-z0, 0, x1), n2 ~ (0, -z0, y1),
-   n3 ~ (z0, 0, -x0); we use them instead of normalised cross products. The
-   interior angle between consecutive edge planes, g_i = acos(-n_i . n_{i+1}),
-   is evaluated as atan2(|n_i x n_{i+1}|, -n_i . n_{i+1}), which reduces to
-   atan2(|z0| |v|, +-x y) at the shared corner v = (x, y, z0): accurate for
-   angles near 0 and pi (grazing views) where acos is not.
-   The paper's solid angle S = g0 + g1 + g2 + g3 - 2 pi cancels badly for
-   small rectangles; we compute it instead as the sum of two Van Oosterom-
-   Strackee triangles (v00, v10, v11) and (v00, v11, v01), whose determinants
-   are exactly z0 * |ex| * |ey| each (the edges are axis-aligned locally). */
-bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey)
+   n3 ~ (z0, 0, -x0); we use them instead of normalised cross products.
+   The interior angle between consecutive edge planes, g_i = acos(-n_i . n_{i+1}),
+   is atan2(|z0| |v|, +-x y) at the shared corner v = (x, y, z0), with
+   |(|z0| |v|, x y)| = sqrt(z0^2 + x^2) sqrt(z0^2 + y^2).
+   The sampler only needs sin and cos of au = u S + k (k = 2 pi - g2 - g3),
+   so k is kept as its cosine and sine, found from those of g2 and g3 by the
+   angle-sum formulas without any inverse trigonometric function:
+       cos k =  cos(g2 + g3) = -(x0^2 y0 y1 + z0^2 l00 l01) / m,
+       sin k = -sin(g2 + g3) = |z0| x0 (y0 l01 - y1 l00) / m,
+       m = (z0^2 + x0^2) sqrt(z0^2 + y0^2) sqrt(z0^2 + y1^2),
+   with l_ij = |v_ij|; both are accurate to ~1e-16 absolute, as the angles
+   themselves were. The paper's solid angle S = g0 + g1 + g2 + g3 - 2 pi
+   cancels badly for small rectangles; we compute it instead as the sum of
+   two Van Oosterom-Strackee triangles (v00, v10, v11) and (v00, v11, v01),
+   whose determinants are exactly z0 |ex| |ey| each (the edges are axis-
+   aligned locally), merged into one atan2 by the tangent-sum formula
+   (valid because S / 2 < pi), after scaling every term by 1 / (l00 l10 l11)
+   so that no product can overflow. */
+bool sphrect_init_frame(struct sphrect *r, const struct sphrect_frame *f, struct vec3 o)
 {
-    double exl = vec3_length(ex), eyl = vec3_length(ey);
-    if (!(exl > 0.0) || !(eyl > 0.0) || !isfinite(exl) || !isfinite(eyl)) return false;
+    double exl = f->ex_len, eyl = f->ey_len;
     r->o = o;
-    r->ex_len = exl;
-    r->ey_len = eyl;
-    r->x = vec3_scale(ex, 1.0 / exl);
-    r->y = vec3_scale(ey, 1.0 / eyl);
-    r->z = vec3_cross(r->x, r->y);
-    struct vec3 d = vec3_sub(s, o);
+    r->x = f->x;
+    r->y = f->y;
+    r->z = f->z;
+    struct vec3 d = vec3_sub(f->corner, o);
     double z0 = vec3_dot(d, r->z);
     if (z0 > 0.0) {
         z0 = -z0;
@@ -59,58 +78,88 @@ bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 e
     double z0sq = z0 * z0, az0 = -z0;
     double l00 = sqrt(x0 * x0 + y0 * y0 + z0sq), l10 = sqrt(x1 * x1 + y0 * y0 + z0sq);
     double l01 = sqrt(x0 * x0 + y1 * y1 + z0sq), l11 = sqrt(x1 * x1 + y1 * y1 + z0sq);
-    /* g0 at v10, g1 at v11, g2 at v01, g3 at v00. */
-    double g2 = atan2(az0 * l01, x0 * y1);
-    double g3 = atan2(az0 * l00, -x0 * y0);
-    r->b0 = -y0 / sqrt(z0sq + y0 * y0); /* n0.z */
-    r->b1 = y1 / sqrt(z0sq + y1 * y1);  /* n2.z */
-    r->k = 2.0 * M_PI - g2 - g3;
+    double ry0 = sqrt(z0sq + y0 * y0), ry1 = sqrt(z0sq + y1 * y1);
+    r->b0 = -y0 / ry0; /* n0.z */
+    r->b1 = y1 / ry1;  /* n2.z */
+    r->one_minus_b0sq = z0sq / (z0sq + y0 * y0);
+    double m = 1.0 / ((z0sq + x0 * x0) * ry0 * ry1);
+    r->cos_k = -(x0 * x0 * y0 * y1 + z0sq * l00 * l01) * m;
+    r->sin_k = az0 * x0 * (y0 * l01 - y1 * l00) * m;
 
     /* Van Oosterom-Strackee with a = v00, b = v10, c = v11 and a = v00,
        b = v11, c = v01; dot products written out in local coordinates. */
-    double det = az0 * exl * eyl;
+    double sc = 1.0 / (l00 * l10 * l11);
+    double det = az0 * exl * eyl * sc;
     double d_a10 = x0 * x1 + y0 * y0 + z0sq, d_a11 = x0 * x1 + y0 * y1 + z0sq;
     double d_1011 = x1 * x1 + y0 * y1 + z0sq, d_a01 = x0 * x0 + y0 * y1 + z0sq;
     double d_1101 = x1 * x0 + y1 * y1 + z0sq;
-    double den1 = l00 * l10 * l11 + d_a10 * l11 + d_a11 * l10 + d_1011 * l00;
-    double den2 = l00 * l11 * l01 + d_a11 * l01 + d_a01 * l11 + d_1101 * l00;
-    r->solid_angle = 2.0 * (atan2(det, den1) + atan2(det, den2));
+    double den1 = (l00 * l10 * l11 + d_a10 * l11 + d_a11 * l10 + d_1011 * l00) * sc;
+    double den2 = (l00 * l11 * l01 + d_a11 * l01 + d_a01 * l11 + d_1101 * l00) * sc;
+    r->solid_angle = 2.0 * atan2(det * (den1 + den2), den1 * den2 - det * det);
     return r->solid_angle > SPHERICAL_MIN_SOLID_ANGLE && isfinite(r->solid_angle);
+}
+
+bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey)
+{
+    struct sphrect_frame f;
+    return sphrect_frame_init(&f, s, ex, ey) && sphrect_init_frame(r, &f, o);
 }
 
 /* Algorithm 1 of the paper. u fixes the sub-rectangle [x0, xu] whose solid
    angle is u * S: its area au = u S + k determines the cosine cu of the angle
-   between the edge plane at xu and the x axis. v is then uniform in
-   h = cos of the elevation along that edge line, i.e. in solid angle.
-   Guards: cu and h are clamped into [-1, 1] and xu, yv into the rectangle;
-   sin(au) = 0 is the limit fu -> +-inf, cu -> 0, xu -> 0. For tiny solid
-   angles au is close to pi and sin(au) carries an absolute error of about
-   1e-16, i.e. xu moves by ~1e-16 / S of the rectangle's width; init refuses
-   S < 1e-12 for that reason. */
-struct vec3 sphrect_sample(const struct sphrect *r, double u, double v)
+   between the edge plane at xu and the x axis,
+       cu = sgn(fu) / sqrt(fu^2 + b0^2),  fu = (cos(au) b0 - b1) / sin(au),
+   rewritten without the quotient fu as cu = sgn(n) s / q with s = sin(au),
+   n = cos(au) b0 - b1, q = sqrt(n^2 + b0^2 s^2), so that
+       xu = -cu z0 / sqrt(1 - cu^2) = -sgn(n) s z0 / sqrt(n^2 - s^2 (1 - b0^2)),
+   where 1 - b0^2 = z0^2 / (z0^2 + y0^2) is formed without cancellation.
+   v is then uniform in h = cos of the elevation along that edge line,
+   i.e. in solid angle.
+   Guards: h is clamped into [-1, 1] and xu into the rectangle; a zero
+   root is the limit xu -> +-inf. For tiny solid angles au is close to pi
+   and sin(au) carries an absolute error of about 1e-16, i.e. xu moves by
+   ~1e-16 / S of the rectangle's width; init refuses S < 1e-12 for that
+   reason. */
+struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist)
 {
     double z0 = r->z0, z0sq = z0 * z0;
-    double au = u * r->solid_angle + r->k;
-    double sin_au = sin(au), cos_au = cos(au);
-    double xu;
-    if (sin_au != 0.0) {
-        double fu = (cos_au * r->b0 - r->b1) / sin_au;
-        double cu = clamp((fu > 0.0 ? 1.0 : -1.0) / sqrt(fu * fu + r->b0 * r->b0), -1.0, 1.0);
-        double num = -cu * z0, den = sqrt(fmax(0.0, (1.0 - cu) * (1.0 + cu)));
-        xu = den > 0.0 ? num / den : (num > 0.0 ? r->x1 : r->x0);
-    } else {
-        xu = 0.0;
-    }
+    double su = sin(u * r->solid_angle), cu_ = cos(u * r->solid_angle);
+    double s = su * r->cos_k + cu_ * r->sin_k;
+    double c = cu_ * r->cos_k - su * r->sin_k;
+    double n = c * r->b0 - r->b1;
+    double num = (n > 0.0 ? -s : s) * z0;
+    double den2 = n * n - s * s * r->one_minus_b0sq;
+    double xu = den2 > 0.0 ? num / sqrt(den2) : (num > 0.0 ? r->x1 : r->x0);
     xu = clamp(xu, r->x0, r->x1);
 
+    /* h is the y component of the unit direction itself: the direction is
+       (xu / d sin, h, z0 / d sin) with sin = sqrt(1 - h^2), d = |(xu, z0)|,
+       and the point lies at distance d / sin. */
     double dd = xu * xu + z0sq, d = sqrt(dd);
     double h0 = r->y0 / sqrt(dd + r->y0 * r->y0);
     double h1 = r->y1 / sqrt(dd + r->y1 * r->y1);
     double hv = clamp(h0 + v * (h1 - h0), -1.0, 1.0);
-    double one_minus = (1.0 - hv) * (1.0 + hv);
-    double yv = one_minus > 1e-300 ? hv * d / sqrt(one_minus) : (hv > 0.0 ? r->y1 : r->y0);
-    yv = clamp(yv, r->y0, r->y1);
-    return vec3_add(r->o, vec3_add(vec3_add(vec3_scale(r->x, xu), vec3_scale(r->y, yv)), vec3_scale(r->z, z0)));
+    double sin_e = sqrt((1.0 - hv) * (1.0 + hv));
+    struct vec3 local;
+    if (sin_e > 1e-150) {
+        double f = sin_e / d;
+        local = vec3_make(xu * f, hv, z0 * f);
+        *dist = d / sin_e;
+    } else {
+        /* Rounding put h on a pole, which only a point at infinity along y
+           reaches: take the rectangle's edge instead. */
+        struct vec3 q = vec3_make(xu, hv > 0.0 ? r->y1 : r->y0, z0);
+        *dist = vec3_length(q);
+        local = vec3_scale(q, 1.0 / *dist);
+    }
+    return vec3_add(vec3_add(vec3_scale(r->x, local.x), vec3_scale(r->y, local.y)), vec3_scale(r->z, local.z));
+}
+
+struct vec3 sphrect_sample(const struct sphrect *r, double u, double v)
+{
+    double dist;
+    struct vec3 w = sphrect_sample_dir(r, u, v, &dist);
+    return vec3_madd(r->o, w, dist);
 }
 
 /* Tangent at the unit vector p towards q, of length sin(arc), formed from the

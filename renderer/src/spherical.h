@@ -10,24 +10,41 @@
 #include "polygon.h"
 #include "vec.h"
 
-/* Spherical rectangle: rectangle corner s, edge vectors ex and ey
-   (perpendicular), seen from o. Precomputation per shading point. */
-struct sphrect {
-    struct vec3 o, x, y, z;       /* local frame at o */
-    double z0, x0, y0, x1, y1;    /* rectangle in that frame */
-    double b0, b1, k;             /* Urena's constants */
-    double solid_angle;
+/* A rectangle's own frame, independent of the viewpoint: corner s, unit
+   edge directions x, y and normal z = x cross y, edge lengths. Prepared once
+   per rectangle so that the per-point set-up below needs no normalisation. */
+struct sphrect_frame {
+    struct vec3 corner, x, y, z;
     double ex_len, ey_len;
+};
+
+/* False for a degenerate (zero or non-finite) edge; ex and ey must be
+   perpendicular. */
+bool sphrect_frame_init(struct sphrect_frame *f, struct vec3 s, struct vec3 ex, struct vec3 ey);
+
+/* Spherical rectangle seen from o. Precomputation per shading point. */
+struct sphrect {
+    struct vec3 o, x, y, z;       /* local frame at o (z flipped towards o's side) */
+    double z0, x0, y0, x1, y1;    /* rectangle in that frame */
+    double b0, b1;                /* Urena's constants */
+    double one_minus_b0sq;        /* 1 - b0^2 = z0^2 / (z0^2 + y0^2) */
+    double cos_k, sin_k;          /* Urena's k = 2 pi - g2 - g3, as cosine and sine */
+    double solid_angle;
 };
 
 /* False when o lies (nearly) in the rectangle's plane or the solid angle is
    below 1e-12 sr, too small to sample robustly (callers then fall back to
    area sampling); o may be on either side. The mapping's positions carry a
    relative error of ~1e-16 / solid angle (1e-10 at 1e-6 sr). */
+bool sphrect_init_frame(struct sphrect *r, const struct sphrect_frame *f, struct vec3 o);
+/* The same from the corner s and the edge vectors ex, ey (perpendicular). */
 bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey);
 /* Point on the rectangle for (u, v) in [0,1)^2; the direction from o to it
    has solid-angle pdf 1 / r->solid_angle. */
 struct vec3 sphrect_sample(const struct sphrect *r, double u, double v);
+/* The same sample as the unit direction from o and the distance to the
+   point: cheaper than forming the point and normalising. */
+struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist);
 
 /* Spherical triangle with unit vertex directions a, b, c. */
 struct sphtri {

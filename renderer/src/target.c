@@ -42,6 +42,7 @@ bool target_init(struct target *t, const struct polygon *poly)
     t->normal = polygon_normal(&t->polygon);
     t->area = polygon_area(&t->polygon);
     if (!(t->area > 0.0)) return false;
+    t->min_height = TARGET_MIN_REL_HEIGHT * sqrt(t->area);
     t->is_rectangle = false;
     if (t->polygon.n == 4) {
         const struct vec3 *v = t->polygon.v;
@@ -49,12 +50,8 @@ bool target_init(struct target *t, const struct polygon *poly)
         struct vec3 e2 = vec3_sub(v[3], v[2]), e3 = vec3_sub(v[0], v[3]);
         double tol = 1e-9 * (vec3_length2(e0) + vec3_length2(e1));
         if (fabs(vec3_dot(e0, e1)) <= tol && vec3_length2(vec3_add(e0, e2)) <= tol &&
-            vec3_length2(vec3_add(e1, e3)) <= tol) {
-            t->is_rectangle = true;
-            t->corner = v[0];
-            t->ex = e0;
-            t->ey = vec3_neg(e3);
-        }
+            vec3_length2(vec3_add(e1, e3)) <= tol)
+            t->is_rectangle = sphrect_frame_init(&t->frame, v[0], e0, vec3_neg(e3));
     }
     return true;
 }
@@ -114,10 +111,10 @@ double target_pdf_area(const struct target *t, struct vec3 p, struct vec3 wi)
 static double usable_solid_angle(const struct target *t, struct vec3 p, struct sphrect *r, struct sphpoly *sp)
 {
     double h = fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal));
-    if (h <= TARGET_MIN_REL_HEIGHT * sqrt(t->area)) return 0.0;
+    if (h <= t->min_height) return 0.0;
     double omega = 0.0;
     if (t->is_rectangle) {
-        if (sphrect_init(r, p, t->corner, t->ex, t->ey)) omega = r->solid_angle;
+        if (sphrect_init_frame(r, &t->frame, p)) omega = r->solid_angle;
     } else if (sphpoly_init(sp, &t->polygon, p)) {
         omega = sp->solid_angle;
     }
@@ -132,7 +129,12 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     double omega = usable_solid_angle(t, p, &r, &sp);
     if (omega == 0.0) return target_sample_area(t, p, u_tri, u, v, out);
     if (t->is_rectangle) {
-        if (!to_point(p, sphrect_sample(&r, u, v), out)) return false;
+        double dist;
+        struct vec3 wi = sphrect_sample_dir(&r, u, v, &dist);
+        if (!(dist > 0.0) || !isfinite(dist)) return false;
+        out->wi = wi;
+        out->dist = dist;
+        out->y = vec3_madd(p, wi, dist);
     } else {
         struct vec3 wi = sphpoly_sample(&sp, u_tri, u, v);
         double dist;

@@ -8,14 +8,16 @@
 #include <stdbool.h>
 
 #include "polygon.h"
+#include "spherical.h"
 #include "vec.h"
 
 struct target {
     struct polygon polygon;
     struct vec3 normal;         /* unit, by winding */
     double area;
+    double min_height;          /* below this distance from the plane, area sampling */
     bool is_rectangle;          /* spherical-rectangle sampling applies */
-    struct vec3 corner, ex, ey; /* rectangle frame when is_rectangle */
+    struct sphrect_frame frame; /* the rectangle's frame when is_rectangle */
 };
 
 /* Prepares poly (convex, planar, >= 3 vertices). Collinear and repeated

@@ -180,8 +180,9 @@ static double brute_force(const struct scene *sc, struct vec3 p, double albedo, 
         double da = li->target.area / ((double)g * g);
         for (int i = 0; i < g; ++i)
             for (int j = 0; j < g; ++j) {
-                struct vec3 y = vec3_add(li->target.corner, vec3_add(vec3_scale(li->target.ex, (i + 0.5) / g),
-                                                                     vec3_scale(li->target.ey, (j + 0.5) / g)));
+                const struct sphrect_frame *f = &li->target.frame;
+                struct vec3 y = vec3_add(f->corner, vec3_add(vec3_scale(f->x, f->ex_len * (i + 0.5) / g),
+                                                             vec3_scale(f->y, f->ey_len * (j + 0.5) / g)));
                 struct vec3 d = vec3_sub(y, p);
                 double r2 = vec3_length2(d);
                 struct vec3 w = vec3_scale(d, 1.0 / sqrt(r2));
