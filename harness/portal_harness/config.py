@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from portal_harness.errors import ConfigError
+from portal_harness.includes import scene_sha256
 from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
 from portal_harness.spec import (
@@ -24,7 +25,6 @@ from portal_harness.spec import (
     Overrides,
     RunSpec,
     format_value,
-    sha256_file,
 )
 
 CURVE_METRICS = ("rel_mse", "mse")
@@ -134,7 +134,7 @@ class Experiment:
             raise ConfigError(str(self.path), "budget", "required to run a sweep")
         return RunSpec(
             scene=str(self.scene),
-            scene_sha256=sha256_file(self.scene),
+            scene_sha256=scene_sha256(self.scene),
             strategy=strategy,
             integrator=self.integrator,
             spp=self.budget.spp if spp is None else spp,
@@ -152,7 +152,7 @@ class Experiment:
             raise ConfigError(str(self.path), "regress", "required by the regress command")
         return RunSpec(
             scene=str(self.scene),
-            scene_sha256=sha256_file(self.scene),
+            scene_sha256=scene_sha256(self.scene),
             strategy=strategy,
             integrator=self.integrator,
             spp=self.regress.spp,
@@ -173,7 +173,7 @@ class Experiment:
         r = self.reference
         return RunSpec(
             scene=str(self.scene),
-            scene_sha256=sha256_file(self.scene),
+            scene_sha256=scene_sha256(self.scene),
             strategy=r.strategy,
             integrator=self.integrator,
             spp=r.spp,

@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from portal_harness import runs, store
+from portal_harness.errors import ConfigError
+from portal_harness.includes import load_merged
 from portal_harness.paths import ResultsLayout
 from portal_harness.spec import RunSpec
 
@@ -113,6 +115,11 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
         futures = {}
         for spec in specs:
             if spec.scene not in scene_bytes:
+                # Workers get the scene file's bytes, not the files it includes.
+                if len(load_merged(Path(spec.scene))[1]) > 1:
+                    raise ConfigError(spec.scene, "include", "a scene that includes other files cannot be sent to "
+                                      "Dask workers: run it locally, or give the merged config.yaml that a "
+                                      "render writes to its output folder")
                 scene_bytes[spec.scene] = Path(spec.scene).read_bytes()
             key = spec.key(target.renderer_version)
             final_dir = str(target.layout.run(key, spec.reference).dir)

@@ -10,6 +10,7 @@ from typing import Any
 import yaml
 
 from portal_harness.errors import ConfigError
+from portal_harness.includes import scene_sha256
 from portal_harness.schema import Reader, parse_threads, read_scene
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
@@ -18,7 +19,6 @@ from portal_harness.spec import (
     STRATEGIES,
     RunSpec,
     format_value,
-    sha256_file,
 )
 
 
@@ -63,7 +63,7 @@ def spec_from_scene(
                      if k.startswith("render.snapshots.") and k.split(".")[-1] in SNAPSHOT_KEYS}
     return RunSpec(
         scene=str(scene),
-        scene_sha256=sha256_file(scene),
+        scene_sha256=scene_sha256(scene),
         strategy=chosen_strategy,
         integrator=chosen_integrator,
         spp=chosen_spp,

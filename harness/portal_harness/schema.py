@@ -141,7 +141,10 @@ class SceneInfo:
 
 
 def read_scene(path: Path) -> SceneInfo:
-    tree = read_yaml(path, "scene file")
+    # includes.py builds on read_yaml, hence the import here.
+    from portal_harness.includes import load_merged
+
+    tree, _ = load_merged(path)
     if not isinstance(tree, dict):
         raise ConfigError(str(path), "", f"expected a mapping at the top of the scene, got {kind_of(tree)}")
     return SceneInfo(path=path, scalars=flatten(tree))

@@ -62,6 +62,12 @@ static void bounds_add(struct vec3 *lo, struct vec3 *hi, struct vec3 p)
     hi->x = fmax(hi->x, p.x), hi->y = fmax(hi->y, p.y), hi->z = fmax(hi->z, p.z);
 }
 
+/* The file an item came from: an included file, or the config itself. */
+static const char *loc_file(const struct config *cfg, const struct source_loc *loc)
+{
+    return loc->file ? loc->file : cfg->path;
+}
+
 static bool build_lights(struct scene *s, const struct config *cfg, struct error *err)
 {
     s->lights = calloc((size_t)cfg->n_lights, sizeof *s->lights);
@@ -71,7 +77,8 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
     for (int i = 0; i < cfg->n_lights; ++i) {
         struct light *l = &s->lights[i];
         if (!light_init(l, &cfg->lights[i].polygon, cfg->lights[i].radiance, cfg->lights[i].two_sided))
-            return error_at(err, cfg->path, cfg->lights[i].loc.line, cfg->lights[i].loc.column,
+            return error_at(err, loc_file(cfg, &cfg->lights[i].loc), cfg->lights[i].loc.line,
+                            cfg->lights[i].loc.column,
                             "light \"%s\" is degenerate", cfg->lights[i].name);
         /* Portals are grouped by light so that a light's portals are one range. */
         l->first_portal = s->n_portals;
@@ -82,11 +89,12 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
             const struct portal_desc *pd = &cfg->portals[j];
             struct error aerr;
             if (!target_init(&pt->target, &pd->polygon))
-                return error_at(err, cfg->path, pd->loc.line, pd->loc.column, "portal \"%s\" is degenerate", pd->name);
+                return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column,
+                                "portal \"%s\" is degenerate", pd->name);
             pt->centroid = polygon_centroid(&pt->target.polygon);
             if (!antishadow_build(&l->target.polygon, &pt->target.polygon, &pt->antishadow, &aerr))
-                return error_at(err, cfg->path, pd->loc.line, pd->loc.column, "portal \"%s\": %s", pd->name,
-                                aerr.message);
+                return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column, "portal \"%s\": %s",
+                                pd->name, aerr.message);
             ++s->n_portals;
         }
         l->n_portals = s->n_portals - l->first_portal;
