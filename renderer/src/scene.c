@@ -196,16 +196,27 @@ static void hit_from_embree(const struct scene *s, struct vec3 o, struct vec3 d,
     h->light = g->light;
 }
 
-bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h)
+static void rayhit_setup(struct RTCRayHit *rh, struct vec3 o, struct vec3 d, double tmax)
+{
+    ray_setup(&rh->ray, o, d, tmax);
+    rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+}
+
+/* Closest hit of one ray; false on a miss. */
+static bool trace_closest(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct RTCRayHit *rh)
 {
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
+    rayhit_setup(rh, o, d, tmax);
+    rtcIntersect1(s->rtc_scene, &ctx, rh);
+    return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
+}
+
+bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h)
+{
     struct RTCRayHit rh;
-    ray_setup(&rh.ray, o, d, tmax);
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(s->rtc_scene, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    if (!trace_closest(s, o, d, tmax, &rh)) return false;
     hit_from_embree(s, o, d, &rh, h);
     return true;
 }
@@ -220,11 +231,7 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
     struct RTCRayHit rh[COHERENT_CHUNK];
     for (int i0 = 0; i0 < n; i0 += COHERENT_CHUNK) {
         int m = n - i0 < COHERENT_CHUNK ? n - i0 : COHERENT_CHUNK;
-        for (int k = 0; k < m; ++k) {
-            ray_setup(&rh[k].ray, o, d[i0 + k], INFINITY);
-            rh[k].hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rh[k].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        }
+        for (int k = 0; k < m; ++k) rayhit_setup(&rh[k], o, d[i0 + k], INFINITY);
         struct RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -238,14 +245,8 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
 
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
-    ray_setup(&rh.ray, o, d, tmax);
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(s->rtc_scene, &ctx, &rh);
-    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : s->geometries[rh.hit.geomID].light;
+    return trace_closest(s, o, d, tmax, &rh) ? s->geometries[rh.hit.geomID].light : -1;
 }
 
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
