@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 from portal_harness.errors import ConfigError
-from portal_harness.includes import scene_sha256
 from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
 from portal_harness.spec import (
@@ -98,6 +97,7 @@ class Experiment:
     equal_time_s: float | None
     curve_metric: str
     scene_params: tuple[tuple[str, Any], ...]
+    scene_sha256: str               # of the scene and its includes, read once at load
 
     def points(self) -> list[Point]:
         keys = [k for k, _ in self.sweep]
@@ -134,7 +134,7 @@ class Experiment:
             raise ConfigError(str(self.path), "budget", "required to run a sweep")
         return RunSpec(
             scene=str(self.scene),
-            scene_sha256=scene_sha256(self.scene),
+            scene_sha256=self.scene_sha256,
             strategy=strategy,
             integrator=self.integrator,
             spp=self.budget.spp if spp is None else spp,
@@ -152,7 +152,7 @@ class Experiment:
             raise ConfigError(str(self.path), "regress", "required by the regress command")
         return RunSpec(
             scene=str(self.scene),
-            scene_sha256=scene_sha256(self.scene),
+            scene_sha256=self.scene_sha256,
             strategy=strategy,
             integrator=self.integrator,
             spp=self.regress.spp,
@@ -173,7 +173,7 @@ class Experiment:
         r = self.reference
         return RunSpec(
             scene=str(self.scene),
-            scene_sha256=scene_sha256(self.scene),
+            scene_sha256=self.scene_sha256,
             strategy=r.strategy,
             integrator=self.integrator,
             spp=r.spp,
@@ -358,4 +358,5 @@ def load_experiment(path: Path | str) -> Experiment:
         equal_time_s=None if equal_time is None else r.number(equal_time, "figures.equal_time_s", positive=True),
         curve_metric=r.choice(fig.get("curve_metric", "rel_mse"), "figures.curve_metric", CURVE_METRICS, "metric"),
         scene_params=tuple((k, v) for k, v in scene_info.scalars.items() if k.startswith("params.")),
+        scene_sha256=scene_info.sha256,
     )

@@ -67,10 +67,9 @@ def load_merged(path: Path) -> tuple[Any, list[Path]]:
     return _load(path, (), files), files
 
 
-def scene_sha256(path: Path) -> str:
-    """Digest of a scene file and everything it includes (content and order):
-    what the harness's run keys use for the scene."""
-    _, files = load_merged(path)
+def files_sha256(files: list[Path]) -> str:
+    """Digest of the files a scene was built from (content and order): what
+    the harness's run keys use for the scene."""
     if len(files) == 1:
         # Unchanged for self-contained scenes, so existing run keys stay valid.
         return hashlib.sha256(files[0].read_bytes()).hexdigest()
@@ -78,3 +77,4 @@ def scene_sha256(path: Path) -> str:
     for f in files:
         h.update(hashlib.sha256(f.read_bytes()).digest())
     return h.hexdigest()
+

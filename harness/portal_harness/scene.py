@@ -10,7 +10,6 @@ from typing import Any
 import yaml
 
 from portal_harness.errors import ConfigError
-from portal_harness.includes import scene_sha256
 from portal_harness.schema import Reader, parse_threads, read_scene
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
@@ -63,7 +62,7 @@ def spec_from_scene(
                      if k.startswith("render.snapshots.") and k.split(".")[-1] in SNAPSHOT_KEYS}
     return RunSpec(
         scene=str(scene),
-        scene_sha256=scene_sha256(scene),
+        scene_sha256=info.sha256,
         strategy=chosen_strategy,
         integrator=chosen_integrator,
         spp=chosen_spp,

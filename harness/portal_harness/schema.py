@@ -126,10 +126,13 @@ def flatten(node: Any, prefix: str = "") -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class SceneInfo:
-    """What the harness needs to know of a scene file: its scalars and render defaults."""
+    """What the harness needs to know of a scene file: its scalars and render
+    defaults (after includes), and the digest of every file it was built
+    from (the scene part of run keys)."""
 
     path: Path
     scalars: dict[str, Any]
+    sha256: str
 
     @property
     def width(self) -> int:
@@ -142,12 +145,12 @@ class SceneInfo:
 
 def read_scene(path: Path) -> SceneInfo:
     # includes.py builds on read_yaml, hence the import here.
-    from portal_harness.includes import load_merged
+    from portal_harness.includes import files_sha256, load_merged
 
-    tree, _ = load_merged(path)
+    tree, files = load_merged(path)
     if not isinstance(tree, dict):
         raise ConfigError(str(path), "", f"expected a mapping at the top of the scene, got {kind_of(tree)}")
-    return SceneInfo(path=path, scalars=flatten(tree))
+    return SceneInfo(path=path, scalars=flatten(tree), sha256=files_sha256(files))
 
 
 def available_cores() -> int:

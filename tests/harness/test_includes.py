@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from portal_harness.errors import ConfigError
-from portal_harness.includes import load_merged, merge, scene_sha256
+from portal_harness.includes import load_merged, merge
 from portal_harness.schema import read_scene, read_yaml
 
 REPO = Path(__file__).resolve().parents[2]
@@ -40,11 +40,11 @@ def test_read_scene_sees_included_keys() -> None:
 def test_hash_follows_included_files(tmp_path: Path) -> None:
     (tmp_path / "base.yaml").write_text("params: {s: 1}\n")
     (tmp_path / "top.yaml").write_text("include: base.yaml\nrender: {spp: 2}\n")
-    before = scene_sha256(tmp_path / "top.yaml")
+    before = read_scene(tmp_path / "top.yaml").sha256
     (tmp_path / "base.yaml").write_text("params: {s: 2}\n")
-    assert scene_sha256(tmp_path / "top.yaml") != before
+    assert read_scene(tmp_path / "top.yaml").sha256 != before
     # A self-contained scene keeps its plain file digest (existing run keys stay valid).
-    assert scene_sha256(tmp_path / "base.yaml") == hashlib.sha256(b"params: {s: 2}\n").hexdigest()
+    assert read_scene(tmp_path / "base.yaml").sha256 == hashlib.sha256(b"params: {s: 2}\n").hexdigest()
 
 
 def test_bad_includes(tmp_path: Path) -> None:
