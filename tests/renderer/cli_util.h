@@ -48,10 +48,25 @@ static inline void read_all(int fd, char *buf, size_t cap)
     buf[len] = '\0';
 }
 
-/* Runs the renderer with argv (NULL-terminated, argv[0] ignored); if
-   signal_after_s > 0, sends sig after that many seconds. A positive
-   fsize_limit caps the size of files the renderer may write (a full disk). */
-static inline void run_render_limited(char **argv, double signal_after_s, int sig, long fsize_limit, struct run *r)
+/* How to run the renderer: signal sig1 after t1 seconds and, if sig2,
+   sig2 t2 seconds later (no signal when sig1 is 0); a positive fsize_limit
+   caps the size of files the renderer may write (a full disk). */
+struct run_opts {
+    double t1;
+    int sig1;
+    double t2;
+    int sig2;
+    long fsize_limit;
+};
+
+static inline void sleep_s(double t)
+{
+    struct timespec ts = { (time_t)t, (long)((t - (time_t)t) * 1e9) };
+    nanosleep(&ts, NULL);
+}
+
+/* Runs the renderer with argv (NULL-terminated, argv[0] ignored). */
+static inline void run_render_opts(char **argv, const struct run_opts *o, struct run *r)
 {
     if (!render_bin[0]) find_binary();
     argv[0] = render_bin;
@@ -61,18 +76,21 @@ static inline void run_render_limited(char **argv, double signal_after_s, int si
     if (pid == 0) {
         dup2(fo, 1);
         dup2(fe, 2);
-        if (fsize_limit > 0) {
-            struct rlimit rl = { (rlim_t)fsize_limit, (rlim_t)fsize_limit };
+        if (o->fsize_limit > 0) {
+            struct rlimit rl = { (rlim_t)o->fsize_limit, (rlim_t)o->fsize_limit };
             signal(SIGXFSZ, SIG_IGN); /* writes then fail with EFBIG */
             setrlimit(RLIMIT_FSIZE, &rl);
         }
         execv(render_bin, argv);
         _exit(127);
     }
-    if (signal_after_s > 0) {
-        struct timespec ts = { (time_t)signal_after_s, (long)((signal_after_s - (time_t)signal_after_s) * 1e9) };
-        nanosleep(&ts, NULL);
-        kill(pid, sig);
+    if (o->sig1) {
+        sleep_s(o->t1);
+        kill(pid, o->sig1);
+        if (o->sig2) {
+            sleep_s(o->t2);
+            kill(pid, o->sig2);
+        }
     }
     int st = 0;
     waitpid(pid, &st, 0);
@@ -83,6 +101,14 @@ static inline void run_render_limited(char **argv, double signal_after_s, int si
     read_all(fe, r->err, sizeof r->err);
     close(fo), close(fe);
     unlink(out_path), unlink(err_path);
+}
+
+/* The same with at most one signal (sig after signal_after_s seconds, none
+   when sig is 0) and a file-size limit. */
+static inline void run_render_limited(char **argv, double signal_after_s, int sig, long fsize_limit, struct run *r)
+{
+    struct run_opts o = { signal_after_s, sig, 0.0, 0, fsize_limit };
+    run_render_opts(argv, &o, r);
 }
 
 static inline bool exists(const char *path)

@@ -130,39 +130,6 @@ struct kill_loop {
     int n_kinds;
 };
 
-/* Runs argv, sends sig1 after t1 seconds and, if sig2, sig2 after t1 + t2. */
-static void run_signalled(char **argv, double t1, int sig1, double t2, int sig2, struct run *r)
-{
-    if (!render_bin[0]) find_binary();
-    argv[0] = render_bin;
-    char out_path[] = "/tmp/portal-fault-out-XXXXXX", err_path[] = "/tmp/portal-fault-err-XXXXXX";
-    int fo = mkstemp(out_path), fe = mkstemp(err_path);
-    pid_t pid = fork();
-    if (pid == 0) {
-        dup2(fo, 1);
-        dup2(fe, 2);
-        execv(render_bin, argv);
-        _exit(127);
-    }
-    struct timespec ts = { (time_t)t1, (long)((t1 - (time_t)t1) * 1e9) };
-    nanosleep(&ts, NULL);
-    kill(pid, sig1);
-    if (sig2) {
-        struct timespec ts2 = { (time_t)t2, (long)((t2 - (time_t)t2) * 1e9) };
-        nanosleep(&ts2, NULL);
-        kill(pid, sig2);
-    }
-    int st = 0;
-    waitpid(pid, &st, 0);
-    r->status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-    lseek(fo, 0, SEEK_SET);
-    lseek(fe, 0, SEEK_SET);
-    read_all(fo, r->out, sizeof r->out);
-    read_all(fe, r->err, sizeof r->err);
-    close(fo), close(fe);
-    unlink(out_path), unlink(err_path);
-}
-
 /* A temporary of a file named prefix... is left in dir: its writer was
    killed between creating it and renaming it. */
 static bool has_temporary(const char *dir, const char *prefix)
@@ -189,7 +156,8 @@ static void kill_loop_run(const struct kill_loop *loop, int iterations, uint64_t
         double when = loop->t_min + (loop->t_max - loop->t_min) * rng_uniform(&rng);
         double gap = 0.02 * rng_uniform(&rng);
         struct run r;
-        run_signalled(loop->argv, when, first_signal[kind], gap, kind == KILL_TERM_THEN_KILL ? SIGKILL : 0, &r);
+        struct run_opts o = { when, first_signal[kind], gap, kind == KILL_TERM_THEN_KILL ? SIGKILL : 0, 0 };
+        run_render_opts(loop->argv, &o, &r);
         ++k->runs;
         ++k->by_kind[kind];
         int tmp = 0, n = check_exrs(dir, &tmp);
