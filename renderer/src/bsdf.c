@@ -1,5 +1,7 @@
 #include "bsdf.h"
 
+#include "fastmath.h"
+
 static double ggx_d(double alpha, struct vec3 h)
 {
     double a2 = alpha * alpha;
@@ -64,8 +66,9 @@ static struct vec3 ggx_sample_visible_normal(double alpha, struct vec3 wo, doubl
     double lensq = vh.x * vh.x + vh.y * vh.y;
     struct vec3 t1 = lensq > 0.0 ? vec3_scale(vec3_make(-vh.y, vh.x, 0.0), 1.0 / sqrt(lensq)) : vec3_make(1.0, 0.0, 0.0);
     struct vec3 t2 = vec3_cross(vh, t1);
-    double r = sqrt(u), phi = 2.0 * M_PI * v;
-    double p1 = r * cos(phi), p2 = r * sin(phi);
+    double r = sqrt(u), sin_phi, cos_phi;
+    fm_sincos(2.0 * M_PI * v, &sin_phi, &cos_phi);
+    double p1 = r * cos_phi, p2 = r * sin_phi;
     double s = 0.5 * (1.0 + vh.z);
     p2 = (1.0 - s) * sqrt(fmax(0.0, 1.0 - p1 * p1)) + s * p2;
     struct vec3 nh = vec3_add(vec3_add(vec3_scale(t1, p1), vec3_scale(t2, p2)),
@@ -79,8 +82,9 @@ bool bsdf_sample(const struct material *m, struct vec3 wo, double u, double v, s
     switch (m->kind) {
     case MATERIAL_DIFFUSE: {
         /* Cosine-weighted hemisphere (Malley's method, concentric disk map avoided for brevity). */
-        double r = sqrt(u), phi = 2.0 * M_PI * v;
-        out->wi = vec3_make(r * cos(phi), r * sin(phi), sqrt(fmax(0.0, 1.0 - u)));
+        double r = sqrt(u), sin_phi, cos_phi;
+        fm_sincos(2.0 * M_PI * v, &sin_phi, &cos_phi);
+        out->wi = vec3_make(r * cos_phi, r * sin_phi, sqrt(fmax(0.0, 1.0 - u)));
         break;
     }
     case MATERIAL_GGX: {

@@ -51,4 +51,27 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
                                     struct vec3 d, const struct hit *first, struct rng *rng,
                                     struct integrator_stats *stats);
 
+/* Workspace for one film row of shading points (integrator_radiance_row);
+   one per render thread. */
+struct vertex;
+struct integrator_row {
+    struct vertex *v;
+    struct strategy_point *sp;
+    double (*u)[4];
+    struct light_sample *ls;
+    bool *ok;
+    int *pixel;
+};
+bool integrator_row_init(struct integrator_row *row, int n, struct error *err);
+/* Safe on a zeroed or freed workspace. */
+void integrator_row_free(struct integrator_row *row);
+
+/* integrator_radiance_from for the n camera rays o + t d[x] of one film row,
+   their first hits already traced (found[x]: hit hits[x]); out[x] is the
+   same, bit for bit. Direct lighting with a strategy_batches strategy draws
+   the row's light samples together (strategy_sample_many). */
+void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
+                             struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
+                             struct rng *rng, struct rgb *out, struct integrator_stats *stats);
+
 #endif

@@ -72,6 +72,8 @@ struct worker {
     struct vec3 *row_dir;
     struct hit *row_hit;
     bool *row_found;
+    struct rgb *row_color;
+    struct integrator_row row;
 };
 
 static bool worker_alloc_row(struct worker *w, int width, struct error *err)
@@ -81,8 +83,10 @@ static bool worker_alloc_row(struct worker *w, int width, struct error *err)
     w->row_dir = malloc(n * sizeof *w->row_dir);
     w->row_hit = malloc(n * sizeof *w->row_hit);
     w->row_found = malloc(n * sizeof *w->row_found);
-    if (w->row_rng && w->row_dir && w->row_hit && w->row_found) return true;
-    return error_set(err, "out of memory for a film row of %d pixels", width);
+    w->row_color = malloc(n * sizeof *w->row_color);
+    if (!w->row_rng || !w->row_dir || !w->row_hit || !w->row_found || !w->row_color)
+        return error_set(err, "out of memory for a film row of %d pixels", width);
+    return integrator_row_init(&w->row, width, err);
 }
 
 static void worker_free(struct worker *w)
@@ -92,6 +96,8 @@ static void worker_free(struct worker *w)
     free(w->row_dir);
     free(w->row_hit);
     free(w->row_found);
+    free(w->row_color);
+    integrator_row_free(&w->row);
 }
 
 static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
@@ -116,9 +122,10 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
     }
     scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit,
                              w->row_found);
+    integrator_radiance_row(w->integrator, &w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
+                            w->row_found, cfg->width, w->row_rng, w->row_color, stats);
     for (int x = 0; x < cfg->width; ++x) {
-        struct rgb c = integrator_radiance_from(w->integrator, &w->scratch, w->camera->origin, w->row_dir[x],
-                                                w->row_found[x] ? &w->row_hit[x] : NULL, &w->row_rng[x], stats);
+        struct rgb c = w->row_color[x];
         if (w->pc->fault_nonfinite_every > 0 &&
             rng_mix64(w->row_rng[x].state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
             c.g = NAN;

@@ -2,6 +2,8 @@
    polygons seen from a point (see spherical.h). */
 #include "spherical.h"
 
+#include "fastmath.h"
+
 /* Below this solid angle (sr) the rectangle and polygon samplers refuse:
    sphrect's mapping loses about 1e-16 / Omega of the rectangle's size in
    position (see sphrect_sample), i.e. 1e-4 here. */
@@ -12,7 +14,7 @@
 /* o counts as in the plane when closer than this fraction of the shape's size. */
 #define SPHERICAL_PLANE_REL 1e-12
 
-static double clamp(double x, double lo, double hi)
+FM_INLINE double clamp(double x, double lo, double hi)
 {
     return x < lo ? lo : (x > hi ? hi : x);
 }
@@ -53,21 +55,10 @@ bool sphrect_frame_init(struct sphrect_frame *f, struct vec3 s, struct vec3 ex, 
    aligned locally), merged into one atan2 by the tangent-sum formula
    (valid because S / 2 < pi), after scaling every term by 1 / (l00 l10 l11)
    so that no product can overflow. */
-bool sphrect_init_frame(struct sphrect *r, const struct sphrect_frame *f, struct vec3 o)
+/* The per-point constants from the rectangle in the local frame: the part
+   of the set-up shared by sphrect_init_frame and sphrect_sample_many. */
+FM_INLINE void rect_constants(double z0, double x0, double y0, double exl, double eyl, struct sphrect *r)
 {
-    double exl = f->ex_len, eyl = f->ey_len;
-    r->o = o;
-    r->x = f->x;
-    r->y = f->y;
-    r->z = f->z;
-    struct vec3 d = vec3_sub(f->corner, o);
-    double z0 = vec3_dot(d, r->z);
-    if (z0 > 0.0) {
-        z0 = -z0;
-        r->z = vec3_neg(r->z);
-    }
-    if (!(-z0 > SPHERICAL_PLANE_REL * fmax(exl, eyl))) return false;
-    double x0 = vec3_dot(d, r->x), y0 = vec3_dot(d, r->y);
     double x1 = x0 + exl, y1 = y0 + eyl;
     r->z0 = z0;
     r->x0 = x0;
@@ -79,24 +70,81 @@ bool sphrect_init_frame(struct sphrect *r, const struct sphrect_frame *f, struct
     double l00 = sqrt(x0 * x0 + y0 * y0 + z0sq), l10 = sqrt(x1 * x1 + y0 * y0 + z0sq);
     double l01 = sqrt(x0 * x0 + y1 * y1 + z0sq), l11 = sqrt(x1 * x1 + y1 * y1 + z0sq);
     double ry0 = sqrt(z0sq + y0 * y0), ry1 = sqrt(z0sq + y1 * y1);
-    r->b0 = -y0 / ry0; /* n0.z */
-    r->b1 = y1 / ry1;  /* n2.z */
-    r->one_minus_b0sq = z0sq / (z0sq + y0 * y0);
-    double m = 1.0 / ((z0sq + x0 * x0) * ry0 * ry1);
+    /* Divisions dominate the cost (vectorised, they are the bottleneck), so
+       one reciprocal serves all: 1 / (a b) with a = (z0^2 + x0^2) ry0 ry1
+       (for m and, times z0^2 + x0^2, for 1 / (ry0 ry1)) and b = l00 l10 l11
+       (the scale below). a b has degree 7 in the lengths: finite for
+       lengths between 1e-40 and 1e40, beyond float geometry's reach. */
+    double zx0 = z0sq + x0 * x0, a = zx0 * ry0 * ry1, bl = l00 * l10 * l11;
+    double inv_ab = 1.0 / (a * bl);
+    double m = bl * inv_ab, inv_ry01 = zx0 * m;
+    r->b0 = -y0 * ry1 * inv_ry01; /* n0.z = -y0 / ry0 */
+    r->b1 = y1 * ry0 * inv_ry01;  /* n2.z = y1 / ry1 */
+    r->one_minus_b0sq = z0sq * (ry1 * inv_ry01) * (ry1 * inv_ry01); /* z0^2 / ry0^2 */
     r->cos_k = -(x0 * x0 * y0 * y1 + z0sq * l00 * l01) * m;
     r->sin_k = az0 * x0 * (y0 * l01 - y1 * l00) * m;
 
     /* Van Oosterom-Strackee with a = v00, b = v10, c = v11 and a = v00,
        b = v11, c = v01; dot products written out in local coordinates. */
-    double sc = 1.0 / (l00 * l10 * l11);
+    double sc = a * inv_ab; /* 1 / (l00 l10 l11) */
     double det = az0 * exl * eyl * sc;
     double d_a10 = x0 * x1 + y0 * y0 + z0sq, d_a11 = x0 * x1 + y0 * y1 + z0sq;
     double d_1011 = x1 * x1 + y0 * y1 + z0sq, d_a01 = x0 * x0 + y0 * y1 + z0sq;
     double d_1101 = x1 * x0 + y1 * y1 + z0sq;
     double den1 = (l00 * l10 * l11 + d_a10 * l11 + d_a11 * l10 + d_1011 * l00) * sc;
     double den2 = (l00 * l11 * l01 + d_a11 * l01 + d_a01 * l11 + d_1101 * l00) * sc;
-    r->solid_angle = 2.0 * atan2(det * (den1 + den2), den1 * den2 - det * det);
-    return r->solid_angle > SPHERICAL_MIN_SOLID_ANGLE && isfinite(r->solid_angle);
+    r->solid_angle = 2.0 * fm_atan2(det * (den1 + den2), den1 * den2 - det * det);
+}
+
+/* The local frame at o: z flipped towards o's side so that the rectangle
+   lies at z0 < 0. Returns whether o is clear of the plane (see below). */
+FM_INLINE bool rect_local(const struct sphrect_frame *f, struct vec3 o, struct sphrect *r)
+{
+    r->o = o;
+    r->x = f->x;
+    r->y = f->y;
+    struct vec3 d = vec3_sub(f->corner, o);
+    double z0 = vec3_dot(d, f->z);
+    bool flip = z0 > 0.0;
+    r->z = flip ? vec3_neg(f->z) : f->z;
+    z0 = flip ? -z0 : z0;
+    rect_constants(z0, vec3_dot(d, f->x), vec3_dot(d, f->y), f->ex_len, f->ey_len, r);
+    double size = f->ex_len > f->ey_len ? f->ex_len : f->ey_len;
+    return -z0 > SPHERICAL_PLANE_REL * size;
+}
+
+FM_INLINE bool rect_usable(const struct sphrect *r)
+{
+    /* Also false for NaN; infinity is out of reach (S <= 2 pi). */
+    return (r->solid_angle > SPHERICAL_MIN_SOLID_ANGLE) & (r->solid_angle <= 4.0 * M_PI);
+}
+
+/* Urena, Fajardo, King 2013, section 3 and algorithm 1. In the local frame
+   (x along ex, y along ey, z towards o's side flipped so that the rectangle
+   lies at z = z0 < 0) the corners are v00 = (x0, y0, z0) ... v11 = (x1, y1, z0).
+   The unit normals of the planes through o and each edge have the closed
+   forms n0 ~ (0, z0, -y0), n1 ~ (-z0, 0, x1), n2 ~ (0, -z0, y1),
+   n3 ~ (z0, 0, -x0); we use them instead of normalised cross products.
+   The interior angle between consecutive edge planes, g_i = acos(-n_i . n_{i+1}),
+   is atan2(|z0| |v|, +-x y) at the shared corner v = (x, y, z0), with
+   |(|z0| |v|, x y)| = sqrt(z0^2 + x^2) sqrt(z0^2 + y^2).
+   The sampler only needs sin and cos of au = u S + k (k = 2 pi - g2 - g3),
+   so k is kept as its cosine and sine, found from those of g2 and g3 by the
+   angle-sum formulas without any inverse trigonometric function:
+       cos k =  cos(g2 + g3) = -(x0^2 y0 y1 + z0^2 l00 l01) / m,
+       sin k = -sin(g2 + g3) = |z0| x0 (y0 l01 - y1 l00) / m,
+       m = (z0^2 + x0^2) sqrt(z0^2 + y0^2) sqrt(z0^2 + y1^2),
+   with l_ij = |v_ij|; both are accurate to ~1e-16 absolute, as the angles
+   themselves were. The paper's solid angle S = g0 + g1 + g2 + g3 - 2 pi
+   cancels badly for small rectangles; we compute it instead as the sum of
+   two Van Oosterom-Strackee triangles (v00, v10, v11) and (v00, v11, v01),
+   whose determinants are exactly z0 |ex| |ey| each (the edges are axis-
+   aligned locally), merged into one atan2 by the tangent-sum formula
+   (valid because S / 2 < pi), after scaling every term by 1 / (l00 l10 l11)
+   so that no product can overflow. */
+bool sphrect_init_frame(struct sphrect *r, const struct sphrect_frame *f, struct vec3 o)
+{
+    return rect_local(f, o, r) && rect_usable(r);
 }
 
 bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 ex, struct vec3 ey)
@@ -119,11 +167,12 @@ bool sphrect_init(struct sphrect *r, struct vec3 o, struct vec3 s, struct vec3 e
    root is the limit xu -> +-inf. For tiny solid angles au is close to pi
    and sin(au) carries an absolute error of about 1e-16, i.e. xu moves by
    ~1e-16 / S of the rectangle's width; init refuses S < 1e-12 for that
-   reason. */
-struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist)
+   reason. Written with selects, not branches, so that it vectorises. */
+FM_INLINE struct vec3 rect_warp(const struct sphrect *r, double u, double v, double *dist)
 {
     double z0 = r->z0, z0sq = z0 * z0;
-    double su = sin(u * r->solid_angle), cu_ = cos(u * r->solid_angle);
+    double su, cu_;
+    fm_sincos(u * r->solid_angle, &su, &cu_);
     double s = su * r->cos_k + cu_ * r->sin_k;
     double c = cu_ * r->cos_k - su * r->sin_k;
     double n = c * r->b0 - r->b1;
@@ -135,24 +184,106 @@ struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, doub
     /* h is the y component of the unit direction itself: the direction is
        (xu / d sin, h, z0 / d sin) with sin = sqrt(1 - h^2), d = |(xu, z0)|,
        and the point lies at distance d / sin. */
-    double dd = xu * xu + z0sq, d = sqrt(dd);
-    double h0 = r->y0 / sqrt(dd + r->y0 * r->y0);
-    double h1 = r->y1 / sqrt(dd + r->y1 * r->y1);
+    double dd = xu * xu + z0sq;
+    /* h0 = y0 / r0, h1 = y1 / r1 with r_i = sqrt(dd + y_i^2), in one
+       division; likewise below (d = sqrt(dd), sin = sqrt(1 - h^2)): the
+       direction's scale sin / d and the distance d / sin both come from
+       1 / (d sin) = 1 / sqrt(dd (1 - h^2)). */
+    double r0 = sqrt(dd + r->y0 * r->y0), r1 = sqrt(dd + r->y1 * r->y1);
+    double inv_r01 = 1.0 / (r0 * r1);
+    double h0 = r->y0 * r1 * inv_r01, h1 = r->y1 * r0 * inv_r01;
     double hv = clamp(h0 + v * (h1 - h0), -1.0, 1.0);
-    double sin_e = sqrt((1.0 - hv) * (1.0 + hv));
-    struct vec3 local;
-    if (sin_e > 1e-150) {
-        double f = sin_e / d;
-        local = vec3_make(xu * f, hv, z0 * f);
-        *dist = d / sin_e;
-    } else {
-        /* Rounding put h on a pole, which only a point at infinity along y
-           reaches: take the rectangle's edge instead. */
-        struct vec3 q = vec3_make(xu, hv > 0.0 ? r->y1 : r->y0, z0);
-        *dist = vec3_length(q);
-        local = vec3_scale(q, 1.0 / *dist);
-    }
+    double sin2 = (1.0 - hv) * (1.0 + hv), p2 = dd * sin2;
+    /* Rounding may put h on a pole, which only a point at infinity along y
+       reaches: the rectangle's edge (xu, y0 or y1, z0) is taken instead. */
+    bool pole = !(p2 > 1e-280);
+    double qy = hv > 0.0 ? r->y1 : r->y0;
+    double p = sqrt(pole ? dd + qy * qy : p2), inv_p = 1.0 / p;
+    double f = pole ? inv_p : sin2 * inv_p;
+    struct vec3 local = vec3_make(xu * f, pole ? qy * inv_p : hv, z0 * f);
+    *dist = pole ? p : dd * inv_p;
     return vec3_add(vec3_add(vec3_scale(r->x, local.x), vec3_scale(r->y, local.y)), vec3_scale(r->z, local.z));
+}
+
+struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist)
+{
+    return rect_warp(r, u, v, dist);
+}
+
+/* One lane of sphrect_sample_many: scalars in, scalars out, so that the
+   loop calling it has no local whose address is taken (OpenMP would turn
+   those into per-lane arrays and defeat the vectoriser). */
+struct rect_lane { double wx, wy, wz, dist, solid_angle; };
+
+FM_INLINE struct rect_lane rect_lane(double cx, double cy, double cz, double xx, double xy, double xz, double yx,
+                                     double yy, double yz, double zx, double zy, double zz, double exl, double eyl,
+                                     double ox, double oy, double oz, double u, double v)
+{
+    struct sphrect_frame f = { { cx, cy, cz }, { xx, xy, xz }, { yx, yy, yz }, { zx, zy, zz }, exl, eyl };
+    struct sphrect r;
+    bool ok = rect_local(&f, vec3_make(ox, oy, oz), &r) & rect_usable(&r);
+    struct rect_lane out;
+    struct vec3 w = rect_warp(&r, u, v, &out.dist);
+    out.wx = w.x;
+    out.wy = w.y;
+    out.wz = w.z;
+    out.solid_angle = ok ? r.solid_angle : 0.0;
+    return out;
+}
+
+/* Lanes are processed in blocks: gathered into local arrays of scalars,
+   run through a loop the compiler vectorises (one lane per SIMD slot), and
+   scattered back. */
+#define RECT_BLOCK 16
+
+FM_SIMD_CLONES
+void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct vec3 *o, const double *u,
+                         const double *v, int n, struct vec3 *wi, double *dist, double *solid_angle)
+{
+    for (int b = 0; b < n; b += RECT_BLOCK) {
+        int m = n - b < RECT_BLOCK ? n - b : RECT_BLOCK;
+        double in[19][RECT_BLOCK], out[5][RECT_BLOCK];
+        for (int i = 0; i < RECT_BLOCK; ++i) {
+            /* Idle lanes repeat lane 0 so that they compute finite values. */
+            int k = b + (i < m ? i : 0);
+            const struct sphrect_frame *f = frames[k];
+            in[0][i] = f->corner.x;
+            in[1][i] = f->corner.y;
+            in[2][i] = f->corner.z;
+            in[3][i] = f->x.x;
+            in[4][i] = f->x.y;
+            in[5][i] = f->x.z;
+            in[6][i] = f->y.x;
+            in[7][i] = f->y.y;
+            in[8][i] = f->y.z;
+            in[9][i] = f->z.x;
+            in[10][i] = f->z.y;
+            in[11][i] = f->z.z;
+            in[12][i] = f->ex_len;
+            in[13][i] = f->ey_len;
+            in[14][i] = o[k].x;
+            in[15][i] = o[k].y;
+            in[16][i] = o[k].z;
+            in[17][i] = u[k];
+            in[18][i] = v[k];
+        }
+#pragma omp simd
+        for (int i = 0; i < RECT_BLOCK; ++i) {
+            struct rect_lane l = rect_lane(in[0][i], in[1][i], in[2][i], in[3][i], in[4][i], in[5][i], in[6][i],
+                                           in[7][i], in[8][i], in[9][i], in[10][i], in[11][i], in[12][i],
+                                           in[13][i], in[14][i], in[15][i], in[16][i], in[17][i], in[18][i]);
+            out[0][i] = l.wx;
+            out[1][i] = l.wy;
+            out[2][i] = l.wz;
+            out[3][i] = l.dist;
+            out[4][i] = l.solid_angle;
+        }
+        for (int i = 0; i < m; ++i) {
+            wi[b + i] = vec3_make(out[0][i], out[1][i], out[2][i]);
+            dist[b + i] = out[3][i];
+            solid_angle[b + i] = out[4][i];
+        }
+    }
 }
 
 struct vec3 sphrect_sample(const struct sphrect *r, double u, double v)

@@ -46,6 +46,15 @@ struct vec3 sphrect_sample(const struct sphrect *r, double u, double v);
    point: cheaper than forming the point and normalising. */
 struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, double *dist);
 
+/* The same sample for n independent lanes at once: lane i is the rectangle
+   *frames[i] seen from o[i], sampled at (u[i], v[i]); it gives the direction
+   wi[i], the distance dist[i] and solid_angle[i], which is 0 where
+   sphrect_init_frame would refuse (wi and dist are then meaningless).
+   Bit-identical to sphrect_init_frame + sphrect_sample_dir lane by lane, and
+   vectorised (AVX-512, AVX2 or SSE2, chosen at load time). */
+void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct vec3 *o, const double *u,
+                         const double *v, int n, struct vec3 *wi, double *dist, double *solid_angle);
+
 /* Spherical triangle with unit vertex directions a, b, c. */
 struct sphtri {
     struct vec3 a, b, c;

@@ -528,10 +528,45 @@ static int cdf_find(const double *cdf, int n, double x)
     return lo;
 }
 
+/* The light sample from a technique's target point: the light it reaches
+   and its density under the whole strategy. */
+static void finish_sample(const struct strategy *s, const struct strategy_point *pt, const struct strategy_pair *pair,
+                          int index, const struct target_point *tp, struct light_sample *out)
+{
+    const struct scene *sc = s->scene;
+    out->wi = tp->wi;
+    const struct light *l = &sc->lights[pair->light];
+    if (pair->portal < 0) {
+        out->light = pair->light;
+        out->dist = tp->dist;
+    } else {
+        /* Through the portal: the direction counts only if it goes on to
+           meet the light (always, up to rounding, for the exact techniques). */
+        double dist;
+        if (polygon_intersect_ray(&l->target.polygon, pt->p, tp->wi, &dist)) {
+            out->light = pair->light;
+            out->dist = dist;
+        } else {
+            out->light = -1;
+            out->dist = 0.0;
+        }
+    }
+    if (out->light < 0) {
+        out->pdf_sa = tp->pdf_sa;
+        out->radiance = rgb_make(0.0, 0.0, 0.0);
+        return;
+    }
+    out->radiance = light_emitted(l, vec3_neg(tp->wi));
+    /* Light-only strategies know their density already; mixtures must add
+       every other way of producing the same direction. */
+    if (!uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp->pdf_sa;
+    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, tp->pdf_sa);
+    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0);
+}
+
 bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
                      struct light_sample *out)
 {
-    const struct scene *sc = s->scene;
     double u0 = u[0];
     struct strategy_pair light_only;
     const struct strategy_pair *pair;
@@ -555,33 +590,41 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
 
     struct target_point tp;
     if (!technique_sample(s, pt, pair, index, t, u + 1, &tp)) return false;
-    out->wi = tp.wi;
-    const struct light *l = &sc->lights[pair->light];
-    if (pair->portal < 0) {
-        out->light = pair->light;
-        out->dist = tp.dist;
-    } else {
-        /* Through the portal: the direction counts only if it goes on to
-           meet the light (always, up to rounding, for the exact techniques). */
-        double dist;
-        if (polygon_intersect_ray(&l->target.polygon, pt->p, tp.wi, &dist)) {
-            out->light = pair->light;
-            out->dist = dist;
-        } else {
-            out->light = -1;
-            out->dist = 0.0;
-        }
-    }
-    if (out->light < 0) {
-        out->pdf_sa = tp.pdf_sa;
-        out->radiance = rgb_make(0.0, 0.0, 0.0);
-        return true;
-    }
-    out->radiance = light_emitted(l, vec3_neg(tp.wi));
-    /* Light-only strategies know their density already; mixtures must add
-       every other way of producing the same direction. */
-    if (!uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp.pdf_sa;
-    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp.wi, index, tp.pdf_sa);
-    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp.wi, -1, 0.0);
+    finish_sample(s, pt, pair, index, &tp, out);
     return true;
+}
+
+bool strategy_batches(const struct strategy *s)
+{
+    return !uses_portals(s->kind);
+}
+
+/* Points per batch (stack arrays, no allocation). */
+#define STRATEGY_MANY_CHUNK 64
+
+void strategy_sample_many(const struct strategy *s, const struct strategy_point *pts, const double (*u)[4], int n,
+                          struct light_sample *out, bool *ok)
+{
+    if (s->kind != STRATEGY_LIGHT) {
+        for (int i = 0; i < n; ++i) ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
+        return;
+    }
+    for (int b = 0; b < n; b += STRATEGY_MANY_CHUNK) {
+        int m = n - b < STRATEGY_MANY_CHUNK ? n - b : STRATEGY_MANY_CHUNK;
+        const struct target *t[STRATEGY_MANY_CHUNK];
+        struct vec3 p[STRATEGY_MANY_CHUNK];
+        double uu[STRATEGY_MANY_CHUNK][3];
+        struct strategy_pair pairs[STRATEGY_MANY_CHUNK];
+        struct target_point tp[STRATEGY_MANY_CHUNK];
+        for (int k = 0; k < m; ++k) {
+            /* strategy_sample's light-only branch, technique by technique. */
+            pairs[k] = (struct strategy_pair){ alias_sample(&s->power, u[b + k][0], NULL), -1 };
+            t[k] = &s->scene->lights[pairs[k].light].target;
+            p[k] = pts[b + k].p;
+            for (int j = 0; j < 3; ++j) uu[k][j] = u[b + k][j + 1];
+        }
+        target_sample_solid_angle_many(t, p, (const double(*)[3])uu, m, tp, ok + b);
+        for (int k = 0; k < m; ++k)
+            if (ok[b + k]) finish_sample(s, &pts[b + k], &pairs[k], -1, &tp[k], &out[b + k]);
+    }
 }

@@ -93,6 +93,17 @@ struct light_sample {
 bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
                      struct light_sample *out);
 
+/* True when strategy_prepare keeps nothing in the scratch (the light-only
+   strategies), so that many points can be prepared first and sampled
+   together with strategy_sample_many. */
+bool strategy_batches(const struct strategy *s);
+/* strategy_sample at n points: ok[i] and out[i] are what strategy_sample
+   would give for pts[i] and u[i], bit for bit. The `light` strategy
+   samples its rectangles in vectorised batches; the others call
+   strategy_sample point by point. Only for strategy_batches strategies (the
+   points' scratch is not read). */
+void strategy_sample_many(const struct strategy *s, const struct strategy_point *pts, const double (*u)[4], int n,
+                          struct light_sample *out, bool *ok);
 /* Density with which strategy_sample generates wi, given that wi reaches
    light `light` (the first light along wi). */
 double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi);

@@ -121,6 +121,18 @@ static double usable_solid_angle(const struct target *t, struct vec3 p, struct s
     return omega >= TARGET_MIN_SOLID_ANGLE ? omega : 0.0;
 }
 
+/* A spherical-rectangle sample as a target point, shared by the one-point
+   and the many-point samplers. */
+static bool rect_point(struct vec3 p, struct vec3 wi, double dist, double omega, struct target_point *out)
+{
+    if (!(dist > 0.0) || !isfinite(dist)) return false;
+    out->wi = wi;
+    out->dist = dist;
+    out->y = vec3_madd(p, wi, dist);
+    out->pdf_sa = 1.0 / omega;
+    return true;
+}
+
 bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_tri, double u, double v,
                                struct target_point *out)
 {
@@ -131,22 +143,56 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     if (t->is_rectangle) {
         double dist;
         struct vec3 wi = sphrect_sample_dir(&r, u, v, &dist);
-        if (!(dist > 0.0) || !isfinite(dist)) return false;
-        out->wi = wi;
-        out->dist = dist;
-        out->y = vec3_madd(p, wi, dist);
-    } else {
-        struct vec3 wi = sphpoly_sample(&sp, u_tri, u, v);
-        double dist;
-        /* The fan's directions lie inside the polygon up to rounding; a
-           direction that grazes past an edge is dropped (measure zero). */
-        if (!polygon_intersect_ray(&t->polygon, p, wi, &dist)) return false;
-        out->wi = wi;
-        out->dist = dist;
-        out->y = vec3_madd(p, wi, dist);
+        return rect_point(p, wi, dist, omega, out);
     }
+    struct vec3 wi = sphpoly_sample(&sp, u_tri, u, v);
+    double dist;
+    /* The fan's directions lie inside the polygon up to rounding; a
+       direction that grazes past an edge is dropped (measure zero). */
+    if (!polygon_intersect_ray(&t->polygon, p, wi, &dist)) return false;
+    out->wi = wi;
+    out->dist = dist;
+    out->y = vec3_madd(p, wi, dist);
     out->pdf_sa = 1.0 / omega;
     return true;
+}
+
+/* Lanes per call of sphrect_sample_many (stack arrays, no allocation). */
+#define TARGET_MANY_CHUNK 64
+
+void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3],
+                                    int n, struct target_point *out, bool *ok)
+{
+    for (int b = 0; b < n; b += TARGET_MANY_CHUNK) {
+        int m = n - b < TARGET_MANY_CHUNK ? n - b : TARGET_MANY_CHUNK;
+        const struct sphrect_frame *frames[TARGET_MANY_CHUNK];
+        struct vec3 o[TARGET_MANY_CHUNK], wi[TARGET_MANY_CHUNK];
+        double uu[TARGET_MANY_CHUNK], vv[TARGET_MANY_CHUNK], dist[TARGET_MANY_CHUNK], omega[TARGET_MANY_CHUNK];
+        int lane_of[TARGET_MANY_CHUNK], lanes = 0;
+        for (int i = b; i < b + m; ++i) {
+            /* The rectangles above their min_height go to the vectorised
+               sampler, everything else the one-point way. */
+            const struct target *ti = t[i];
+            double h = fabs(vec3_dot(vec3_sub(p[i], ti->polygon.v[0]), ti->normal));
+            if (ti->is_rectangle && h > ti->min_height) {
+                frames[lanes] = &ti->frame;
+                o[lanes] = p[i];
+                uu[lanes] = u[i][1];
+                vv[lanes] = u[i][2];
+                lane_of[lanes++] = i;
+            } else {
+                ok[i] = target_sample_solid_angle(ti, p[i], u[i][0], u[i][1], u[i][2], &out[i]);
+            }
+        }
+        sphrect_sample_many(frames, o, uu, vv, lanes, wi, dist, omega);
+        for (int k = 0; k < lanes; ++k) {
+            int i = lane_of[k];
+            /* usable_solid_angle's rule: too small a solid angle (or a
+               refused rectangle, omega = 0) samples by area. */
+            if (omega[k] >= TARGET_MIN_SOLID_ANGLE) ok[i] = rect_point(p[i], wi[k], dist[k], omega[k], &out[i]);
+            else ok[i] = target_sample_area(t[i], p[i], u[i][0], u[i][1], u[i][2], &out[i]);
+        }
+    }
 }
 
 double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3 wi)

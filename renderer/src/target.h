@@ -45,5 +45,10 @@ double target_pdf_area(const struct target *t, struct vec3 p, struct vec3 wi);
 bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_tri, double u, double v,
                                struct target_point *out);
 double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3 wi);
+/* target_sample_solid_angle for n independent lanes (target t[i] from p[i]
+   with the uniforms u[i]), out[i] and ok[i] as it would give them, bit for
+   bit; the rectangles among them are sampled in vectorised batches. */
+void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3],
+                                    int n, struct target_point *out, bool *ok);
 
 #endif
