@@ -57,25 +57,36 @@ static bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, i
     return v->wo_local.z > 0.0;
 }
 
-/* Next-event estimation's contribution at vertex v from a drawn light
-   sample (ok: the strategy produced one): one shadow ray, weighted against
-   BSDF sampling. */
-static struct rgb direct_from_sample(const struct integrator *it, const struct strategy_point *sp,
-                                     const struct vertex *v, bool ok, const struct light_sample *ls,
-                                     struct integrator_stats *stats)
+/* A shadow ray next-event estimation still has to trace, and what the
+   sample delivers if the ray is not blocked. Set up, traced and resolved in
+   three steps so that a film row can do each step for all its pixels in
+   turn (see direct_row). */
+struct shadow_query {
+    struct vec3 o, d;
+    double tmax;
+    bool trace;               /* a segment to test (else: delivered unless value is black) */
+    struct rgb value;
+};
+
+/* Next-event estimation at vertex v from a drawn light sample (ok: the
+   strategy produced one), up to the shadow ray. */
+static void shadow_setup(const struct integrator *it, const struct strategy_point *sp, const struct vertex *v,
+                         bool ok, const struct light_sample *ls, struct integrator_stats *stats,
+                         struct shadow_query *q)
 {
-    struct rgb black = rgb_make(0.0, 0.0, 0.0);
-    if (!ok) return black;
+    q->trace = false;
+    q->value = rgb_make(0.0, 0.0, 0.0);
+    if (!ok) return;
     ++stats->light_samples;
     if (ls->light < 0) {
         ++stats->light_missed;
-        return black;
+        return;
     }
-    if (rgb_is_black(ls->radiance) || !(ls->pdf_sa > 0.0)) return black;
+    if (rgb_is_black(ls->radiance) || !(ls->pdf_sa > 0.0)) return;
     struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
-    if (wi_local.z <= 0.0) return black;
+    if (wi_local.z <= 0.0) return;
     struct rgb f = bsdf_eval(v->m, v->wo_local, wi_local);
-    if (rgb_is_black(f)) return black;
+    if (rgb_is_black(f)) return;
     ++stats->rays;
     ++stats->shadow_rays;
     /* Both ends of the shadow segment are moved along it until they clear
@@ -85,12 +96,35 @@ static struct rgb direct_from_sample(const struct integrator *it, const struct s
     double t0 = scene_offset_step(sc, sp->p, sp->n, ls->wi);
     struct vec3 y = vec3_madd(sp->p, ls->wi, ls->dist);
     double t1 = ls->dist - scene_offset_step(sc, y, sc->lights[ls->light].target.normal, ls->wi);
-    if (t1 > t0 && scene_occluded(sc, vec3_madd(sp->p, ls->wi, t0), ls->wi, t1 - t0)) {
-        ++stats->shadow_blocked;
-        return black;
-    }
+    q->trace = t1 > t0;
+    q->o = vec3_madd(sp->p, ls->wi, t0);
+    q->d = ls->wi;
+    q->tmax = t1 - t0;
     double w = it->mis == MIS_NONE ? 1.0 : mis_weight(it->mis, ls->pdf_sa, bsdf_pdf(v->m, v->wo_local, wi_local));
-    return rgb_scale(rgb_mul(f, ls->radiance), wi_local.z * w / ls->pdf_sa);
+    q->value = rgb_scale(rgb_mul(f, ls->radiance), wi_local.z * w / ls->pdf_sa);
+}
+
+static bool shadow_trace(const struct integrator *it, const struct shadow_query *q)
+{
+    return q->trace && scene_occluded(it->scene, q->o, q->d, q->tmax);
+}
+
+static struct rgb shadow_resolve(const struct shadow_query *q, bool occluded, struct integrator_stats *stats)
+{
+    if (!occluded) return q->value;
+    ++stats->shadow_blocked;
+    return rgb_make(0.0, 0.0, 0.0);
+}
+
+/* Next-event estimation's contribution at vertex v from a drawn light
+   sample: one shadow ray, weighted against BSDF sampling. */
+static struct rgb direct_from_sample(const struct integrator *it, const struct strategy_point *sp,
+                                     const struct vertex *v, bool ok, const struct light_sample *ls,
+                                     struct integrator_stats *stats)
+{
+    struct shadow_query q;
+    shadow_setup(it, sp, v, ok, ls, stats, &q);
+    return shadow_resolve(&q, shadow_trace(it, &q), stats);
 }
 
 /* The four uniforms of one strategy sample. */
@@ -120,19 +154,55 @@ static struct rgb bsdf_hit_light(const struct integrator *it, const struct strat
     return rgb_scale(le, mis_weight(it->mis, bsdf_pdf_value, pdf_light));
 }
 
-/* The BSDF-sampling half of direct lighting at v: one BSDF ray, counted
-   only where it reaches a light, weighted against the strategy. */
+/* The BSDF-sampling half of direct lighting: a BSDF ray that counts only
+   where it reaches a light, in the same three steps as the shadow ray. */
+struct bsdf_query {
+    struct vec3 o, d;
+    bool trace;
+    struct rgb weight;        /* f cos / pdf */
+    double pdf;
+};
+
+static void bsdf_setup(const struct integrator *it, const struct vertex *v, const double u[2],
+                       struct integrator_stats *stats, struct bsdf_query *q)
+{
+    struct bsdf_sample bs;
+    q->trace = bsdf_sample(v->m, v->wo_local, u[0], u[1], &bs);
+    if (!q->trace) return;
+    q->d = frame_to_world(&v->frame, bs.wi);
+    q->o = scene_offset_origin(it->scene, v->p, v->n, q->d);
+    q->weight = rgb_scale(bs.f, bs.wi.z / bs.pdf);
+    q->pdf = bs.pdf;
+    ++stats->rays;
+}
+
+static int bsdf_trace(const struct integrator *it, const struct bsdf_query *q)
+{
+    return q->trace ? scene_first_light(it->scene, q->o, q->d, INFINITY) : -1;
+}
+
+static struct rgb bsdf_resolve(const struct integrator *it, const struct strategy_point *sp,
+                               const struct bsdf_query *q, int light)
+{
+    if (light < 0) return rgb_make(0.0, 0.0, 0.0);
+    return rgb_mul(q->weight, bsdf_hit_light(it, sp, light, q->d, q->pdf));
+}
+
+/* The two uniforms of a BSDF sample, in a fixed order. */
+static void draw_bsdf_uniforms(struct rng *rng, double u[2])
+{
+    u[0] = rng_uniform(rng);
+    u[1] = rng_uniform(rng);
+}
+
 static struct rgb bsdf_mis(const struct integrator *it, const struct strategy_point *sp, const struct vertex *v,
                            struct rng *rng, struct integrator_stats *stats)
 {
-    struct rgb black = rgb_make(0.0, 0.0, 0.0);
-    struct bsdf_sample bs;
-    if (!bsdf_sample(v->m, v->wo_local, rng_uniform(rng), rng_uniform(rng), &bs)) return black;
-    struct vec3 d = frame_to_world(&v->frame, bs.wi);
-    ++stats->rays;
-    int light = scene_first_light(it->scene, scene_offset_origin(it->scene, v->p, v->n, d), d, INFINITY);
-    if (light < 0) return black;
-    return rgb_mul(rgb_scale(bs.f, bs.wi.z / bs.pdf), bsdf_hit_light(it, sp, light, d, bs.pdf));
+    double u[2];
+    draw_bsdf_uniforms(rng, u);
+    struct bsdf_query q;
+    bsdf_setup(it, v, u, stats, &q);
+    return bsdf_resolve(it, sp, &q, bsdf_trace(it, &q));
 }
 
 struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
@@ -189,7 +259,9 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         /* Continue by BSDF sampling; the same direction gathers direct light
            at the next vertex, weighted by MIS (or not at all without MIS). */
         struct bsdf_sample bs;
-        if (!bsdf_sample(v.m, v.wo_local, rng_uniform(rng), rng_uniform(rng), &bs)) break;
+        double ub[2];
+        draw_bsdf_uniforms(rng, ub);
+        if (!bsdf_sample(v.m, v.wo_local, ub[0], ub[1], &bs)) break;
         beta = rgb_mul(beta, rgb_scale(bs.f, bs.wi.z / bs.pdf));
         bsdf_pdf_prev = bs.pdf;
         ray_d = frame_to_world(&v.frame, bs.wi);
@@ -212,40 +284,81 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
     return integrator_radiance_from(it, scratch, o, d, found ? &h : NULL, rng, stats);
 }
 
-bool integrator_row_init(struct integrator_row *row, int n, struct error *err)
+/* One film row of shading points in flight (direct_row). */
+struct integrator_row {
+    int n;
+    struct vertex *v;
+    struct strategy_point *sp;
+    double (*u)[4];           /* light sample uniforms */
+    double (*ub)[2];          /* BSDF sample uniforms */
+    struct light_sample *ls;
+    bool *ok;
+    struct shadow_query *shadow;
+    struct bsdf_query *bsdf;
+    bool *occluded;
+    int *light;
+    int *pixel;
+};
+
+struct integrator_row *integrator_row_create(int n, struct error *err)
 {
+    struct integrator_row *row = calloc(1, sizeof *row);
+    if (!row) {
+        error_set(err, "out of memory for a row of %d shading points", n);
+        return NULL;
+    }
     size_t m = n > 0 ? (size_t)n : 1;
+    row->n = n;
     row->v = malloc(m * sizeof *row->v);
     row->sp = malloc(m * sizeof *row->sp);
     row->u = malloc(m * sizeof *row->u);
+    row->ub = malloc(m * sizeof *row->ub);
     row->ls = malloc(m * sizeof *row->ls);
     row->ok = malloc(m * sizeof *row->ok);
+    row->shadow = malloc(m * sizeof *row->shadow);
+    row->bsdf = malloc(m * sizeof *row->bsdf);
+    row->occluded = malloc(m * sizeof *row->occluded);
+    row->light = malloc(m * sizeof *row->light);
     row->pixel = malloc(m * sizeof *row->pixel);
-    if (row->v && row->sp && row->u && row->ls && row->ok && row->pixel) return true;
-    integrator_row_free(row);
-    return error_set(err, "out of memory for a row of %d shading points", n);
+    if (row->v && row->sp && row->u && row->ub && row->ls && row->ok && row->shadow && row->bsdf && row->occluded &&
+        row->light && row->pixel)
+        return row;
+    integrator_row_destroy(row);
+    error_set(err, "out of memory for a row of %d shading points", n);
+    return NULL;
 }
 
-void integrator_row_free(struct integrator_row *row)
+void integrator_row_destroy(struct integrator_row *row)
 {
+    if (!row) return;
     free(row->v);
     free(row->sp);
     free(row->u);
+    free(row->ub);
     free(row->ls);
     free(row->ok);
+    free(row->shadow);
+    free(row->bsdf);
+    free(row->occluded);
+    free(row->light);
     free(row->pixel);
-    *row = (struct integrator_row){ NULL, NULL, NULL, NULL, NULL, NULL };
+    free(row);
 }
 
-/* Direct lighting a row at a time, in three sweeps: shading points and
-   their uniforms, all light samples at once, then shadow and BSDF rays.
-   Each pixel draws its uniforms in the same order as integrator_direct_at,
-   so the result is the same, bit for bit. */
+/* Direct lighting a row at a time, one step for every shading point before
+   the next: shading points and their uniforms; all light samples at once
+   (vectorised); shadow and BSDF ray set-up; the rays; the sums. Apart from
+   the batched sampler this lets the processor overlap the long dependency
+   chains of neighbouring pixels, which ray tracing calls in between would
+   otherwise serialise. Each pixel draws its uniforms in the same order as
+   integrator_direct_at and goes through the same functions, so the result
+   is the same, bit for bit. */
 static void direct_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                        const struct vec3 *d, const struct hit *hits, const bool *found, int n, struct rng *rng,
                        struct rgb *out, struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
+    bool mis = it->mis != MIS_NONE;
     int lanes = 0;
     for (int x = 0; x < n; ++x) {
         out[x] = rgb_make(0.0, 0.0, 0.0);
@@ -261,17 +374,23 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         if (!vertex_init(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
         strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
         draw_light_uniforms(&rng[x], row->u[lanes]);
+        if (mis) draw_bsdf_uniforms(&rng[x], row->ub[lanes]);
         row->pixel[lanes++] = x;
     }
     strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
     for (int k = 0; k < lanes; ++k) {
-        int x = row->pixel[k];
-        struct rgb L = direct_from_sample(it, &row->sp[k], &row->v[k], row->ok[k], &row->ls[k], stats);
-        if (it->mis != MIS_NONE) L = rgb_add(L, bsdf_mis(it, &row->sp[k], &row->v[k], &rng[x], stats));
-        out[x] = L;
+        shadow_setup(it, &row->sp[k], &row->v[k], row->ok[k], &row->ls[k], stats, &row->shadow[k]);
+        if (mis) bsdf_setup(it, &row->v[k], row->ub[k], stats, &row->bsdf[k]);
+    }
+    for (int k = 0; k < lanes; ++k) row->occluded[k] = shadow_trace(it, &row->shadow[k]);
+    if (mis)
+        for (int k = 0; k < lanes; ++k) row->light[k] = bsdf_trace(it, &row->bsdf[k]);
+    for (int k = 0; k < lanes; ++k) {
+        struct rgb L = shadow_resolve(&row->shadow[k], row->occluded[k], stats);
+        if (mis) L = rgb_add(L, bsdf_resolve(it, &row->sp[k], &row->bsdf[k], row->light[k]));
+        out[row->pixel[k]] = L;
     }
 }
-
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct rng *rng, struct rgb *out, struct integrator_stats *stats)

@@ -51,22 +51,16 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
                                     struct vec3 d, const struct hit *first, struct rng *rng,
                                     struct integrator_stats *stats);
 
-/* Workspace for one film row of shading points (integrator_radiance_row);
-   one per render thread. */
-struct vertex;
-struct integrator_row {
-    struct vertex *v;
-    struct strategy_point *sp;
-    double (*u)[4];
-    struct light_sample *ls;
-    bool *ok;
-    int *pixel;
-};
-bool integrator_row_init(struct integrator_row *row, int n, struct error *err);
-/* Safe on a zeroed or freed workspace. */
-void integrator_row_free(struct integrator_row *row);
+/* Workspace for one film row of up to n shading points
+   (integrator_radiance_row); one per render thread. NULL (and err set)
+   when out of memory. */
+struct integrator_row;
+struct integrator_row *integrator_row_create(int n, struct error *err);
+/* Safe on NULL. */
+void integrator_row_destroy(struct integrator_row *row);
 
-/* integrator_radiance_from for the n camera rays o + t d[x] of one film row,
+/* integrator_radiance_from for the n camera rays o + t d[x] of one film row
+   (n at most the size row was created for),
    their first hits already traced (found[x]: hit hits[x]); out[x] is the
    same, bit for bit. Direct lighting with a strategy_batches strategy draws
    the row's light samples together (strategy_sample_many). */

@@ -73,7 +73,7 @@ struct worker {
     struct hit *row_hit;
     bool *row_found;
     struct rgb *row_color;
-    struct integrator_row row;
+    struct integrator_row *row;
 };
 
 static bool worker_alloc_row(struct worker *w, int width, struct error *err)
@@ -86,7 +86,8 @@ static bool worker_alloc_row(struct worker *w, int width, struct error *err)
     w->row_color = malloc(n * sizeof *w->row_color);
     if (!w->row_rng || !w->row_dir || !w->row_hit || !w->row_found || !w->row_color)
         return error_set(err, "out of memory for a film row of %d pixels", width);
-    return integrator_row_init(&w->row, width, err);
+    w->row = integrator_row_create(width, err);
+    return w->row != NULL;
 }
 
 static void worker_free(struct worker *w)
@@ -97,7 +98,8 @@ static void worker_free(struct worker *w)
     free(w->row_hit);
     free(w->row_found);
     free(w->row_color);
-    integrator_row_free(&w->row);
+    integrator_row_destroy(w->row);
+    w->row = NULL;
 }
 
 static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
@@ -122,7 +124,7 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
     }
     scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit,
                              w->row_found);
-    integrator_radiance_row(w->integrator, &w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
+    integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
                             w->row_found, cfg->width, w->row_rng, w->row_color, stats);
     for (int x = 0; x < cfg->width; ++x) {
         struct rgb c = w->row_color[x];
