@@ -15,6 +15,10 @@
      prepare_pdf.S       strategy_prepare + strategy_pdf of a direction to a
                          uniform point on the light (what MIS asks when a
                          BSDF ray hits the light)
+     prepare_sample_many.S  the same as prepare_sample.S through
+                         strategy_sample_many over all points at once (what
+                         the direct integrator does per film row), for the
+                         strategies that batch (light, light_area)
    where S is each strategy with the config's render.portal_weight, and
    antishadow_exact@W with each other weight W (the weight decides how much
    strategy_prepare computes per pair),
@@ -49,9 +53,9 @@ struct point_set {
 };
 
 enum cell_kind { CELL_SHADOW, CELL_CLASSIFY, CELL_VISIBLE_POLYGON, CELL_VISIBLE_TARGET, CELL_PREPARE,
-                 CELL_PREPARE_SAMPLE, CELL_PREPARE_PDF };
+                 CELL_PREPARE_SAMPLE, CELL_PREPARE_PDF, CELL_PREPARE_SAMPLE_MANY };
 static const char *const cell_names[] = { "shadow_ray", "classify", "visible_polygon", "visible_target",
-                                          "prepare", "prepare_sample", "prepare_pdf" };
+                                          "prepare", "prepare_sample", "prepare_pdf", "prepare_sample_many" };
 
 struct cell {
     enum cell_kind kind;
@@ -167,6 +171,18 @@ static int run_cell(const struct cell *c, const struct point_set *ps, const stru
         calls = ps->n;
         break;
     }
+    case CELL_PREPARE_SAMPLE_MANY: {
+        const struct strategy *s = &strategies[c->strategy];
+        static struct strategy_point pts[N_POINTS];
+        static struct light_sample ls[N_POINTS];
+        static bool ok[N_POINTS];
+        for (int i = 0; i < ps->n; ++i) strategy_prepare(s, &scratches[c->strategy], ps->p[i], up, &pts[i]);
+        strategy_sample_many(s, pts, (const double(*)[4])ps->u, ps->n, ls, ok);
+        for (int i = 0; i < ps->n; ++i)
+            if (ok[i]) acc += ls[i].pdf_sa;
+        calls = ps->n;
+        break;
+    }
     }
     *sink += acc;
     return calls;
@@ -252,7 +268,7 @@ int main(int argc, char **argv)
     fprintf(stderr, "micro: %d floor points (%d with a visible polygon), %d antishadow points\n", sets[0].n,
             sets[0].n_vis, sets[1].n);
 
-    static struct cell cells[2][4 + 3 * N_VARIANTS];
+    static struct cell cells[2][4 + 4 * N_VARIANTS];
     int n_cells = 0;
     for (int s = 0; s < 2; ++s) {
         int n = 0;
@@ -264,6 +280,8 @@ int main(int argc, char **argv)
             cells[s][n++] = (struct cell){ .kind = CELL_PREPARE, .strategy = k };
             cells[s][n++] = (struct cell){ .kind = CELL_PREPARE_SAMPLE, .strategy = k };
             cells[s][n++] = (struct cell){ .kind = CELL_PREPARE_PDF, .strategy = k };
+            if (strategy_batches(&strategies[k]))
+                cells[s][n++] = (struct cell){ .kind = CELL_PREPARE_SAMPLE_MANY, .strategy = k };
         }
         n_cells = n;
     }

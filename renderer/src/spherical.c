@@ -221,7 +221,9 @@ FM_INLINE struct rect_lane rect_lane(double cx, double cy, double cz, double xx,
 {
     struct sphrect_frame f = { { cx, cy, cz }, { xx, xy, xz }, { yx, yy, yz }, { zx, zy, zz }, exl, eyl };
     struct sphrect r;
-    bool ok = rect_local(&f, vec3_make(ox, oy, oz), &r) & rect_usable(&r);
+    /* Both evaluated (no branch), so that the loop calling this vectorises. */
+    bool in_front = rect_local(&f, vec3_make(ox, oy, oz), &r), usable = rect_usable(&r);
+    bool ok = in_front & usable;
     struct rect_lane out;
     struct vec3 w = rect_warp(&r, u, v, &out.dist);
     out.wx = w.x;
@@ -243,40 +245,49 @@ void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct
     for (int b = 0; b < n; b += RECT_BLOCK) {
         int m = n - b < RECT_BLOCK ? n - b : RECT_BLOCK;
         double in[19][RECT_BLOCK], out[5][RECT_BLOCK];
+        /* Usually every lane has the same rectangle (one light): its frame
+           is then read once instead of gathered lane by lane. */
+        bool shared = true;
+        for (int i = 1; i < m; ++i) shared &= frames[b + i] == frames[b];
         for (int i = 0; i < RECT_BLOCK; ++i) {
             /* Idle lanes repeat lane 0 so that they compute finite values. */
             int k = b + (i < m ? i : 0);
-            const struct sphrect_frame *f = frames[k];
-            in[0][i] = f->corner.x;
-            in[1][i] = f->corner.y;
-            in[2][i] = f->corner.z;
-            in[3][i] = f->x.x;
-            in[4][i] = f->x.y;
-            in[5][i] = f->x.z;
-            in[6][i] = f->y.x;
-            in[7][i] = f->y.y;
-            in[8][i] = f->y.z;
-            in[9][i] = f->z.x;
-            in[10][i] = f->z.y;
-            in[11][i] = f->z.z;
-            in[12][i] = f->ex_len;
-            in[13][i] = f->ey_len;
             in[14][i] = o[k].x;
             in[15][i] = o[k].y;
             in[16][i] = o[k].z;
             in[17][i] = u[k];
             in[18][i] = v[k];
+            if (shared) continue;
+            const struct sphrect_frame *f = frames[k];
+            const double fields[14] = { f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x,
+                                        f->y.y, f->y.z, f->z.x, f->z.y, f->z.z, f->ex_len, f->ey_len };
+            for (int j = 0; j < 14; ++j) in[j][i] = fields[j];
         }
+        if (shared) {
+            const struct sphrect_frame *f = frames[b];
 #pragma omp simd
-        for (int i = 0; i < RECT_BLOCK; ++i) {
-            struct rect_lane l = rect_lane(in[0][i], in[1][i], in[2][i], in[3][i], in[4][i], in[5][i], in[6][i],
-                                           in[7][i], in[8][i], in[9][i], in[10][i], in[11][i], in[12][i],
-                                           in[13][i], in[14][i], in[15][i], in[16][i], in[17][i], in[18][i]);
-            out[0][i] = l.wx;
-            out[1][i] = l.wy;
-            out[2][i] = l.wz;
-            out[3][i] = l.dist;
-            out[4][i] = l.solid_angle;
+            for (int i = 0; i < RECT_BLOCK; ++i) {
+                struct rect_lane l = rect_lane(f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x,
+                                               f->y.y, f->y.z, f->z.x, f->z.y, f->z.z, f->ex_len, f->ey_len,
+                                               in[14][i], in[15][i], in[16][i], in[17][i], in[18][i]);
+                out[0][i] = l.wx;
+                out[1][i] = l.wy;
+                out[2][i] = l.wz;
+                out[3][i] = l.dist;
+                out[4][i] = l.solid_angle;
+            }
+        } else {
+#pragma omp simd
+            for (int i = 0; i < RECT_BLOCK; ++i) {
+                struct rect_lane l = rect_lane(in[0][i], in[1][i], in[2][i], in[3][i], in[4][i], in[5][i], in[6][i],
+                                               in[7][i], in[8][i], in[9][i], in[10][i], in[11][i], in[12][i],
+                                               in[13][i], in[14][i], in[15][i], in[16][i], in[17][i], in[18][i]);
+                out[0][i] = l.wx;
+                out[1][i] = l.wy;
+                out[2][i] = l.wz;
+                out[3][i] = l.dist;
+                out[4][i] = l.solid_angle;
+            }
         }
         for (int i = 0; i < m; ++i) {
             wi[b + i] = vec3_make(out[0][i], out[1][i], out[2][i]);

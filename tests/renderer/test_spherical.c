@@ -9,7 +9,9 @@
 
 #include "chi2.h"
 #include "polygon.h"
+#include "rng.h"
 #include "spherical.h"
+#include "target.h"
 #include "testlib.h"
 
 /* Chi-square tests expected to pass in this file: Bonferroni over them. */
@@ -552,6 +554,331 @@ static void test_chi2_accepts_consistent_failures(void)
     CHECK_MSG(run_chi2(&s, 4000, &p, report, sizeof report), "%s", report);
 }
 
+/* ---- batched samplers ------------------------------------------------------
+   sphrect_sample_many and target_sample_solid_angle_many promise the results
+   of their one-lane counterparts bit for bit (the renderer's images must not
+   depend on which path sampled a pixel). Compared with memcmp, so that a
+   differing sign of zero or NaN payload counts too. */
+
+static bool same_bits(double a, double b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+static bool same_vec_bits(struct vec3 a, struct vec3 b)
+{
+    return same_bits(a.x, b.x) && same_bits(a.y, b.y) && same_bits(a.z, b.z);
+}
+
+/* Uniform in [-a, a). */
+static double symm(struct rng *r, double a)
+{
+    return (2.0 * rng_uniform(r) - 1.0) * a;
+}
+
+static struct vec3 random_unit(struct rng *r)
+{
+    for (;;) {
+        struct vec3 v = vec3_make(symm(r, 1.0), symm(r, 1.0), symm(r, 1.0));
+        double l = vec3_length(v);
+        if (l > 0.1 && l <= 1.0) return vec3_scale(v, 1.0 / l);
+    }
+}
+
+/* A rectangle in general position: random corner, random perpendicular
+   edges of random lengths 1e-3..10 (log-uniform). */
+static void random_rect(struct rng *r, struct vec3 *s, struct vec3 *ex, struct vec3 *ey)
+{
+    struct vec3 a = random_unit(r);
+    struct vec3 b = vec3_normalize(vec3_cross(a, random_unit(r)));
+    *s = vec3_make(symm(r, 5.0), symm(r, 5.0), symm(r, 5.0));
+    *ex = vec3_scale(a, pow(10.0, -3.0 + 4.0 * rng_uniform(r)));
+    *ey = vec3_scale(b, pow(10.0, -3.0 + 4.0 * rng_uniform(r)));
+}
+
+/* u or v: mostly random, sometimes the ends of [0, 1). */
+static double random_uv(struct rng *r)
+{
+    double k = rng_uniform(r);
+    if (k < 0.1) return 0.0;
+    if (k < 0.2) return nextafter(1.0, 0.0);
+    return rng_uniform(r);
+}
+
+/* Viewpoints for the frame f, by kind: near (either side, heights
+   1e-3..10 times the rectangle's size, beyond its extent too), exactly or
+   nearly in its plane, far enough for a solid angle below 1e-12, anywhere
+   in a box around everything. */
+enum { VIEW_NEAR, VIEW_PLANE, VIEW_FAR, VIEW_BOX, VIEW_KINDS };
+
+static struct vec3 random_view(struct rng *r, const struct sphrect_frame *f, int kind)
+{
+    double size = fmax(f->ex_len, f->ey_len);
+    struct vec3 in_plane = vec3_add(f->corner, vec3_add(vec3_scale(f->x, f->ex_len * (-1.0 + 3.0 * rng_uniform(r))),
+                                                        vec3_scale(f->y, f->ey_len * (-1.0 + 3.0 * rng_uniform(r)))));
+    switch (kind) {
+    case VIEW_NEAR:
+        return vec3_madd(in_plane, f->z, (rng_uniform(r) < 0.5 ? -1.0 : 1.0) * size * pow(10.0, -3.0 + 4.0 * rng_uniform(r)));
+    case VIEW_PLANE:
+        return in_plane;
+    case VIEW_FAR:
+        return vec3_madd(f->corner, random_unit(r), size * 1e7);
+    default:
+        return vec3_make(symm(r, 10.0), symm(r, 10.0), symm(r, 10.0));
+    }
+}
+
+/* Lane i of a sphrect_sample_many call against sphrect_init_frame +
+   sphrect_sample_dir. Returns 1 when init accepted the lane, 0 when it
+   refused (then only solid_angle == 0 is required), -1 on a mismatch. */
+static int rect_lane_check(const struct sphrect_frame *f, struct vec3 o, double u, double v, struct vec3 wi,
+                           double dist, double sa, int lane)
+{
+    struct sphrect r;
+    if (!sphrect_init_frame(&r, f, o)) {
+        if (sa == 0.0) return 0;
+        fprintf(stderr, "  lane %d: init refuses o = (%.17g, %.17g, %.17g), many gives solid angle %.17g\n", lane, o.x,
+                o.y, o.z, sa);
+        return -1;
+    }
+    double d_ref;
+    struct vec3 w_ref = sphrect_sample_dir(&r, u, v, &d_ref);
+    if (same_vec_bits(wi, w_ref) && same_bits(dist, d_ref) && same_bits(sa, r.solid_angle)) return 1;
+    fprintf(stderr,
+            "  lane %d: corner (%.17g, %.17g, %.17g) x (%.17g, %.17g, %.17g) y (%.17g, %.17g, %.17g) lengths %.17g %.17g,\n"
+            "    o (%.17g, %.17g, %.17g), u %.17g v %.17g:\n"
+            "    many wi (%.17g, %.17g, %.17g) dist %.17g sa %.17g\n"
+            "    one  wi (%.17g, %.17g, %.17g) dist %.17g sa %.17g\n",
+            lane, f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x, f->y.y, f->y.z, f->ex_len,
+            f->ey_len, o.x, o.y, o.z, u, v, wi.x, wi.y, wi.z, dist, sa, w_ref.x, w_ref.y, w_ref.z, d_ref, r.solid_angle);
+    return -1;
+}
+
+#define RECT_FRAMES 40
+#define RECT_LANES_MAX 1000
+
+/* sphrect_sample_many on n lanes (frames from a pool, so that neighbouring
+   lanes differ) against the one-lane path; lanes beyond n untouched.
+   Counts the accepted and refused lanes. */
+static void rect_many_run(struct rng *r, const struct sphrect_frame *pool, int n_pool, int n, int fixed_kind,
+                          long *accepted, long *refused)
+{
+    static const struct sphrect_frame *frames[RECT_LANES_MAX + 4];
+    static struct vec3 o[RECT_LANES_MAX + 4], wi[RECT_LANES_MAX + 4];
+    static double u[RECT_LANES_MAX + 4], v[RECT_LANES_MAX + 4], dist[RECT_LANES_MAX + 4], sa[RECT_LANES_MAX + 4];
+    for (int i = 0; i < n + 4; ++i) {
+        frames[i] = &pool[(int)(rng_uniform(r) * n_pool)];
+        o[i] = random_view(r, frames[i], fixed_kind >= 0 ? fixed_kind : (int)(rng_uniform(r) * VIEW_KINDS));
+        u[i] = random_uv(r);
+        v[i] = random_uv(r);
+        wi[i] = vec3_make(-7.0, -7.0, -7.0);
+        dist[i] = sa[i] = -7.0;
+    }
+    sphrect_sample_many(frames, o, u, v, n, wi, dist, sa);
+    int bad = 0;
+    for (int i = 0; i < n; ++i) {
+        int k = rect_lane_check(frames[i], o[i], u[i], v[i], wi[i], dist[i], sa[i], i);
+        if (k < 0) ++bad;
+        else if (k > 0) ++*accepted;
+        else ++*refused;
+    }
+    CHECK_MSG(bad == 0, "n = %d: %d lanes differ from the one-lane sampler", n, bad);
+    for (int i = n; i < n + 4; ++i)
+        CHECK_MSG(wi[i].x == -7.0 && wi[i].y == -7.0 && wi[i].z == -7.0 && dist[i] == -7.0 && sa[i] == -7.0,
+                  "n = %d: lane %d beyond n written", n, i);
+}
+
+static void test_sphrect_many_matches_one(void)
+{
+    struct rng r;
+    rng_seed(&r, 515, 1, 0);
+    struct sphrect_frame pool[RECT_FRAMES];
+    for (int i = 0; i < RECT_FRAMES; ++i) {
+        struct vec3 s, ex, ey;
+        random_rect(&r, &s, &ex, &ey);
+        CHECK(sphrect_frame_init(&pool[i], s, ex, ey));
+    }
+    long accepted = 0, refused = 0;
+    /* Block sizes around the internal block of 16, and larger runs. */
+    const int sizes[] = { 0, 1, 2, 15, 16, 17, 31, 32, 33, 100, 1000 };
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; ++k)
+        for (int rep = 0; rep < 20; ++rep) rect_many_run(&r, pool, RECT_FRAMES, sizes[k], -1, &accepted, &refused);
+    /* One frame for all lanes, and each kind of viewpoint alone. */
+    for (int kind = 0; kind < VIEW_KINDS; ++kind) {
+        long a0 = accepted, r0 = refused;
+        rect_many_run(&r, pool + kind, 1, 100, kind, &accepted, &refused);
+        rect_many_run(&r, pool, RECT_FRAMES, 100, kind, &accepted, &refused);
+        /* Far points subtend < 1e-12 sr: all refused. */
+        if (kind == VIEW_FAR) CHECK_MSG(accepted == a0, "far viewpoints accepted: %ld", accepted - a0);
+        if (kind == VIEW_NEAR) CHECK(accepted - a0 == 200 && refused == r0);
+    }
+    /* Points exactly in the plane of an axis-aligned rectangle (z0 = 0
+       without rounding), and just off it: refused, so solid angle 0. */
+    struct sphrect_frame flat;
+    CHECK(sphrect_frame_init(&flat, vec3_make(0.25, -0.5, 2.0), vec3_make(1.5, 0, 0), vec3_make(0, 0.75, 0)));
+    const struct sphrect_frame *ff[17];
+    struct vec3 fo[17], fw[17];
+    double fu[17], fv[17], fd[17], fs[17];
+    for (int i = 0; i < 17; ++i) {
+        ff[i] = &flat;
+        fo[i] = vec3_make(-1.0 + 0.25 * i, 0.1 * i - 1.0, i % 2 ? 2.0 : 2.0 + 1e-13 * (i % 3));
+        fu[i] = random_uv(&r);
+        fv[i] = random_uv(&r);
+    }
+    sphrect_sample_many(ff, fo, fu, fv, 17, fw, fd, fs);
+    for (int i = 0; i < 17; ++i) {
+        struct sphrect rr;
+        CHECK_MSG(!sphrect_init_frame(&rr, &flat, fo[i]), "lane %d accepted in the plane", i);
+        CHECK_MSG(fs[i] == 0.0, "lane %d: solid angle %.17g in the plane", i, fs[i]);
+    }
+    /* Both outcomes must have been exercised. */
+    CHECK(accepted > 1000 && refused > 1000);
+    printf("  sphrect_sample_many: %ld lanes sampled, %ld refused, all as the one-lane sampler\n", accepted, refused);
+}
+
+/* Targets: rectangles (is_rectangle, the vectorised path), a
+   parallelogram, a triangle and a pentagon (the one-point path inside the
+   many call), each in general position. */
+#define MANY_TARGETS 12
+
+static struct polygon random_convex(struct rng *r, int kind)
+{
+    struct vec3 s, ex, ey;
+    random_rect(r, &s, &ex, &ey);
+    struct polygon p;
+    switch (kind) {
+    case 0: /* rectangle */
+        p.n = 4;
+        p.v[0] = s;
+        p.v[1] = vec3_add(s, ex);
+        p.v[2] = vec3_add(vec3_add(s, ex), ey);
+        p.v[3] = vec3_add(s, ey);
+        break;
+    case 1: /* parallelogram: not a rectangle */
+        p.n = 4;
+        p.v[0] = s;
+        p.v[1] = vec3_add(s, ex);
+        p.v[2] = vec3_add(vec3_add(s, ex), vec3_add(ey, vec3_scale(ex, 0.4)));
+        p.v[3] = vec3_add(s, vec3_add(ey, vec3_scale(ex, 0.4)));
+        break;
+    case 2: /* triangle */
+        p.n = 3;
+        p.v[0] = s;
+        p.v[1] = vec3_add(s, ex);
+        p.v[2] = vec3_add(s, vec3_add(ey, vec3_scale(ex, 0.3)));
+        break;
+    default: { /* regular pentagon */
+        p.n = 5;
+        double rad = vec3_length(ex);
+        struct vec3 a = vec3_normalize(ex), b = vec3_normalize(ey);
+        for (int i = 0; i < 5; ++i) {
+            double t = 2.0 * M_PI * i / 5.0;
+            p.v[i] = vec3_add(s, vec3_add(vec3_scale(a, rad * cos(t)), vec3_scale(b, rad * sin(t))));
+        }
+    }
+    }
+    return p;
+}
+
+/* Where p stands relative to target t, as target_sample_solid_angle
+   decides: below min_height, solid angle usable, or too small. */
+enum { TP_LOW, TP_SOLID, TP_TINY };
+
+static int target_case(const struct target *t, struct vec3 p)
+{
+    double h = fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal));
+    if (h <= t->min_height) return TP_LOW;
+    double omega = polygon_solid_angle(&t->polygon, p);
+    return omega >= 1e-7 ? TP_SOLID : TP_TINY;
+}
+
+static struct vec3 random_target_view(struct rng *r, const struct target *t, int kind)
+{
+    struct vec3 c = polygon_centroid(&t->polygon);
+    double size = polygon_size(&t->polygon);
+    struct vec3 in_plane = vec3_add(c, vec3_scale(vec3_sub(t->polygon.v[(int)(rng_uniform(r) * t->polygon.n)], c),
+                                                  -1.0 + 3.0 * rng_uniform(r)));
+    double side = rng_uniform(r) < 0.5 ? -1.0 : 1.0;
+    switch (kind) {
+    case 0: /* near, either side */
+        return vec3_madd(in_plane, t->normal, side * size * pow(10.0, -2.0 + 3.0 * rng_uniform(r)));
+    case 1: /* below min_height: area sampling */
+        return vec3_madd(in_plane, t->normal, side * t->min_height * rng_uniform(r));
+    case 2: /* far: solid angle 1e-16..1e-6, area sampling below 1e-7 */
+        return vec3_madd(c, random_unit(r), size * pow(10.0, 2.5 + 5.0 * rng_uniform(r)));
+    default:
+        return vec3_make(symm(r, 10.0), symm(r, 10.0), symm(r, 10.0));
+    }
+}
+
+static void test_target_many_matches_one(void)
+{
+    struct rng r;
+    rng_seed(&r, 616, 1, 0);
+    struct target targets[MANY_TARGETS];
+    int rects = 0;
+    for (int i = 0; i < MANY_TARGETS; ++i) {
+        /* Half of them rectangles. */
+        struct polygon p = random_convex(&r, i % 2 ? 0 : i / 2 % 4);
+        CHECK(target_init(&targets[i], &p));
+        rects += targets[i].is_rectangle;
+    }
+    CHECK(rects >= MANY_TARGETS / 2 && !targets[2].is_rectangle); /* the parallelogram is not one */
+    enum { N = 700 };
+    static const struct target *tt[N];
+    static struct vec3 p[N];
+    static double u[N][3];
+    static struct target_point one[N], many[N];
+    static bool ok_one[N], ok_many[N];
+    long cases[2][3] = { { 0 } }; /* [rectangle][target_case] */
+    long total_ok = 0;
+    const int sizes[] = { 0, 1, 17, 63, 64, 65, 128, 129, 200, N };
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; ++k)
+        for (int rep = 0; rep < 5; ++rep) {
+            int n = sizes[k];
+            for (int i = 0; i < n; ++i) {
+                tt[i] = &targets[(int)(rng_uniform(&r) * MANY_TARGETS)];
+                p[i] = random_target_view(&r, tt[i], (int)(rng_uniform(&r) * 4));
+                for (int j = 0; j < 3; ++j) u[i][j] = random_uv(&r);
+                ++cases[tt[i]->is_rectangle][target_case(tt[i], p[i])];
+            }
+            /* The same bytes in both before: lanes a path leaves unwritten
+               must then agree too. */
+            memset(one, 0x5a, sizeof one);
+            memset(many, 0x5a, sizeof many);
+            for (int i = 0; i < n; ++i) ok_one[i] = target_sample_solid_angle(tt[i], p[i], u[i][0], u[i][1], u[i][2], &one[i]);
+            /* ok[] prefilled both ways: every lane must be written. */
+            for (int fill = 0; fill < 2; ++fill) {
+                for (int i = 0; i < N; ++i) ok_many[i] = fill;
+                target_sample_solid_angle_many(tt, p, (const double(*)[3])u, n, many, ok_many);
+                int bad = 0;
+                for (int i = 0; i < n; ++i) {
+                    if (ok_many[i] == ok_one[i] && !memcmp(&many[i], &one[i], sizeof one[i])) continue;
+                    if (bad++ < 3)
+                        fprintf(stderr,
+                                "  n = %d lane %d (%s, %d vertices, case %d), p (%.17g, %.17g, %.17g), u %.17g %.17g %.17g:\n"
+                                "    many ok %d wi (%.17g, %.17g, %.17g) dist %.17g pdf %.17g\n"
+                                "    one  ok %d wi (%.17g, %.17g, %.17g) dist %.17g pdf %.17g\n",
+                                n, i, tt[i]->is_rectangle ? "rectangle" : "polygon", tt[i]->polygon.n,
+                                target_case(tt[i], p[i]), p[i].x, p[i].y, p[i].z, u[i][0], u[i][1], u[i][2],
+                                ok_many[i], many[i].wi.x, many[i].wi.y, many[i].wi.z, many[i].dist, many[i].pdf_sa,
+                                ok_one[i], one[i].wi.x, one[i].wi.y, one[i].wi.z, one[i].dist, one[i].pdf_sa);
+                }
+                CHECK_MSG(bad == 0, "n = %d: %d lanes differ from target_sample_solid_angle", n, bad);
+                for (int i = n; i < N; ++i) CHECK_MSG(ok_many[i] == fill, "n = %d: ok[%d] beyond n written", n, i);
+                if (bad) break;
+            }
+            for (int i = 0; i < n; ++i) total_ok += ok_one[i];
+        }
+    /* Every way through, for rectangles and for the other polygons. */
+    for (int rect = 0; rect < 2; ++rect)
+        for (int c = 0; c < 3; ++c) CHECK_MSG(cases[rect][c] > 50, "rectangle %d case %d: %ld lanes", rect, c, cases[rect][c]);
+    CHECK(total_ok > 0);
+    printf("  target_sample_solid_angle_many: rectangles %ld low / %ld solid angle / %ld tiny, polygons %ld / %ld / %ld "
+           "lanes, all as the one-point sampler\n",
+           cases[1][0], cases[1][1], cases[1][2], cases[0][0], cases[0][1], cases[0][2]);
+}
+
 static const struct test_case spherical_tests[] = {
     { "solid_angles", test_solid_angles },
     { "init_refuses_degenerate", test_init_refuses_degenerate },
@@ -565,6 +892,8 @@ static const struct test_case spherical_tests[] = {
     { "chi2_variants", test_chi2_variants },
     { "chi2_accepts_consistent_failures", test_chi2_accepts_consistent_failures },
     { "chi2_rejects_wrong", test_chi2_rejects_wrong },
+    { "sphrect_many_matches_one", test_sphrect_many_matches_one },
+    { "target_many_matches_one", test_target_many_matches_one },
 };
 
 TEST_MAIN(spherical_tests)

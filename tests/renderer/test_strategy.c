@@ -171,11 +171,176 @@ static void test_outside_returns_nothing(void)
     }
 }
 
+/* ---- batched sampling ------------------------------------------------------
+   strategy_sample_many must give what strategy_sample gives, bit for bit,
+   for the strategies that batch (the light-only ones): the renderer draws a
+   row's light samples together and its images must not change for it. On
+   the multi-lamp scene: five lights of different power, one two-sided, one
+   without a portal. */
+
+static bool load_config_scene(const char *path, struct config *cfg, struct scene *sc)
+{
+    struct error err;
+    if (!config_load(path, NULL, 0, cfg, &err)) {
+        fprintf(stderr, "  %s\n", err.message);
+        return false;
+    }
+    if (!scene_create(cfg, sc, &err)) {
+        fprintf(stderr, "  %s\n", err.message);
+        config_free(cfg);
+        return false;
+    }
+    return true;
+}
+
+static bool bits_equal(double a, double b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+/* Field by field (the struct has padding after `light`). */
+static bool light_sample_equal(const struct light_sample *a, const struct light_sample *b)
+{
+    return bits_equal(a->wi.x, b->wi.x) && bits_equal(a->wi.y, b->wi.y) && bits_equal(a->wi.z, b->wi.z) &&
+           bits_equal(a->pdf_sa, b->pdf_sa) && a->light == b->light && bits_equal(a->dist, b->dist) &&
+           bits_equal(a->radiance.r, b->radiance.r) && bits_equal(a->radiance.g, b->radiance.g) &&
+           bits_equal(a->radiance.b, b->radiance.b);
+}
+
+static double unit_or_end(struct rng *r)
+{
+    double k = rng_uniform(r);
+    return k < 0.05 ? 0.0 : k < 0.1 ? nextafter(1.0, 0.0) : rng_uniform(r);
+}
+
+static struct vec3 random_dir(struct rng *r)
+{
+    for (;;) {
+        struct vec3 v = vec3_make(2 * rng_uniform(r) - 1, 2 * rng_uniform(r) - 1, 2 * rng_uniform(r) - 1);
+        double l = vec3_length(v);
+        if (l > 0.1 && l <= 1.0) return vec3_scale(v, 1.0 / l);
+    }
+}
+
+#define MANY_POINTS 400
+
+static void test_sample_many_matches_one(void)
+{
+    struct config cfg;
+    struct scene sc;
+    if (!load_config_scene("configs/scenes/multi_lamp.yaml", &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    CHECK(sc.n_lights >= 4);
+    static struct strategy_point pts[MANY_POINTS];
+    static double u[MANY_POINTS][4];
+    static struct light_sample one[MANY_POINTS], many[MANY_POINTS];
+    static bool ok_one[MANY_POINTS], ok_many[MANY_POINTS];
+    const enum strategy_kind kinds[] = { STRATEGY_LIGHT, STRATEGY_LIGHT_AREA };
+    for (int k = 0; k < 2; ++k) {
+        struct render_desc rd = cfg.render;
+        rd.strategy = kinds[k];
+        struct strategy s;
+        struct strategy_scratch scratch;
+        struct error err;
+        if (!strategy_init(&s, &sc, &rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
+            CHECK_MSG(false, "%s", err.message);
+            continue;
+        }
+        CHECK(strategy_batches(&s));
+        struct rng r;
+        rng_seed(&r, 4242, (uint64_t)k, 0);
+        int lights_hit[8] = { 0 };
+        long n_ok = 0, n_fail = 0;
+        for (int rep = 0; rep < 20; ++rep) {
+            /* Shading points anywhere in the room, and around the lights: in
+               a light's plane (area fallback below min_height, failures), a
+               hair off it on either side, far from a small light. Normals
+               random, sometimes zero (allowed: no receiving side). */
+            for (int i = 0; i < MANY_POINTS; ++i) {
+                struct vec3 p = vec3_make(6 * rng_uniform(&r) - 3, 4 * rng_uniform(&r), 6 * rng_uniform(&r) - 3);
+                if (i % 5 == 0) {
+                    const struct light *l = &sc.lights[(int)(rng_uniform(&r) * sc.n_lights)];
+                    const struct polygon *poly = &l->target.polygon;
+                    struct vec3 c = polygon_centroid(poly);
+                    struct vec3 q = vec3_add(c, vec3_scale(vec3_sub(poly->v[i / 5 % poly->n], c), 3 * rng_uniform(&r) - 1));
+                    double off[] = { 0.0, 1e-9, -1e-9, 1e-3, -1e-3, 0.5 };
+                    p = vec3_madd(q, l->target.normal, off[i / 5 % 6]);
+                }
+                struct vec3 nrm = i % 7 == 0 ? vec3_make(0, 0, 0) : random_dir(&r);
+                strategy_prepare(&s, &scratch, p, nrm, &pts[i]);
+                for (int j = 0; j < 4; ++j) u[i][j] = unit_or_end(&r);
+            }
+            /* The same bytes in both before, so that unwritten lanes agree. */
+            memset(one, 0x5a, sizeof one);
+            memset(many, 0x5a, sizeof many);
+            for (int i = 0; i < MANY_POINTS; ++i) ok_one[i] = strategy_sample(&s, &pts[i], u[i], &one[i]);
+            /* Runs of every length around the chunk of 64, from varying
+               offsets; ok[] prefilled both ways so that every lane must be
+               written. */
+            int off = rep % 3 == 0 ? 0 : (int)(rng_uniform(&r) * 50);
+            const int sizes[] = { 0, 1, 63, 64, 65, 129, MANY_POINTS - 50 };
+            int n = sizes[rep % 7];
+            for (int fill = 0; fill < 2; ++fill) {
+                for (int i = 0; i < MANY_POINTS; ++i) ok_many[i] = fill;
+                strategy_sample_many(&s, pts + off, (const double(*)[4])(u + off), n, many + off, ok_many + off);
+                int bad = 0;
+                for (int i = off; i < off + n; ++i) {
+                    if (ok_many[i] == ok_one[i] && light_sample_equal(&many[i], &one[i])) continue;
+                    if (bad++ < 3)
+                        fprintf(stderr,
+                                "  %s, n = %d lane %d, p (%.17g, %.17g, %.17g) u %.17g %.17g %.17g %.17g:\n"
+                                "    many ok %d light %d wi (%.17g, %.17g, %.17g) dist %.17g pdf %.17g\n"
+                                "    one  ok %d light %d wi (%.17g, %.17g, %.17g) dist %.17g pdf %.17g\n",
+                                strategy_names[kinds[k]], n, i - off, pts[i].p.x, pts[i].p.y, pts[i].p.z, u[i][0],
+                                u[i][1], u[i][2], u[i][3], ok_many[i], many[i].light, many[i].wi.x, many[i].wi.y,
+                                many[i].wi.z, many[i].dist, many[i].pdf_sa, ok_one[i], one[i].light, one[i].wi.x,
+                                one[i].wi.y, one[i].wi.z, one[i].dist, one[i].pdf_sa);
+                }
+                CHECK_MSG(bad == 0, "%s, n = %d: %d points differ from strategy_sample", strategy_names[kinds[k]], n, bad);
+                for (int i = 0; i < MANY_POINTS; ++i)
+                    if (i < off || i >= off + n) CHECK_MSG(ok_many[i] == fill, "ok[%d] outside the run written", i);
+                if (bad) break;
+            }
+            for (int i = 0; i < MANY_POINTS; ++i) {
+                if (ok_one[i]) ++n_ok, ++lights_hit[one[i].light >= 0 && one[i].light < 8 ? one[i].light : 7];
+                else ++n_fail;
+            }
+        }
+        /* Every light was sampled, and both outcomes occurred. */
+        for (int l = 0; l < sc.n_lights && l < 8; ++l) CHECK_MSG(lights_hit[l] > 0, "%s: light %d never sampled", strategy_names[kinds[k]], l);
+        CHECK(n_ok > 0);
+        printf("  %s: %ld samples, %ld failures, as strategy_sample\n", strategy_names[kinds[k]], n_ok, n_fail);
+        strategy_scratch_free(&scratch);
+        strategy_free(&s);
+    }
+    /* The strategies that keep per-point state in the scratch must not be
+       batched (strategy_sample_many does not read the scratch). */
+    const enum strategy_kind portal_kinds[] = { STRATEGY_PORTAL, STRATEGY_PROJECTION, STRATEGY_ANTISHADOW,
+                                                STRATEGY_ANTISHADOW_EXACT };
+    for (int k = 0; k < 4; ++k) {
+        struct render_desc rd = cfg.render;
+        rd.strategy = portal_kinds[k];
+        struct strategy s;
+        struct error err;
+        if (!strategy_init(&s, &sc, &rd, &err)) {
+            CHECK_MSG(false, "%s", err.message);
+            continue;
+        }
+        CHECK_MSG(!strategy_batches(&s), "%s batches", strategy_names[portal_kinds[k]]);
+        strategy_free(&s);
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
 static const struct test_case tests[] = {
     { "lampshade_regions", test_lampshade_regions },
     { "tilted_pentagon", test_tilted_pentagon },
     { "many_lights", test_many_lights },
     { "power_selection", test_power_selection },
     { "outside_returns_nothing", test_outside_returns_nothing },
+    { "sample_many_matches_one", test_sample_many_matches_one },
 };
 TEST_MAIN(tests)
