@@ -286,7 +286,6 @@ struct rgb integrator_radiance(const struct integrator *it, struct strategy_scra
 
 /* One film row of shading points in flight (direct_row). */
 struct integrator_row {
-    int n;
     struct vertex *v;
     struct strategy_point *sp;
     double (*u)[4];           /* light sample uniforms */
@@ -308,7 +307,6 @@ struct integrator_row *integrator_row_create(int n, struct error *err)
         return NULL;
     }
     size_t m = n > 0 ? (size_t)n : 1;
-    row->n = n;
     row->v = malloc(m * sizeof *row->v);
     row->sp = malloc(m * sizeof *row->sp);
     row->u = malloc(m * sizeof *row->u);
@@ -391,6 +389,7 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         out[row->pixel[k]] = L;
     }
 }
+
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct rng *rng, struct rgb *out, struct integrator_stats *stats)

@@ -106,12 +106,18 @@ double target_pdf_area(const struct target *t, struct vec3 p, struct vec3 wi)
     return area_density(t, wi, dist);
 }
 
+/* Whether p is far enough from the target's plane for solid-angle sampling
+   (below min_height: area sampling). */
+static bool above_min_height(const struct target *t, struct vec3 p)
+{
+    return !(fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal)) <= t->min_height);
+}
+
 /* The decision shared by sampling and pdf: the solid angle subtended, or 0
    when area sampling must be used instead. */
 static double usable_solid_angle(const struct target *t, struct vec3 p, struct sphrect *r, struct sphpoly *sp)
 {
-    double h = fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal));
-    if (h <= t->min_height) return 0.0;
+    if (!above_min_height(t, p)) return 0.0;
     double omega = 0.0;
     if (t->is_rectangle) {
         if (sphrect_init_frame(r, &t->frame, p)) omega = r->solid_angle;
@@ -173,8 +179,7 @@ void target_sample_solid_angle_many(const struct target *const *t, const struct 
             /* The rectangles above their min_height go to the vectorised
                sampler, everything else the one-point way. */
             const struct target *ti = t[i];
-            double h = fabs(vec3_dot(vec3_sub(p[i], ti->polygon.v[0]), ti->normal));
-            if (ti->is_rectangle && h > ti->min_height) {
+            if (ti->is_rectangle && above_min_height(ti, p[i])) {
                 frames[lanes] = &ti->frame;
                 o[lanes] = p[i];
                 uu[lanes] = u[i][1];

@@ -11,6 +11,7 @@
 #include "config.h"
 #include "integrator.h"
 #include "scene.h"
+#include "scene_util.h"
 #include "strategy.h"
 #include "testlib.h"
 
@@ -54,17 +55,7 @@ static struct estimate estimate_at(const struct scene *sc, const struct render_d
 static bool load_scene(const char *path, const char *s_l, struct config *cfg, struct scene *sc)
 {
     struct config_override ov[] = { { "params.s_L", s_l } };
-    struct error err;
-    if (!config_load(path, ov, s_l ? 1 : 0, cfg, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        return false;
-    }
-    if (!scene_create(cfg, sc, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        config_free(cfg);
-        return false;
-    }
-    return true;
+    return test_scene_load(path, ov, s_l ? 1 : 0, cfg, sc);
 }
 
 static int material_named(const struct config *cfg, const char *name)

@@ -10,30 +10,11 @@
 #include "config.h"
 #include "integrator.h"
 #include "scene.h"
+#include "scene_util.h"
 #include "strategy.h"
 #include "testlib.h"
 
 #define SCENE "configs/scenes/lampshade.yaml"
-
-static bool load(const struct config_override *ov, int n_ov, struct config *cfg, struct scene *sc)
-{
-    struct error err;
-    if (!config_load(SCENE, ov, n_ov, cfg, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        return false;
-    }
-    if (!scene_create(cfg, sc, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        config_free(cfg);
-        return false;
-    }
-    return true;
-}
-
-static bool bits_equal(double a, double b)
-{
-    return memcmp(&a, &b, sizeof a) == 0;
-}
 
 /* What the rows' camera rays hit: each kind of surface must be among them
    for the comparison to cover it. */
@@ -120,8 +101,8 @@ static void compare_rows(const struct config *cfg, const struct scene *sc, enum 
                                                       &rng_one[x], &st_one);
             int bad = 0;
             for (int x = 0; x < w; ++x) {
-                bool same = bits_equal(out_row[x].r, out_one[x].r) && bits_equal(out_row[x].g, out_one[x].g) &&
-                            bits_equal(out_row[x].b, out_one[x].b);
+                bool same = same_bits(out_row[x].r, out_one[x].r) && same_bits(out_row[x].g, out_one[x].g) &&
+                            same_bits(out_row[x].b, out_one[x].b);
                 /* The streams must end where the one-pixel path leaves them:
                    the next pass's or bounce's draws depend on it. */
                 bool same_rng = rng_row[x].state == rng_one[x].state && rng_row[x].inc == rng_one[x].inc;
@@ -184,7 +165,7 @@ static void test_row_matches_pixels(void)
 {
     struct config cfg;
     struct scene sc;
-    if (!load(NULL, 0, &cfg, &sc)) {
+    if (!test_scene_load(SCENE, NULL, 0, &cfg, &sc)) {
         CHECK(false);
         return;
     }
@@ -220,7 +201,7 @@ static void test_row_matches_pixels_light_seen(void)
     };
     struct config cfg;
     struct scene sc;
-    if (!load(ov, 4, &cfg, &sc)) {
+    if (!test_scene_load(SCENE, ov, 4, &cfg, &sc)) {
         CHECK(false);
         return;
     }

@@ -558,12 +558,7 @@ static void test_chi2_accepts_consistent_failures(void)
    sphrect_sample_many and target_sample_solid_angle_many promise the results
    of their one-lane counterparts bit for bit (the renderer's images must not
    depend on which path sampled a pixel). Compared with memcmp, so that a
-   differing sign of zero or NaN payload counts too. */
-
-static bool same_bits(double a, double b)
-{
-    return memcmp(&a, &b, sizeof a) == 0;
-}
+   differing sign of zero or NaN payload counts too (same_bits). */
 
 static bool same_vec_bits(struct vec3 a, struct vec3 b)
 {

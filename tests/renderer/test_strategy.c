@@ -1,6 +1,7 @@
 /* Light-sampling strategies: every strategy's sampled directions follow the
    density strategy_pdf reports (chi-square), at points in every antishadow
    region, with several lights and portals, and with defensive mixing. */
+#include "scene_util.h"
 #include "strategy_util.h"
 
 #define N_CHI2_TESTS 64
@@ -178,33 +179,13 @@ static void test_outside_returns_nothing(void)
    the multi-lamp scene: five lights of different power, one two-sided, one
    without a portal. */
 
-static bool load_config_scene(const char *path, struct config *cfg, struct scene *sc)
-{
-    struct error err;
-    if (!config_load(path, NULL, 0, cfg, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        return false;
-    }
-    if (!scene_create(cfg, sc, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        config_free(cfg);
-        return false;
-    }
-    return true;
-}
-
-static bool bits_equal(double a, double b)
-{
-    return memcmp(&a, &b, sizeof a) == 0;
-}
-
 /* Field by field (the struct has padding after `light`). */
 static bool light_sample_equal(const struct light_sample *a, const struct light_sample *b)
 {
-    return bits_equal(a->wi.x, b->wi.x) && bits_equal(a->wi.y, b->wi.y) && bits_equal(a->wi.z, b->wi.z) &&
-           bits_equal(a->pdf_sa, b->pdf_sa) && a->light == b->light && bits_equal(a->dist, b->dist) &&
-           bits_equal(a->radiance.r, b->radiance.r) && bits_equal(a->radiance.g, b->radiance.g) &&
-           bits_equal(a->radiance.b, b->radiance.b);
+    return same_bits(a->wi.x, b->wi.x) && same_bits(a->wi.y, b->wi.y) && same_bits(a->wi.z, b->wi.z) &&
+           same_bits(a->pdf_sa, b->pdf_sa) && a->light == b->light && same_bits(a->dist, b->dist) &&
+           same_bits(a->radiance.r, b->radiance.r) && same_bits(a->radiance.g, b->radiance.g) &&
+           same_bits(a->radiance.b, b->radiance.b);
 }
 
 static double unit_or_end(struct rng *r)
@@ -228,7 +209,7 @@ static void test_sample_many_matches_one(void)
 {
     struct config cfg;
     struct scene sc;
-    if (!load_config_scene("configs/scenes/multi_lamp.yaml", &cfg, &sc)) {
+    if (!test_scene_load("configs/scenes/multi_lamp.yaml", NULL, 0, &cfg, &sc)) {
         CHECK(false);
         return;
     }

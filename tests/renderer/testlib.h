@@ -5,6 +5,7 @@
 #define TESTLIB_H
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,6 +16,13 @@ struct test_case {
 };
 
 extern int test_failures_; /* failures within the running test */
+
+/* Bit-for-bit equality of doubles: a differing sign of zero or NaN payload
+   counts as a difference. */
+static inline bool same_bits(double a, double b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
 
 #define CHECK(cond)                                                                   \
     do {                                                                              \
