@@ -80,13 +80,9 @@ bool bsdf_sample(const struct material *m, struct vec3 wo, double u, double v, s
 {
     if (wo.z <= 0.0) return false;
     switch (m->kind) {
-    case MATERIAL_DIFFUSE: {
-        /* Cosine-weighted hemisphere (Malley's method, concentric disk map avoided for brevity). */
-        double r = sqrt(u), sin_phi, cos_phi;
-        fm_sincos(2.0 * M_PI * v, &sin_phi, &cos_phi);
-        out->wi = vec3_make(r * cos_phi, r * sin_phi, sqrt(fmax(0.0, 1.0 - u)));
+    case MATERIAL_DIFFUSE:
+        out->wi = bsdf_lambert_dir(u, v);
         break;
-    }
     case MATERIAL_GGX: {
         struct vec3 h = ggx_sample_visible_normal(m->roughness, wo, u, v);
         out->wi = vec3_sub(vec3_scale(h, 2.0 * vec3_dot(wo, h)), wo);

@@ -9,6 +9,7 @@
 #include <stdbool.h>
 
 #include "config.h"
+#include "fastmath.h"
 #include "vec.h"
 
 struct material {
@@ -27,6 +28,17 @@ struct bsdf_sample {
     struct rgb f;      /* bsdf_eval(wo, wi) */
     double pdf;        /* bsdf_pdf(wo, wi) */
 };
+/* The Lambertian BSDF's cosine-distributed direction (local frame) from two
+   uniforms, by Malley's method (the disk is sampled in polar coordinates).
+   Inline, without branches, for the vectorised set-up (shading.c). */
+FM_INLINE struct vec3 bsdf_lambert_dir(double u, double v)
+{
+    double r = sqrt(u), sin_phi, cos_phi;
+    fm_sincos(2.0 * M_PI * v, &sin_phi, &cos_phi);
+    double z2 = 1.0 - u;
+    return vec3_make(r * cos_phi, r * sin_phi, sqrt(z2 > 0.0 ? z2 : 0.0));
+}
+
 /* False when no valid direction was produced (below the surface). */
 bool bsdf_sample(const struct material *m, struct vec3 wo, double u, double v, struct bsdf_sample *out);
 

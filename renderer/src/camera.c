@@ -16,7 +16,3 @@ void camera_init(struct camera *c, const struct camera_desc *d, int width, int h
     c->dy = vec3_scale(c->up, -2.0 * half_h / height);
 }
 
-struct vec3 camera_ray(const struct camera *c, double px, double py)
-{
-    return vec3_normalize(vec3_add(c->top_left, vec3_add(vec3_scale(c->dx, px), vec3_scale(c->dy, py))));
-}

@@ -17,7 +17,11 @@ struct camera {
 };
 
 void camera_init(struct camera *c, const struct camera_desc *d, int width, int height);
-/* Unit direction through film position (px, py) in pixels (continuous). */
-struct vec3 camera_ray(const struct camera *c, double px, double py);
+/* Unit direction through film position (px, py) in pixels (continuous).
+   Inline so that a loop over a film row vectorises. */
+static inline struct vec3 camera_ray(const struct camera *c, double px, double py)
+{
+    return vec3_normalize(vec3_add(c->top_left, vec3_add(vec3_scale(c->dx, px), vec3_scale(c->dy, py))));
+}
 
 #endif

@@ -15,98 +15,12 @@ void integrator_init(struct integrator *it, const struct render_desc *rd, const 
     it->strategy = strategy;
 }
 
-/* MIS weight of technique a against b (one sample each). */
-static double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
-{
-    switch (mis) {
-    case MIS_NONE:
-        return 1.0;
-    case MIS_BALANCE:
-        return pdf_a / (pdf_a + pdf_b);
-    case MIS_POWER:
-        /* Squares overflow only for absurd pdfs; the ratio form avoids it. */
-        if (pdf_a >= pdf_b) {
-            double r = pdf_b / pdf_a;
-            return 1.0 / (1.0 + r * r);
-        } else {
-            double r = pdf_a / pdf_b;
-            return r * r / (1.0 + r * r);
-        }
-    }
-    return 1.0;
-}
-
-/* The shading context of a surface hit: side, frame, ray origin. */
-struct vertex {
-    const struct material *m;
-    struct vec3 n;           /* geometric normal on the side of wo */
-    struct frame frame;
-    struct vec3 wo_local;
-    struct vec3 p;           /* the surface point */
-};
-
-static bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
-                        struct vertex *v)
-{
-    v->m = &sc->materials[material];
-    /* Two-sided surfaces: shade the side wo leaves from. */
-    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
-    v->frame = frame_from_normal(v->n);
-    v->wo_local = frame_to_local(&v->frame, wo);
-    v->p = p;
-    return v->wo_local.z > 0.0;
-}
-
-/* A shadow ray next-event estimation still has to trace, and what the
-   sample delivers if the ray is not blocked. Set up, traced and resolved in
+/* The shadow and BSDF rays are set up (shading.c), traced and resolved in
    three steps so that a film row can do each step for all its pixels in
    turn (see direct_row). */
-struct shadow_query {
-    struct vec3 o, d;
-    double tmax;
-    bool trace;               /* a segment to test (else: delivered unless value is black) */
-    struct rgb value;
-};
-
-/* Next-event estimation at vertex v from a drawn light sample (ok: the
-   strategy produced one), up to the shadow ray. */
-static void shadow_setup(const struct integrator *it, const struct strategy_point *sp, const struct vertex *v,
-                         bool ok, const struct light_sample *ls, struct integrator_stats *stats,
-                         struct shadow_query *q)
-{
-    q->trace = false;
-    q->value = rgb_make(0.0, 0.0, 0.0);
-    if (!ok) return;
-    ++stats->light_samples;
-    if (ls->light < 0) {
-        ++stats->light_missed;
-        return;
-    }
-    if (rgb_is_black(ls->radiance) || !(ls->pdf_sa > 0.0)) return;
-    struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
-    if (wi_local.z <= 0.0) return;
-    struct rgb f = bsdf_eval(v->m, v->wo_local, wi_local);
-    if (rgb_is_black(f)) return;
-    ++stats->rays;
-    ++stats->shadow_rays;
-    /* Both ends of the shadow segment are moved along it until they clear
-       their surfaces: a relative shortening alone leaves the end within
-       float precision of the light's plane for points just below it. */
-    const struct scene *sc = it->scene;
-    double t0 = scene_offset_step(sc, sp->p, sp->n, ls->wi);
-    struct vec3 y = vec3_madd(sp->p, ls->wi, ls->dist);
-    double t1 = ls->dist - scene_offset_step(sc, y, sc->lights[ls->light].target.normal, ls->wi);
-    q->trace = t1 > t0;
-    q->o = vec3_madd(sp->p, ls->wi, t0);
-    q->d = ls->wi;
-    q->tmax = t1 - t0;
-    double w = it->mis == MIS_NONE ? 1.0 : mis_weight(it->mis, ls->pdf_sa, bsdf_pdf(v->m, v->wo_local, wi_local));
-    q->value = rgb_scale(rgb_mul(f, ls->radiance), wi_local.z * w / ls->pdf_sa);
-}
-
 static bool shadow_trace(const struct integrator *it, const struct shadow_query *q)
 {
-    return q->trace && scene_occluded(it->scene, q->o, q->d, q->tmax);
+    return q->trace && scene_occluded(it->scene, q->ray.o, q->ray.d, q->ray.tmax);
 }
 
 static struct rgb shadow_resolve(const struct shadow_query *q, bool occluded, struct integrator_stats *stats)
@@ -118,12 +32,11 @@ static struct rgb shadow_resolve(const struct shadow_query *q, bool occluded, st
 
 /* Next-event estimation's contribution at vertex v from a drawn light
    sample: one shadow ray, weighted against BSDF sampling. */
-static struct rgb direct_from_sample(const struct integrator *it, const struct strategy_point *sp,
-                                     const struct vertex *v, bool ok, const struct light_sample *ls,
-                                     struct integrator_stats *stats)
+static struct rgb direct_from_sample(const struct integrator *it, const struct vertex *v, bool ok,
+                                     const struct light_sample *ls, struct integrator_stats *stats)
 {
     struct shadow_query q;
-    shadow_setup(it, sp, v, ok, ls, stats, &q);
+    shadow_setup(it->scene, it->mis, v, ok, ls, stats, &q);
     return shadow_resolve(&q, shadow_trace(it, &q), stats);
 }
 
@@ -141,7 +54,7 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
     draw_light_uniforms(rng, u);
     struct light_sample ls;
     bool ok = strategy_sample(it->strategy, sp, u, &ls);
-    return direct_from_sample(it, sp, v, ok, &ls, stats);
+    return direct_from_sample(it, v, ok, &ls, stats);
 }
 
 /* Emission found by a BSDF-sampled ray, weighted against the strategy. */
@@ -154,38 +67,16 @@ static struct rgb bsdf_hit_light(const struct integrator *it, const struct strat
     return rgb_scale(le, mis_weight(it->mis, bsdf_pdf_value, pdf_light));
 }
 
-/* The BSDF-sampling half of direct lighting: a BSDF ray that counts only
-   where it reaches a light, in the same three steps as the shadow ray. */
-struct bsdf_query {
-    struct vec3 o, d;
-    bool trace;
-    struct rgb weight;        /* f cos / pdf */
-    double pdf;
-};
-
-static void bsdf_setup(const struct integrator *it, const struct vertex *v, const double u[2],
-                       struct integrator_stats *stats, struct bsdf_query *q)
-{
-    struct bsdf_sample bs;
-    q->trace = bsdf_sample(v->m, v->wo_local, u[0], u[1], &bs);
-    if (!q->trace) return;
-    q->d = frame_to_world(&v->frame, bs.wi);
-    q->o = scene_offset_origin(it->scene, v->p, v->n, q->d);
-    q->weight = rgb_scale(bs.f, bs.wi.z / bs.pdf);
-    q->pdf = bs.pdf;
-    ++stats->rays;
-}
-
 static int bsdf_trace(const struct integrator *it, const struct bsdf_query *q)
 {
-    return q->trace ? scene_first_light(it->scene, q->o, q->d, INFINITY) : -1;
+    return q->trace ? scene_first_light(it->scene, q->ray.o, q->ray.d, q->ray.tmax) : -1;
 }
 
 static struct rgb bsdf_resolve(const struct integrator *it, const struct strategy_point *sp,
                                const struct bsdf_query *q, int light)
 {
     if (light < 0) return rgb_make(0.0, 0.0, 0.0);
-    return rgb_mul(q->weight, bsdf_hit_light(it, sp, light, q->d, q->pdf));
+    return rgb_mul(q->weight, bsdf_hit_light(it, sp, light, q->ray.d, q->pdf));
 }
 
 /* The two uniforms of a BSDF sample, in a fixed order. */
@@ -201,7 +92,7 @@ static struct rgb bsdf_mis(const struct integrator *it, const struct strategy_po
     double u[2];
     draw_bsdf_uniforms(rng, u);
     struct bsdf_query q;
-    bsdf_setup(it, v, u, stats, &q);
+    bsdf_setup(it->scene, v, u, stats, &q);
     return bsdf_resolve(it, sp, &q, bsdf_trace(it, &q));
 }
 
@@ -376,10 +267,8 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         row->pixel[lanes++] = x;
     }
     strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
-    for (int k = 0; k < lanes; ++k) {
-        shadow_setup(it, &row->sp[k], &row->v[k], row->ok[k], &row->ls[k], stats, &row->shadow[k]);
-        if (mis) bsdf_setup(it, &row->v[k], row->ub[k], stats, &row->bsdf[k]);
-    }
+    shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, mis ? (const double(*)[2])row->ub : NULL, lanes, stats,
+                       row->shadow, row->bsdf);
     for (int k = 0; k < lanes; ++k) row->occluded[k] = shadow_trace(it, &row->shadow[k]);
     if (mis)
         for (int k = 0; k < lanes; ++k) row->light[k] = bsdf_trace(it, &row->bsdf[k]);

@@ -10,16 +10,8 @@
 #include "config.h"
 #include "rng.h"
 #include "scene.h"
+#include "shading.h"
 #include "strategy.h"
-
-/* Counters a render thread accumulates; summed across threads. */
-struct integrator_stats {
-    uint64_t rays;              /* all rays traced */
-    uint64_t shadow_rays;       /* occlusion rays towards a sampled light point */
-    uint64_t shadow_blocked;    /* ...of which were occluded */
-    uint64_t light_samples;     /* next-event samples that produced a direction */
-    uint64_t light_missed;      /* ...whose direction missed the light (no ray traced) */
-};
 
 struct integrator {
     enum integrator_kind kind;

@@ -1,5 +1,7 @@
 #include "render.h"
 
+#include "fastmath.h"
+
 #include <pthread.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -111,17 +113,27 @@ static void stats_add(struct integrator_stats *a, const struct integrator_stats 
     a->light_missed += b->light_missed;
 }
 
+/* Seeds the random stream of each pixel of film row y and draws its camera
+   ray. One stream per (pixel, pass): pixels never depend on which thread
+   rendered them, so fixed-spp renders are bit-identical. A vectorised loop:
+   the hash chains of neighbouring pixels run side by side. */
+FM_SIMD_CLONES static void camera_row(const struct camera *c, uint64_t seed, int y, int64_t pass, int width,
+                                      struct rng *rng, struct vec3 *dir)
+{
+    uint64_t first = (uint64_t)y * (uint64_t)width;
+    for (int x = 0; x < width; ++x) {
+        rng_seed(&rng[x], seed, first + (uint64_t)x, (uint64_t)pass);
+        dir[x].x = x + rng_uniform(&rng[x]);
+        dir[x].y = y + rng_uniform(&rng[x]);
+    }
+#pragma omp simd
+    for (int x = 0; x < width; ++x) dir[x] = camera_ray(c, dir[x].x, dir[x].y);
+}
+
 static void render_row(struct worker *w, int y, int64_t pass, struct integrator_stats *stats, uint64_t *nonfinite)
 {
     const struct config *cfg = w->cfg;
-    for (int x = 0; x < cfg->width; ++x) {
-        struct rng *rng = &w->row_rng[x];
-        /* One stream per (pixel, pass): pixels never depend on which thread
-           rendered them, so fixed-spp renders are bit-identical. */
-        rng_seed(rng, cfg->render.seed, (uint64_t)y * (uint64_t)cfg->width + (uint64_t)x, (uint64_t)pass);
-        double jx = rng_uniform(rng), jy = rng_uniform(rng);
-        w->row_dir[x] = camera_ray(w->camera, x + jx, y + jy);
-    }
+    camera_row(w->camera, cfg->render.seed, y, pass, cfg->width, w->row_rng, w->row_dir);
     scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit,
                              w->row_found);
     integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,

@@ -266,21 +266,3 @@ bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3
     if (!(len > 0.0)) return false;
     return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len);
 }
-
-double scene_offset_step(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
-{
-    /* Float geometry (Embree) has a relative error of ~1e-7 in coordinates,
-       so a ray must start clear of the surface it leaves. Moving the origin
-       along d itself (not along the normal) keeps the ray on the exact line
-       that was sampled: a normal offset shifts where a long grazing segment
-       crosses a distant opening and clips it against the opening's rim. The
-       step is chosen so the height above the surface is at least eps. */
-    double eps = 1e-5 * s->scale + 1e-6 * vec3_max_abs(p);
-    double cos_n = fabs(vec3_dot(ng, d));
-    return eps / fmax(cos_n, 1e-3);
-}
-
-struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
-{
-    return vec3_madd(p, d, scene_offset_step(s, p, ng, d));
-}

@@ -11,6 +11,7 @@
 #include "bsdf.h"
 #include "config.h"
 #include "error.h"
+#include "fastmath.h"
 #include "light.h"
 #include "vec.h"
 
@@ -68,6 +69,12 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
    hits a surface first or nothing. Cheaper than scene_intersect when only
    emission matters (the MIS ray of direct lighting). */
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
+/* A ray still to trace: o + t d for t in (0, tmax). */
+struct scene_ray {
+    struct vec3 o, d;
+    double tmax;
+};
+
 /* True when anything blocks o + t d for t in (0, tmax). */
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
 
@@ -76,13 +83,32 @@ bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double 
    scene_offset_origin at each end (towards the other end). */
 bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to);
 
+/* The distance scene_offset_origin moves p along d. A shadow ray along a
+   sampled unit direction wi to a point at distance dist spans
+   (step at p, dist - step at the far end) without renormalising wi.
+   Float geometry (Embree) has a relative error of ~1e-7 in coordinates, so
+   a ray must start clear of the surface it leaves. Moving the origin along
+   d itself (not along the normal) keeps the ray on the exact line that was
+   sampled: a normal offset shifts where a long grazing segment crosses a
+   distant opening and clips it against the opening's rim. The step is
+   chosen so the height above the surface is at least eps. Inline, with
+   selects, so that the vectorised set-up loops (shading.c) can use it. */
+FM_INLINE double scene_offset_step_scaled(double scale, struct vec3 p, struct vec3 ng, struct vec3 d)
+{
+    double eps = 1e-5 * scale + 1e-6 * vec3_max_abs(p);
+    double cos_n = fabs(vec3_dot(ng, d));
+    return eps / (cos_n > 1e-3 ? cos_n : 1e-3);
+}
+static inline double scene_offset_step(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+{
+    return scene_offset_step_scaled(s->scale, p, ng, d);
+}
 /* Origin for a ray leaving surface point p (geometric normal ng) along the
    unit direction d: moved along d itself until it clears the surface, so the
    ray stays on the line that was sampled and does not re-hit its surface. */
-struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d);
-/* The distance scene_offset_origin moves p along d. A shadow ray along a
-   sampled unit direction wi to a point at distance dist spans
-   (step at p, dist - step at the far end) without renormalising wi. */
-double scene_offset_step(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d);
+static inline struct vec3 scene_offset_origin(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
+{
+    return vec3_madd(p, d, scene_offset_step(s, p, ng, d));
+}
 
 #endif

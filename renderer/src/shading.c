@@ -1,0 +1,321 @@
+/* shading.c: shading points and the set-up of direct lighting's shadow and
+   BSDF rays, one point at a time or a row at a time (see shading.h). */
+#include "shading.h"
+
+#include "fastmath.h"
+
+double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
+{
+    switch (mis) {
+    case MIS_NONE:
+        return 1.0;
+    case MIS_BALANCE:
+        return pdf_a / (pdf_a + pdf_b);
+    case MIS_POWER:
+        /* Squares overflow only for absurd pdfs; the ratio form avoids it. */
+        if (pdf_a >= pdf_b) {
+            double r = pdf_b / pdf_a;
+            return 1.0 / (1.0 + r * r);
+        } else {
+            double r = pdf_a / pdf_b;
+            return r * r / (1.0 + r * r);
+        }
+    }
+    return 1.0;
+}
+
+bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
+                 struct vertex *v)
+{
+    v->m = &sc->materials[material];
+    /* Two-sided surfaces: shade the side wo leaves from. */
+    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
+    v->frame = frame_from_normal(v->n);
+    v->wo_local = frame_to_local(&v->frame, wo);
+    v->p = p;
+    return v->wo_local.z > 0.0;
+}
+
+/* ---- Lambertian lanes ------------------------------------------------------
+   The set-up of both rays at a Lambertian point, written as straight-line
+   functions of scalars (selects, no branches) so that the loop over a row's
+   points vectorises; the one-point functions below call the same code, so
+   the two paths agree bit for bit. Flags are doubles (0 or 1): the
+   vectoriser handles a lane of doubles better than a mix with bools. */
+
+struct shadow_lane {
+    double ox, oy, oz, tmax;  /* the shadow segment (direction: wi) */
+    double r, g, b;           /* delivered unless blocked */
+    double counted;           /* a ray was set up (counted even if too short to trace) */
+    double trace;
+};
+
+/* The shadow ray towards a light sample (unit wi, distance dist, density
+   pdf_sa, radiance le, the light's normal nl) at point p with normal n on
+   wo's side, and its MIS weight against cosine sampling (pdf cos / pi).
+   w / pdf_sa takes one division for every MIS kind: 1 / pa (none),
+   1 / (pa + pb) (balance), pa / (pa^2 + pb^2) (power; pa stays below ~1e13
+   because the samplers refuse solid angles below 1e-12, so no square
+   overflows). */
+FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis, struct rgb albedo, struct vec3 n,
+                                                 struct vec3 p, struct vec3 wi, double dist, double pdf_sa,
+                                                 struct rgb le, struct vec3 nl)
+{
+    struct shadow_lane out;
+    double cos_i = vec3_dot(wi, n);
+    /* Nested selects of doubles: combining the comparisons as bools defeats
+       GCC's vectoriser (mask conversions). */
+    double valid = pdf_sa > 0.0 ? 1.0 : 0.0;
+    valid = cos_i > 0.0 ? valid : 0.0;
+    valid = le.r != 0.0 || le.g != 0.0 || le.b != 0.0 ? valid : 0.0;
+    valid = albedo.r != 0.0 || albedo.g != 0.0 || albedo.b != 0.0 ? valid : 0.0;
+    double t0 = scene_offset_step_scaled(scale, p, n, wi);
+    double t1 = dist - scene_offset_step_scaled(scale, vec3_madd(p, wi, dist), nl, wi);
+    struct vec3 o = vec3_madd(p, wi, t0);
+    out.ox = o.x;
+    out.oy = o.y;
+    out.oz = o.z;
+    out.tmax = t1 - t0;
+    out.counted = valid;
+    out.trace = t1 > t0 ? valid : 0.0;
+    double pa = pdf_sa, pb = cos_i * (1.0 / M_PI);
+    double num = mis == MIS_POWER ? pa : 1.0;
+    double den = mis == MIS_NONE ? pa : (mis == MIS_BALANCE ? pa + pb : pa * pa + pb * pb);
+    double k = valid != 0.0 ? cos_i * num / den : 0.0;
+    struct rgb f = rgb_scale(albedo, 1.0 / M_PI);
+    out.r = f.r * le.r * k;
+    out.g = f.g * le.g * k;
+    out.b = f.b * le.b * k;
+    return out;
+}
+
+struct bsdf_lane {
+    double ox, oy, oz, dx, dy, dz;
+    double pdf;
+    double trace;
+};
+
+/* A cosine-distributed ray from p (normal n on wo's side). Its weight
+   f cos / pdf is the albedo itself, taken as such (not as a quotient). */
+FM_INLINE struct bsdf_lane lambert_bsdf_lane(double scale, struct vec3 n, struct vec3 p, double u0, double u1)
+{
+    struct bsdf_lane out;
+    struct vec3 wl = bsdf_lambert_dir(u0, u1);
+    struct frame fr = frame_from_normal(n);
+    struct vec3 d = frame_to_world(&fr, wl);
+    struct vec3 o = vec3_madd(p, d, scene_offset_step_scaled(scale, p, n, d));
+    out.ox = o.x;
+    out.oy = o.y;
+    out.oz = o.z;
+    out.dx = d.x;
+    out.dy = d.y;
+    out.dz = d.z;
+    out.pdf = wl.z * (1.0 / M_PI);
+    /* pdf > 0 implies wl.z > 0 (and wl.z >= 2^-26.5 keeps pdf from underflowing). */
+    out.trace = out.pdf > 0.0 ? 1.0 : 0.0;
+    return out;
+}
+
+static void shadow_from_lane(const struct shadow_lane *l, struct vec3 wi, struct integrator_stats *stats,
+                             struct shadow_query *q)
+{
+    if (l->counted != 0.0) {
+        ++stats->rays;
+        ++stats->shadow_rays;
+    }
+    q->trace = l->trace != 0.0;
+    q->ray.o = vec3_make(l->ox, l->oy, l->oz);
+    q->ray.d = wi;
+    q->ray.tmax = l->tmax;
+    q->value = rgb_make(l->r, l->g, l->b);
+}
+
+static void bsdf_from_lane(const struct bsdf_lane *l, const struct material *m, struct integrator_stats *stats,
+                           struct bsdf_query *q)
+{
+    q->trace = l->trace != 0.0;
+    if (!q->trace) return;
+    q->ray.o = vec3_make(l->ox, l->oy, l->oz);
+    q->ray.d = vec3_make(l->dx, l->dy, l->dz);
+    q->ray.tmax = INFINITY;
+    q->weight = m->albedo;
+    q->pdf = l->pdf;
+    ++stats->rays;
+}
+
+/* ---- one point ------------------------------------------------------------ */
+
+void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex *v, bool ok,
+                  const struct light_sample *ls, struct integrator_stats *stats, struct shadow_query *q)
+{
+    q->trace = false;
+    q->value = rgb_make(0.0, 0.0, 0.0);
+    if (!ok) return;
+    ++stats->light_samples;
+    if (ls->light < 0) {
+        ++stats->light_missed;
+        return;
+    }
+    struct vec3 nl = sc->lights[ls->light].target.normal;
+    if (v->m->kind == MATERIAL_DIFFUSE) {
+        struct shadow_lane l = lambert_shadow_lane(sc->scale, mis, v->m->albedo, v->n, v->p, ls->wi, ls->dist,
+                                                   ls->pdf_sa, ls->radiance, nl);
+        shadow_from_lane(&l, ls->wi, stats, q);
+        return;
+    }
+    if (rgb_is_black(ls->radiance) || !(ls->pdf_sa > 0.0)) return;
+    struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
+    if (wi_local.z <= 0.0) return;
+    struct rgb f = bsdf_eval(v->m, v->wo_local, wi_local);
+    if (rgb_is_black(f)) return;
+    ++stats->rays;
+    ++stats->shadow_rays;
+    /* Both ends of the shadow segment are moved along it until they clear
+       their surfaces: a relative shortening alone leaves the end within
+       float precision of the light's plane for points just below it. */
+    double t0 = scene_offset_step(sc, v->p, v->n, ls->wi);
+    double t1 = ls->dist - scene_offset_step(sc, vec3_madd(v->p, ls->wi, ls->dist), nl, ls->wi);
+    q->trace = t1 > t0;
+    q->ray.o = vec3_madd(v->p, ls->wi, t0);
+    q->ray.d = ls->wi;
+    q->ray.tmax = t1 - t0;
+    double w = mis == MIS_NONE ? 1.0 : mis_weight(mis, ls->pdf_sa, bsdf_pdf(v->m, v->wo_local, wi_local));
+    q->value = rgb_scale(rgb_mul(f, ls->radiance), wi_local.z * w / ls->pdf_sa);
+}
+
+void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct integrator_stats *stats,
+                struct bsdf_query *q)
+{
+    if (v->m->kind == MATERIAL_DIFFUSE) {
+        struct bsdf_lane l = lambert_bsdf_lane(sc->scale, v->n, v->p, u[0], u[1]);
+        bsdf_from_lane(&l, v->m, stats, q);
+        return;
+    }
+    struct bsdf_sample bs;
+    q->trace = bsdf_sample(v->m, v->wo_local, u[0], u[1], &bs);
+    if (!q->trace) return;
+    q->ray.d = frame_to_world(&v->frame, bs.wi);
+    q->ray.o = scene_offset_origin(sc, v->p, v->n, q->ray.d);
+    q->ray.tmax = INFINITY;
+    q->weight = rgb_scale(bs.f, bs.wi.z / bs.pdf);
+    q->pdf = bs.pdf;
+    ++stats->rays;
+}
+
+/* ---- a row ---------------------------------------------------------------- */
+
+/* Points per block: gathered into arrays of scalars, run through the
+   vectorised loops (one point per SIMD slot), scattered back. */
+#define LANE_BLOCK 16
+
+/* Inputs of a block, one row per scalar. */
+enum { IN_AR, IN_AG, IN_AB, IN_NX, IN_NY, IN_NZ, IN_PX, IN_PY, IN_PZ, IN_WX, IN_WY, IN_WZ, IN_DIST, IN_PDF,
+       IN_LR, IN_LG, IN_LB, IN_NLX, IN_NLY, IN_NLZ, IN_U0, IN_U1, IN_COUNT };
+/* Outputs: the fields of shadow_lane and bsdf_lane, in order. */
+enum { SO_OX, SO_OY, SO_OZ, SO_TMAX, SO_R, SO_G, SO_B, SO_COUNTED, SO_TRACE, SO_COUNT };
+enum { BO_OX, BO_OY, BO_OZ, BO_DX, BO_DY, BO_DZ, BO_PDF, BO_TRACE, BO_COUNT };
+
+/* The two halves of a block, lambert_shadow_lane and lambert_bsdf_lane for
+   each lane, are separate loops: one loop with both is too big for GCC's
+   vectoriser. Results go to arrays of scalars, not to arrays of lane
+   structs, whose strided stores GCC does not vectorise. */
+FM_INLINE void shadow_block(double scale, enum mis_kind mis, double in[IN_COUNT][LANE_BLOCK],
+                            double so[SO_COUNT][LANE_BLOCK])
+{
+#pragma omp simd
+    for (int i = 0; i < LANE_BLOCK; ++i) {
+        struct shadow_lane l = lambert_shadow_lane(
+            scale, mis, rgb_make(in[IN_AR][i], in[IN_AG][i], in[IN_AB][i]),
+            vec3_make(in[IN_NX][i], in[IN_NY][i], in[IN_NZ][i]), vec3_make(in[IN_PX][i], in[IN_PY][i], in[IN_PZ][i]),
+            vec3_make(in[IN_WX][i], in[IN_WY][i], in[IN_WZ][i]), in[IN_DIST][i], in[IN_PDF][i],
+            rgb_make(in[IN_LR][i], in[IN_LG][i], in[IN_LB][i]), vec3_make(in[IN_NLX][i], in[IN_NLY][i], in[IN_NLZ][i]));
+        so[SO_OX][i] = l.ox;
+        so[SO_OY][i] = l.oy;
+        so[SO_OZ][i] = l.oz;
+        so[SO_TMAX][i] = l.tmax;
+        so[SO_R][i] = l.r;
+        so[SO_G][i] = l.g;
+        so[SO_B][i] = l.b;
+        so[SO_COUNTED][i] = l.counted;
+        so[SO_TRACE][i] = l.trace;
+    }
+}
+
+FM_INLINE void bsdf_block(double scale, double in[IN_COUNT][LANE_BLOCK], double bo[BO_COUNT][LANE_BLOCK])
+{
+#pragma omp simd
+    for (int i = 0; i < LANE_BLOCK; ++i) {
+        struct bsdf_lane l = lambert_bsdf_lane(scale, vec3_make(in[IN_NX][i], in[IN_NY][i], in[IN_NZ][i]),
+                                               vec3_make(in[IN_PX][i], in[IN_PY][i], in[IN_PZ][i]), in[IN_U0][i],
+                                               in[IN_U1][i]);
+        bo[BO_OX][i] = l.ox;
+        bo[BO_OY][i] = l.oy;
+        bo[BO_OZ][i] = l.oz;
+        bo[BO_DX][i] = l.dx;
+        bo[BO_DY][i] = l.dy;
+        bo[BO_DZ][i] = l.dz;
+        bo[BO_PDF][i] = l.pdf;
+        bo[BO_TRACE][i] = l.trace;
+    }
+}
+
+FM_SIMD_CLONES
+void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct vertex *v, const bool *ok,
+                        const struct light_sample *ls, const double (*ub)[2], int n, struct integrator_stats *stats,
+                        struct shadow_query *shadow, struct bsdf_query *bsdf)
+{
+    const double scale = sc->scale;
+    for (int b = 0; b < n; b += LANE_BLOCK) {
+        int m = n - b < LANE_BLOCK ? n - b : LANE_BLOCK;
+        double in[IN_COUNT][LANE_BLOCK];
+        for (int i = 0; i < LANE_BLOCK; ++i) {
+            /* Idle lanes repeat lane 0 so that they compute finite values. */
+            int k = b + (i < m ? i : 0);
+            const struct light_sample *l = &ls[k];
+            /* A lane without a light sample gets a harmless stand-in; only
+               its bsdf half is used. */
+            bool has = ok[k] && l->light >= 0;
+            struct vec3 wi = has ? l->wi : v[k].n, nl = has ? sc->lights[l->light].target.normal : v[k].n;
+            struct rgb le = has ? l->radiance : rgb_make(0.0, 0.0, 0.0);
+            const double fields[IN_COUNT] = { v[k].m->albedo.r, v[k].m->albedo.g, v[k].m->albedo.b, v[k].n.x, v[k].n.y,
+                                              v[k].n.z, v[k].p.x, v[k].p.y, v[k].p.z, wi.x, wi.y, wi.z,
+                                              has ? l->dist : 1.0, has ? l->pdf_sa : 1.0, le.r, le.g, le.b, nl.x, nl.y,
+                                              nl.z, ub ? ub[k][0] : 0.0, ub ? ub[k][1] : 0.0 };
+            for (int j = 0; j < IN_COUNT; ++j) in[j][i] = fields[j];
+        }
+        double so[SO_COUNT][LANE_BLOCK], bo[BO_COUNT][LANE_BLOCK];
+        /* mis as a constant in each copy: a select on a loop-invariant
+           enum is not vectorised. */
+        switch (mis) {
+        case MIS_NONE: shadow_block(scale, MIS_NONE, in, so); break;
+        case MIS_BALANCE: shadow_block(scale, MIS_BALANCE, in, so); break;
+        case MIS_POWER: shadow_block(scale, MIS_POWER, in, so); break;
+        }
+        if (ub) bsdf_block(scale, in, bo);
+        for (int i = 0; i < m; ++i) {
+            int k = b + i;
+            if (v[k].m->kind != MATERIAL_DIFFUSE) {
+                shadow_setup(sc, mis, &v[k], ok[k], &ls[k], stats, &shadow[k]);
+                if (ub) bsdf_setup(sc, &v[k], ub[k], stats, &bsdf[k]);
+                continue;
+            }
+            /* The counting and early outs of shadow_setup. */
+            shadow[k].trace = false;
+            shadow[k].value = rgb_make(0.0, 0.0, 0.0);
+            if (ok[k]) {
+                ++stats->light_samples;
+                if (ls[k].light < 0) ++stats->light_missed;
+                else {
+                    struct shadow_lane l = { so[SO_OX][i], so[SO_OY][i], so[SO_OZ][i], so[SO_TMAX][i], so[SO_R][i],
+                                             so[SO_G][i], so[SO_B][i], so[SO_COUNTED][i], so[SO_TRACE][i] };
+                    shadow_from_lane(&l, ls[k].wi, stats, &shadow[k]);
+                }
+            }
+            if (ub) {
+                struct bsdf_lane l = { bo[BO_OX][i], bo[BO_OY][i], bo[BO_OZ][i], bo[BO_DX][i],
+                                       bo[BO_DY][i], bo[BO_DZ][i], bo[BO_PDF][i], bo[BO_TRACE][i] };
+                bsdf_from_lane(&l, v[k].m, stats, &bsdf[k]);
+            }
+        }
+    }
+}

@@ -1,0 +1,79 @@
+/* shading.h: a shading point and the two rays direct lighting sends from
+   it: the shadow ray towards a light sample (next-event estimation) and the
+   BSDF-sampled ray that counts where it reaches a light, each weighted
+   against the other by MIS. Each ray is set up, traced and resolved in
+   separate steps so that a film row can do every step for all its points
+   in turn (integrator_radiance_row); the set-up of a whole row is
+   vectorised for Lambertian surfaces (shading_setup_many). */
+#ifndef SHADING_H
+#define SHADING_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "bsdf.h"
+#include "config.h"
+#include "scene.h"
+#include "strategy.h"
+#include "vec.h"
+
+/* MIS weight of technique a against b (one sample each). */
+double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b);
+
+/* The shading context of a surface hit: side, frame, ray origin. */
+struct vertex {
+    const struct material *m;
+    struct vec3 n;           /* geometric normal on the side of wo */
+    struct frame frame;
+    struct vec3 wo_local;
+    struct vec3 p;           /* the surface point */
+};
+
+/* False when wo lies in the surface's plane (nothing is reflected). */
+bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
+                 struct vertex *v);
+
+/* Counters a render thread accumulates; summed across threads. The set-up
+   functions below count the rays they prepare. */
+struct integrator_stats {
+    uint64_t rays;              /* all rays traced */
+    uint64_t shadow_rays;       /* occlusion rays towards a sampled light point */
+    uint64_t shadow_blocked;    /* ...of which were occluded */
+    uint64_t light_samples;     /* next-event samples that produced a direction */
+    uint64_t light_missed;      /* ...whose direction missed the light (no ray traced) */
+};
+
+/* A shadow ray still to trace and what the sample delivers if the ray is
+   not blocked. */
+struct shadow_query {
+    struct scene_ray ray;
+    bool trace;               /* a segment to test (else: delivered unless value is black) */
+    struct rgb value;
+};
+
+/* Next-event estimation at v from a drawn light sample (ok: the strategy
+   produced one), up to the shadow ray. */
+void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex *v, bool ok,
+                  const struct light_sample *ls, struct integrator_stats *stats, struct shadow_query *q);
+
+/* A BSDF-sampled ray still to trace; it counts only where it reaches a light. */
+struct bsdf_query {
+    struct scene_ray ray;
+    bool trace;
+    struct rgb weight;        /* f cos / pdf */
+    double pdf;
+};
+
+/* Samples v's BSDF with the uniforms u. */
+void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct integrator_stats *stats,
+                struct bsdf_query *q);
+
+/* shadow_setup for the n points of a row and, unless ub is NULL,
+   bsdf_setup with uniforms ub; the same results, bit for bit, and the same
+   counts. Lambertian points go through vectorised loops, others one at a
+   time. */
+void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct vertex *v, const bool *ok,
+                        const struct light_sample *ls, const double (*ub)[2], int n, struct integrator_stats *stats,
+                        struct shadow_query *shadow, struct bsdf_query *bsdf);
+
+#endif
