@@ -1,5 +1,7 @@
 #include "film.h"
 
+#include "fastmath.h"
+
 #include <OpenEXR/openexr.h>
 
 #include <assert.h>
@@ -60,6 +62,35 @@ bool film_init(struct film *f, int width, int height, struct error *err)
     f->width = width;
     f->height = height;
     return true;
+}
+
+/* Pixels per block of film_add_row: the reciprocals of their counts are
+   formed first, in a loop of divisions that vectorises. */
+#define ADD_BLOCK 64
+
+FM_SIMD_CLONES
+void film_add_row(struct film *f, int y, const struct rgb *c, int n)
+{
+    int64_t p0 = (int64_t)y * f->width;
+    double *mean = f->mean + 3 * p0, *m2 = f->m2 + 3 * p0;
+    uint32_t *count = f->count + p0;
+    for (int b = 0; b < n; b += ADD_BLOCK) {
+        int m = n - b < ADD_BLOCK ? n - b : ADD_BLOCK;
+        double inv[ADD_BLOCK];
+#pragma omp simd
+        for (int i = 0; i < m; ++i) inv[i] = 1.0 / (double)(count[b + i] + 1u);
+        /* film_add, with its reciprocal already formed. */
+        for (int i = 0; i < m; ++i) {
+            int x = b + i;
+            double v[3] = { c[x].r, c[x].g, c[x].b };
+            for (int k = 0; k < 3; ++k) {
+                double d = v[k] - mean[3 * x + k];
+                mean[3 * x + k] += d * inv[i];
+                m2[3 * x + k] += d * (v[k] - mean[3 * x + k]);
+            }
+            ++count[x];
+        }
+    }
 }
 
 void film_free(struct film *f)

@@ -48,6 +48,12 @@ static inline void film_add(struct film *f, int x, int y, struct rgb c)
     }
 }
 
+/* film_add for pixels (0, y) .. (n - 1, y) with the samples c[x]: the
+   same sums, bit for bit, in a vectorised loop (the division by each
+   pixel's count would otherwise sit in one dependency chain per pixel, run
+   one after the other). */
+void film_add_row(struct film *f, int y, const struct rgb *c, int n);
+
 /* A snapshot: float images ready to write. */
 struct film_image {
     int width, height;

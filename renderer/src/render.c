@@ -121,13 +121,14 @@ FM_SIMD_CLONES static void camera_row(const struct camera *c, uint64_t seed, int
                                       struct rng *rng, struct vec3 *dir)
 {
     uint64_t first = (uint64_t)y * (uint64_t)width;
-    for (int x = 0; x < width; ++x) {
-        rng_seed(&rng[x], seed, first + (uint64_t)x, (uint64_t)pass);
-        dir[x].x = x + rng_uniform(&rng[x]);
-        dir[x].y = y + rng_uniform(&rng[x]);
-    }
 #pragma omp simd
-    for (int x = 0; x < width; ++x) dir[x] = camera_ray(c, dir[x].x, dir[x].y);
+    for (int x = 0; x < width; ++x) {
+        struct rng r = rng_seeded(seed, first + (uint64_t)x, (uint64_t)pass);
+        struct rng_draw jx = rng_draw(r.state, r.inc), jy = rng_draw(jx.state, r.inc);
+        rng[x].state = jy.state;
+        rng[x].inc = r.inc;
+        dir[x] = camera_ray(c, x + jx.u, y + jy.u);
+    }
 }
 
 static void render_row(struct worker *w, int y, int64_t pass, struct integrator_stats *stats, uint64_t *nonfinite)
@@ -138,17 +139,24 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
                              w->row_found);
     integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
                             w->row_found, cfg->width, w->row_rng, w->row_color, stats);
+    int dropped = 0;
     for (int x = 0; x < cfg->width; ++x) {
-        struct rgb c = w->row_color[x];
+        struct rgb *c = &w->row_color[x];
         if (w->pc->fault_nonfinite_every > 0 &&
             rng_mix64(w->row_rng[x].state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
-            c.g = NAN;
-        /* A NaN/Inf sample would poison the pixel forever: it is dropped
-           (the pixel keeps its own sample count) and counted, and the count
-           is reported in the JSON stream and the EXR header. */
-        if (!rgb_is_finite(c)) ++*nonfinite;
-        else film_add(w->film, x, y, c);
+            c->g = NAN;
+        dropped += !rgb_is_finite(*c);
     }
+    /* A NaN/Inf sample would poison the pixel forever: it is dropped (the
+       pixel keeps its own sample count) and counted, and the count is
+       reported in the JSON stream and the EXR header. */
+    if (dropped == 0) {
+        film_add_row(w->film, y, w->row_color, cfg->width);
+        return;
+    }
+    *nonfinite += (uint64_t)dropped;
+    for (int x = 0; x < cfg->width; ++x)
+        if (rgb_is_finite(w->row_color[x])) film_add(w->film, x, y, w->row_color[x]);
 }
 
 static void *worker_main(void *arg)

@@ -711,7 +711,40 @@ static void test_per_pixel_count(void)
     film_free(&f);
 }
 
+/* film_add_row is film_add for each pixel of the row, bit for bit, also on
+   pixels whose counts differ (samples dropped earlier) and rows longer than
+   one block of its reciprocals; other rows are untouched. */
+static void test_add_row_matches_add(void)
+{
+    enum { W = 150, H = 3 };
+    struct film a, b;
+    struct error err;
+    CHECK(film_init(&a, W, H, &err) && film_init(&b, W, H, &err));
+    struct rng r;
+    rng_seed(&r, 5, 0, 0);
+    struct rgb c[W];
+    for (int pass = 0; pass < 20; ++pass) {
+        for (int x = 0; x < W; ++x)
+            c[x] = rgb_make(rng_uniform(&r) * 10.0, rng_uniform(&r), rng_uniform(&r) * 1e-3);
+        for (int x = 0; x < W; ++x) film_add(&a, x, 1, c[x]);
+        film_add_row(&b, 1, c, W);
+        /* Uneven counts: some pixels get an extra sample in some passes. */
+        for (int x = pass; x < W; x += 7) {
+            film_add(&a, x, 1, c[x]);
+            film_add(&b, x, 1, c[x]);
+        }
+    }
+    int differ = 0;
+    for (int i = 0; i < 3 * W * H; ++i) differ += !same_bits(a.mean[i], b.mean[i]) + !same_bits(a.m2[i], b.m2[i]);
+    for (int i = 0; i < W * H; ++i) differ += a.count[i] != b.count[i];
+    CHECK_MSG(differ == 0, "%d values differ", differ);
+    CHECK(b.count[0] == 0 && b.count[2 * W] == 0 && b.count[W] > 20);
+    film_free(&a);
+    film_free(&b);
+}
+
 static const struct test_case film_tests[] = {
+    { "add_row_matches_add", test_add_row_matches_add },
     { "per_pixel_count", test_per_pixel_count },
     { "sizes_are_checked", test_sizes_are_checked },
     { "welford_matches_two_pass", test_welford_matches_two_pass },
