@@ -10,7 +10,9 @@ double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
     case MIS_NONE:
         return 1.0;
     case MIS_BALANCE:
-        return pdf_a / (pdf_a + pdf_b);
+        /* The ratio form, so that an infinite pdf gives 1 or 0, not NaN. */
+        if (pdf_a >= pdf_b) return 1.0 / (1.0 + pdf_b / pdf_a);
+        return pdf_a / pdf_b / (1.0 + pdf_a / pdf_b);
     case MIS_POWER:
         /* Squares overflow only for absurd pdfs; the ratio form avoids it. */
         if (pdf_a >= pdf_b) {
@@ -54,9 +56,10 @@ struct shadow_lane {
    pdf_sa, radiance le, the light's normal nl) at point p with normal n on
    wo's side, and its MIS weight against cosine sampling (pdf cos / pi).
    w / pdf_sa takes one division for every MIS kind: 1 / pa (none),
-   1 / (pa + pb) (balance), pa / (pa^2 + pb^2) (power; pa stays below ~1e13
-   because the samplers refuse solid angles below 1e-12, so no square
-   overflows). */
+   1 / (pa + pb) (balance), pa / (pa^2 + pb^2) (power). pa is clamped to
+   1e150 so that no square overflows: an infinite density (a direction
+   grazing an area-sampled light) then weighs ~1e-150 instead of exactly 0
+   in the generic form, and no NaN arises. */
 FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis, struct rgb albedo, struct vec3 n,
                                                  struct vec3 p, struct vec3 wi, double dist, double pdf_sa,
                                                  struct rgb le, struct vec3 nl)
@@ -78,7 +81,7 @@ FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis
     out.tmax = t1 - t0;
     out.counted = valid;
     out.trace = t1 > t0 ? valid : 0.0;
-    double pa = pdf_sa, pb = cos_i * (1.0 / M_PI);
+    double pa = pdf_sa < 1e150 ? pdf_sa : 1e150, pb = cos_i * (1.0 / M_PI);
     double num = mis == MIS_POWER ? pa : 1.0;
     double den = mis == MIS_NONE ? pa : (mis == MIS_BALANCE ? pa + pb : pa * pa + pb * pb);
     double k = valid != 0.0 ? cos_i * num / den : 0.0;
