@@ -54,24 +54,28 @@ struct shadow_lane {
 
 /* The shadow ray towards a light sample (unit wi, distance dist, density
    pdf_sa, radiance le, the light's normal nl) at point p with normal n on
-   wo's side, and its MIS weight against cosine sampling (pdf cos / pi).
+   wo's side, where the BSDF is f, cos_i = wi . n and BSDF sampling would
+   pick wi with density pdf_b; its value f le cos w / pdf_sa with the MIS
+   weight w against BSDF sampling. Both ends of the segment are moved along
+   it until they clear their surfaces: a relative shortening alone leaves
+   the end within float precision of the light's plane for points just
+   below it.
    w / pdf_sa takes one division for every MIS kind: 1 / pa (none),
    1 / (pa + pb) (balance), pa / (pa^2 + pb^2) (power). pa is clamped to
    1e150 so that no square overflows: an infinite density (a direction
    grazing an area-sampled light) then weighs ~1e-150 instead of exactly 0
    in the generic form, and no NaN arises. */
-FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis, struct rgb albedo, struct vec3 n,
-                                                 struct vec3 p, struct vec3 wi, double dist, double pdf_sa,
-                                                 struct rgb le, struct vec3 nl)
+FM_INLINE struct shadow_lane shadow_lane(double scale, enum mis_kind mis, struct rgb f, double cos_i, double pdf_b,
+                                         struct vec3 n, struct vec3 p, struct vec3 wi, double dist, double pdf_sa,
+                                         struct rgb le, struct vec3 nl)
 {
     struct shadow_lane out;
-    double cos_i = vec3_dot(wi, n);
     /* Nested selects of doubles: combining the comparisons as bools defeats
        GCC's vectoriser (mask conversions). */
     double valid = pdf_sa > 0.0 ? 1.0 : 0.0;
     valid = cos_i > 0.0 ? valid : 0.0;
     valid = le.r != 0.0 || le.g != 0.0 || le.b != 0.0 ? valid : 0.0;
-    valid = albedo.r != 0.0 || albedo.g != 0.0 || albedo.b != 0.0 ? valid : 0.0;
+    valid = f.r != 0.0 || f.g != 0.0 || f.b != 0.0 ? valid : 0.0;
     double t0 = scene_offset_step_scaled(scale, p, n, wi);
     double t1 = dist - scene_offset_step_scaled(scale, vec3_madd(p, wi, dist), nl, wi);
     struct vec3 o = vec3_madd(p, wi, t0);
@@ -81,15 +85,24 @@ FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis
     out.tmax = t1 - t0;
     out.counted = valid;
     out.trace = t1 > t0 ? valid : 0.0;
-    double pa = pdf_sa < 1e150 ? pdf_sa : 1e150, pb = cos_i * (1.0 / M_PI);
+    double pa = pdf_sa < 1e150 ? pdf_sa : 1e150, pb = pdf_b;
     double num = mis == MIS_POWER ? pa : 1.0;
     double den = mis == MIS_NONE ? pa : (mis == MIS_BALANCE ? pa + pb : pa * pa + pb * pb);
     double k = valid != 0.0 ? cos_i * num / den : 0.0;
-    struct rgb f = rgb_scale(albedo, 1.0 / M_PI);
     out.r = f.r * le.r * k;
     out.g = f.g * le.g * k;
     out.b = f.b * le.b * k;
     return out;
+}
+
+/* shadow_lane at a Lambertian point: f = albedo / pi, pdf_b = cos / pi. */
+FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis, struct rgb albedo, struct vec3 n,
+                                                 struct vec3 p, struct vec3 wi, double dist, double pdf_sa,
+                                                 struct rgb le, struct vec3 nl)
+{
+    double cos_i = vec3_dot(wi, n);
+    return shadow_lane(scale, mis, rgb_scale(albedo, 1.0 / M_PI), cos_i, cos_i * (1.0 / M_PI), n, p, wi, dist,
+                       pdf_sa, le, nl);
 }
 
 struct bsdf_lane {
@@ -160,30 +173,19 @@ void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex
         return;
     }
     struct vec3 nl = sc->lights[ls->light].target.normal;
+    /* Lambertian points exactly as the vectorised row computes them. */
     if (v->m->kind == MATERIAL_DIFFUSE) {
         struct shadow_lane l = lambert_shadow_lane(sc->scale, mis, v->m->albedo, v->n, v->p, ls->wi, ls->dist,
                                                    ls->pdf_sa, ls->radiance, nl);
         shadow_from_lane(&l, ls->wi, stats, q);
         return;
     }
-    if (rgb_is_black(ls->radiance) || !(ls->pdf_sa > 0.0)) return;
+    /* Any other BSDF: the same shadow ray, with its own f and pdf. */
     struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
-    if (wi_local.z <= 0.0) return;
-    struct rgb f = bsdf_eval(v->m, v->wo_local, wi_local);
-    if (rgb_is_black(f)) return;
-    ++stats->rays;
-    ++stats->shadow_rays;
-    /* Both ends of the shadow segment are moved along it until they clear
-       their surfaces: a relative shortening alone leaves the end within
-       float precision of the light's plane for points just below it. */
-    double t0 = scene_offset_step(sc, v->p, v->n, ls->wi);
-    double t1 = ls->dist - scene_offset_step(sc, vec3_madd(v->p, ls->wi, ls->dist), nl, ls->wi);
-    q->trace = t1 > t0;
-    q->ray.o = vec3_madd(v->p, ls->wi, t0);
-    q->ray.d = ls->wi;
-    q->ray.tmax = t1 - t0;
-    double w = mis == MIS_NONE ? 1.0 : mis_weight(mis, ls->pdf_sa, bsdf_pdf(v->m, v->wo_local, wi_local));
-    q->value = rgb_scale(rgb_mul(f, ls->radiance), wi_local.z * w / ls->pdf_sa);
+    struct shadow_lane l = shadow_lane(sc->scale, mis, bsdf_eval(v->m, v->wo_local, wi_local), wi_local.z,
+                                       bsdf_pdf(v->m, v->wo_local, wi_local), v->n, v->p, ls->wi, ls->dist,
+                                       ls->pdf_sa, ls->radiance, nl);
+    shadow_from_lane(&l, ls->wi, stats, q);
 }
 
 void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct integrator_stats *stats,
