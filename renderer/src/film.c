@@ -79,15 +79,9 @@ void film_add_row(struct film *f, int y, const struct rgb *c, int n)
         double inv[ADD_BLOCK];
 #pragma omp simd
         for (int i = 0; i < m; ++i) inv[i] = 1.0 / (double)(count[b + i] + 1u);
-        /* film_add, with its reciprocal already formed. */
         for (int i = 0; i < m; ++i) {
             int x = b + i;
-            double v[3] = { c[x].r, c[x].g, c[x].b };
-            for (int k = 0; k < 3; ++k) {
-                double d = v[k] - mean[3 * x + k];
-                mean[3 * x + k] += d * inv[i];
-                m2[3 * x + k] += d * (v[k] - mean[3 * x + k]);
-            }
+            film_welford(mean + 3 * x, m2 + 3 * x, c[x], inv[i]);
             ++count[x];
         }
     }

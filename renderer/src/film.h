@@ -32,14 +32,10 @@ struct film {
    sizes and on allocation failure. */
 bool film_init(struct film *f, int width, int height, struct error *err);
 void film_free(struct film *f);
-/* Adds one sample to pixel (x, y) (Welford's update with the pixel's own
-   count). Callers drop non-finite samples instead of adding them. */
-static inline void film_add(struct film *f, int x, int y, struct rgb c)
+/* Welford's update of one pixel's mean m and second moment s with sample
+   c, inv = 1 / (its count after this sample). */
+static inline void film_welford(double *m, double *s, struct rgb c, double inv)
 {
-    int64_t p = (int64_t)y * f->width + x;
-    double *m = f->mean + 3 * p;
-    double *s = f->m2 + 3 * p;
-    double inv = 1.0 / (double)(++f->count[p]);
     double v[3] = { c.r, c.g, c.b };
     for (int k = 0; k < 3; ++k) {
         double d = v[k] - m[k];
@@ -48,10 +44,18 @@ static inline void film_add(struct film *f, int x, int y, struct rgb c)
     }
 }
 
+/* Adds one sample to pixel (x, y) (Welford's update with the pixel's own
+   count). Callers drop non-finite samples instead of adding them. */
+static inline void film_add(struct film *f, int x, int y, struct rgb c)
+{
+    int64_t p = (int64_t)y * f->width + x;
+    film_welford(f->mean + 3 * p, f->m2 + 3 * p, c, 1.0 / (double)(++f->count[p]));
+}
+
 /* film_add for pixels (0, y) .. (n - 1, y) with the samples c[x]: the
-   same sums, bit for bit, in a vectorised loop (the division by each
-   pixel's count would otherwise sit in one dependency chain per pixel, run
-   one after the other). */
+   same sums, bit for bit, with the reciprocals of the counts formed first
+   in a vectorised loop (the division by each pixel's count would otherwise
+   sit in one dependency chain per pixel, run one after the other). */
 void film_add_row(struct film *f, int y, const struct rgb *c, int n);
 
 /* A snapshot: float images ready to write. */
