@@ -109,12 +109,18 @@ struct line {
     size_t n;
 };
 
-static void line_add(struct line *l, const char *str)
+/* Appends str, after sep unless l is empty. */
+static void line_append(struct line *l, const char *sep, const char *str)
 {
     if (l->n >= sizeof l->s - 1) return;
-    int k = snprintf(l->s + l->n, sizeof l->s - l->n, "%s%s", l->n ? ", " : "", str);
+    int k = snprintf(l->s + l->n, sizeof l->s - l->n, "%s%s", l->n ? sep : "", str);
     if (k > 0) l->n += (size_t)k;
     if (l->n > sizeof l->s - 1) l->n = sizeof l->s - 1;
+}
+
+static void line_add(struct line *l, const char *str)
+{
+    line_append(l, ", ", str);
 }
 
 static const char *join_names(struct line *l, const char *const *names, int n)
@@ -1708,10 +1714,7 @@ static bool include_path_ok(struct loader *L, int s, const yaml_node_t *entry)
 /* Appends " -> path" (or the path first) to a chain of file names. */
 static void chain_add(struct line *chain, const char *path)
 {
-    if (chain->n >= sizeof chain->s - 1) return;
-    int k = snprintf(chain->s + chain->n, sizeof chain->s - chain->n, "%s%s", chain->n ? " -> " : "", path);
-    if (k > 0) chain->n += (size_t)k;
-    if (chain->n > sizeof chain->s - 1) chain->n = sizeof chain->s - 1;
+    line_append(chain, " -> ", path);
 }
 
 /* Reads, parses and resolves the file named by include entry `entry` of
