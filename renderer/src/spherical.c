@@ -188,92 +188,132 @@ struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, doub
     return rect_warp(r, u, v, dist);
 }
 
-/* One lane of sphrect_sample_many: scalars in, scalars out, so that the
-   loop calling it has no local whose address is taken (OpenMP would turn
-   those into per-lane arrays and defeat the vectoriser). */
-struct rect_lane { double wx, wy, wz, dist, solid_angle; };
+/* sphrect_sample_many runs each lane in two stages, each a loop over a
+   block of lanes: the per-point constants (rect_local, rect_constants),
+   then the warp. Both are chains of divisions and square roots; split,
+   each iteration is short enough for the processor to overlap
+   neighbouring ones (measured: 2% less time in the sampler than one loop
+   doing both). The stages read and write arrays of scalars indexed by
+   lane, so that the loops have no local whose address is taken (OpenMP
+   would turn those into per-lane arrays and defeat the vectoriser). */
+enum { RF_CX, RF_CY, RF_CZ, RF_XX, RF_XY, RF_XZ, RF_YX, RF_YY, RF_YZ, RF_ZX, RF_ZY, RF_ZZ, RF_EXL, RF_EYL, RF_OX,
+       RF_OY, RF_OZ, RF_U, RF_V, RF_COUNT };
+/* The sphrect fields stage one hands to stage two (o, x and y are inputs). */
+enum { RS_ZX, RS_ZY, RS_ZZ, RS_Z0, RS_X0, RS_Y0, RS_X1, RS_Y1, RS_B0, RS_B1, RS_OMB, RS_COSK, RS_SINK, RS_SA,
+       RS_COUNT };
 
-FM_INLINE struct rect_lane rect_lane(double cx, double cy, double cz, double xx, double xy, double xz, double yx,
-                                     double yy, double yz, double zx, double zy, double zz, double exl, double eyl,
-                                     double ox, double oy, double oz, double u, double v)
+/* Lanes per block: enough iterations for the stages to overlap. */
+#define RECT_BLOCK 64
+
+FM_INLINE void rect_stage1(const double in[RF_COUNT][RECT_BLOCK], double st[RS_COUNT][RECT_BLOCK], int i)
 {
-    struct sphrect_frame f = { { cx, cy, cz }, { xx, xy, xz }, { yx, yy, yz }, { zx, zy, zz }, exl, eyl };
+    struct sphrect_frame f = { { in[RF_CX][i], in[RF_CY][i], in[RF_CZ][i] },
+                               { in[RF_XX][i], in[RF_XY][i], in[RF_XZ][i] },
+                               { in[RF_YX][i], in[RF_YY][i], in[RF_YZ][i] },
+                               { in[RF_ZX][i], in[RF_ZY][i], in[RF_ZZ][i] },
+                               in[RF_EXL][i],
+                               in[RF_EYL][i] };
     struct sphrect r;
-    /* Both evaluated (no branch), so that the loop calling this vectorises. */
-    bool in_front = rect_local(&f, vec3_make(ox, oy, oz), &r), usable = rect_usable(&r);
+    /* Both evaluated (no branch), so that the loop vectorises. */
+    bool in_front = rect_local(&f, vec3_make(in[RF_OX][i], in[RF_OY][i], in[RF_OZ][i]), &r), usable = rect_usable(&r);
     bool ok = in_front & usable;
-    struct rect_lane out;
-    struct vec3 w = rect_warp(&r, u, v, &out.dist);
-    out.wx = w.x;
-    out.wy = w.y;
-    out.wz = w.z;
-    out.solid_angle = ok ? r.solid_angle : 0.0;
-    return out;
+    st[RS_ZX][i] = r.z.x;
+    st[RS_ZY][i] = r.z.y;
+    st[RS_ZZ][i] = r.z.z;
+    st[RS_Z0][i] = r.z0;
+    st[RS_X0][i] = r.x0;
+    st[RS_Y0][i] = r.y0;
+    st[RS_X1][i] = r.x1;
+    st[RS_Y1][i] = r.y1;
+    st[RS_B0][i] = r.b0;
+    st[RS_B1][i] = r.b1;
+    st[RS_OMB][i] = r.one_minus_b0sq;
+    st[RS_COSK][i] = r.cos_k;
+    st[RS_SINK][i] = r.sin_k;
+    st[RS_SA][i] = ok ? r.solid_angle : 0.0;
+}
+
+FM_INLINE struct vec3 rect_stage2(const double in[RF_COUNT][RECT_BLOCK], const double st[RS_COUNT][RECT_BLOCK], int i,
+                                  double *dist)
+{
+    struct sphrect r;
+    r.o = vec3_make(in[RF_OX][i], in[RF_OY][i], in[RF_OZ][i]);
+    r.x = vec3_make(in[RF_XX][i], in[RF_XY][i], in[RF_XZ][i]);
+    r.y = vec3_make(in[RF_YX][i], in[RF_YY][i], in[RF_YZ][i]);
+    r.z = vec3_make(st[RS_ZX][i], st[RS_ZY][i], st[RS_ZZ][i]);
+    r.z0 = st[RS_Z0][i];
+    r.x0 = st[RS_X0][i];
+    r.y0 = st[RS_Y0][i];
+    r.x1 = st[RS_X1][i];
+    r.y1 = st[RS_Y1][i];
+    r.b0 = st[RS_B0][i];
+    r.b1 = st[RS_B1][i];
+    r.one_minus_b0sq = st[RS_OMB][i];
+    r.cos_k = st[RS_COSK][i];
+    r.sin_k = st[RS_SINK][i];
+    r.solid_angle = st[RS_SA][i];
+    return rect_warp(&r, in[RF_U][i], in[RF_V][i], dist);
 }
 
 /* Lanes are processed in blocks: gathered into local arrays of scalars,
-   run through a loop the compiler vectorises (one lane per SIMD slot), and
-   scattered back. */
-#define RECT_BLOCK 16
-
+   run through the stages' vectorised loops (one lane per SIMD slot), and
+   scattered back. The gathers are marked `omp simd` too: at -O2 GCC only
+   vectorises a loop without the pragma when no remainder is left over
+   ("very cheap" cost model), and gathered lane by lane with scalar
+   stores they cost as much as a stage (measured: 24 of 77 cycles per
+   pixel, 6 once vectorised). */
 FM_SIMD_CLONES
 void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct vec3 *o, const double *u,
                          const double *v, int n, struct vec3 *wi, double *dist, double *solid_angle)
 {
     for (int b = 0; b < n; b += RECT_BLOCK) {
         int m = n - b < RECT_BLOCK ? n - b : RECT_BLOCK;
-        double in[19][RECT_BLOCK], out[5][RECT_BLOCK];
+        /* Lanes computed: m rounded up to a whole number of AVX-512 vectors. */
+        int mv = (m + 7) & ~7;
+        double in[RF_COUNT][RECT_BLOCK], st[RS_COUNT][RECT_BLOCK], out[4][RECT_BLOCK];
+#pragma omp simd
+        for (int i = 0; i < m; ++i) {
+            in[RF_OX][i] = o[b + i].x;
+            in[RF_OY][i] = o[b + i].y;
+            in[RF_OZ][i] = o[b + i].z;
+            in[RF_U][i] = u[b + i];
+            in[RF_V][i] = v[b + i];
+        }
+        /* Idle lanes repeat lane 0 so that they compute finite values. */
+        for (int i = m; i < mv; ++i)
+            for (int j = RF_OX; j < RF_COUNT; ++j) in[j][i] = in[j][0];
         /* Usually every lane has the same rectangle (one light): its frame
-           is then read once instead of gathered lane by lane. */
+           is then broadcast (vector stores) instead of gathered lane by lane
+           (the stores of a lane-by-lane gather cost as much as a stage). */
         bool shared = true;
         for (int i = 1; i < m; ++i) shared &= frames[b + i] == frames[b];
-        for (int i = 0; i < RECT_BLOCK; ++i) {
-            /* Idle lanes repeat lane 0 so that they compute finite values. */
-            int k = b + (i < m ? i : 0);
-            in[14][i] = o[k].x;
-            in[15][i] = o[k].y;
-            in[16][i] = o[k].z;
-            in[17][i] = u[k];
-            in[18][i] = v[k];
-            if (shared) continue;
-            const struct sphrect_frame *f = frames[k];
-            const double fields[14] = { f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x,
-                                        f->y.y, f->y.z, f->z.x, f->z.y, f->z.z, f->ex_len, f->ey_len };
-            for (int j = 0; j < 14; ++j) in[j][i] = fields[j];
+        for (int i = 0; i < (shared ? 1 : mv); ++i) {
+            const struct sphrect_frame *f = frames[b + (i < m ? i : 0)];
+            const double fields[RF_OX] = { f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x,
+                                           f->y.y, f->y.z, f->z.x, f->z.y, f->z.z, f->ex_len, f->ey_len };
+            for (int j = 0; j < RF_OX; ++j) in[j][i] = fields[j];
         }
-        /* Two copies of the loop, differing only in where the frame comes
-           from: a struct of lanes (out[i] = rect_lane(...)) instead of the
-           five arrays measured 6% slower, the stores being strided. */
-        if (shared) {
-            const struct sphrect_frame *f = frames[b];
+        if (shared)
+            for (int j = 0; j < RF_OX; ++j) {
+                double x = in[j][0];
 #pragma omp simd
-            for (int i = 0; i < RECT_BLOCK; ++i) {
-                struct rect_lane l = rect_lane(f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x,
-                                               f->y.y, f->y.z, f->z.x, f->z.y, f->z.z, f->ex_len, f->ey_len,
-                                               in[14][i], in[15][i], in[16][i], in[17][i], in[18][i]);
-                out[0][i] = l.wx;
-                out[1][i] = l.wy;
-                out[2][i] = l.wz;
-                out[3][i] = l.dist;
-                out[4][i] = l.solid_angle;
+                for (int i = 1; i < mv; ++i) in[j][i] = x;
             }
-        } else {
 #pragma omp simd
-            for (int i = 0; i < RECT_BLOCK; ++i) {
-                struct rect_lane l = rect_lane(in[0][i], in[1][i], in[2][i], in[3][i], in[4][i], in[5][i], in[6][i],
-                                               in[7][i], in[8][i], in[9][i], in[10][i], in[11][i], in[12][i],
-                                               in[13][i], in[14][i], in[15][i], in[16][i], in[17][i], in[18][i]);
-                out[0][i] = l.wx;
-                out[1][i] = l.wy;
-                out[2][i] = l.wz;
-                out[3][i] = l.dist;
-                out[4][i] = l.solid_angle;
-            }
+        for (int i = 0; i < mv; ++i) rect_stage1((const double(*)[RECT_BLOCK])in, st, i);
+#pragma omp simd
+        for (int i = 0; i < mv; ++i) {
+            double d;
+            struct vec3 w = rect_stage2((const double(*)[RECT_BLOCK])in, (const double(*)[RECT_BLOCK])st, i, &d);
+            out[0][i] = w.x;
+            out[1][i] = w.y;
+            out[2][i] = w.z;
+            out[3][i] = d;
         }
         for (int i = 0; i < m; ++i) {
             wi[b + i] = vec3_make(out[0][i], out[1][i], out[2][i]);
             dist[b + i] = out[3][i];
-            solid_angle[b + i] = out[4][i];
+            solid_angle[b + i] = st[RS_SA][i];
         }
     }
 }
