@@ -260,7 +260,7 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         }
         if (it->max_depth < 1) continue;
         struct vertex *v = &row->v[lanes];
-        if (!vertex_init(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
+        if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
         strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
         draw_light_uniforms(&rng[x], row->u[lanes]);
         if (mis) draw_bsdf_uniforms(&rng[x], row->ub[lanes]);

@@ -32,6 +32,11 @@ struct vertex {
 /* False when wo lies in the surface's plane (nothing is reflected). */
 bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
                  struct vertex *v);
+/* The same for shading_setup_many, which reads only m, n and p of a
+   Lambertian point (its lanes build the frame from n): there the frame and
+   wo_local are left unset, saving a division and twelve stores a point. */
+bool vertex_init_lanes(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
+                       struct vertex *v);
 
 /* Counters a render thread accumulates; summed across threads. The set-up
    functions below count the rays they prepare. */
