@@ -60,17 +60,3 @@ void alias_free(struct alias_table *t)
     t->alias = NULL;
     t->n = 0;
 }
-
-int alias_sample(const struct alias_table *t, double u, double *u_reuse)
-{
-    double x = u * t->n;
-    int i = (int)x;
-    if (i >= t->n) i = t->n - 1;
-    double f = x - i; /* uniform in [0,1) given i */
-    if (f < t->accept[i]) {
-        if (u_reuse) *u_reuse = t->accept[i] > 0.0 ? f / t->accept[i] : 0.0;
-        return i;
-    }
-    if (u_reuse) *u_reuse = (f - t->accept[i]) / (1.0 - t->accept[i]);
-    return t->alias[i];
-}

@@ -18,7 +18,20 @@ struct alias_table {
 bool alias_build(struct alias_table *t, const double *weights, int n, struct error *err);
 void alias_free(struct alias_table *t);
 /* Index for u in [0,1); *u_reuse (optional) receives a fresh uniform in [0,1)
-   recovered from u's leftover bits, so the caller needs no extra draw. */
-int alias_sample(const struct alias_table *t, double u, double *u_reuse);
+   recovered from u's leftover bits, so the caller needs no extra draw.
+   Inline: light sampling calls it once per sample. */
+static inline int alias_sample(const struct alias_table *t, double u, double *u_reuse)
+{
+    double x = u * t->n;
+    int i = (int)x;
+    if (i >= t->n) i = t->n - 1;
+    double f = x - i; /* uniform in [0,1) given i */
+    if (f < t->accept[i]) {
+        if (u_reuse) *u_reuse = t->accept[i] > 0.0 ? f / t->accept[i] : 0.0;
+        return i;
+    }
+    if (u_reuse) *u_reuse = (f - t->accept[i]) / (1.0 - t->accept[i]);
+    return t->alias[i];
+}
 
 #endif

@@ -10,8 +10,3 @@ bool light_init(struct light *l, const struct polygon *poly, struct rgb radiance
     return true;
 }
 
-struct rgb light_emitted(const struct light *l, struct vec3 w_out)
-{
-    if (l->two_sided || vec3_dot(w_out, l->target.normal) > 0.0) return l->radiance;
-    return rgb_make(0.0, 0.0, 0.0);
-}

@@ -21,7 +21,12 @@ struct light {
 bool light_init(struct light *l, const struct polygon *poly, struct rgb radiance, bool two_sided);
 
 /* Radiance leaving the light towards w_out (unit, pointing away from it);
-   black from the back of a one-sided light. */
-struct rgb light_emitted(const struct light *l, struct vec3 w_out);
+   black from the back of a one-sided light. Inline: every light sample
+   and every camera or BSDF ray that meets a light asks. */
+static inline struct rgb light_emitted(const struct light *l, struct vec3 w_out)
+{
+    if (l->two_sided || vec3_dot(w_out, l->target.normal) > 0.0) return l->radiance;
+    return rgb_make(0.0, 0.0, 0.0);
+}
 
 #endif
