@@ -38,18 +38,6 @@ bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int mate
     return v->wo_local.z > 0.0;
 }
 
-bool vertex_init_lanes(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
-                       struct vertex *v)
-{
-    const struct material *m = &sc->materials[material];
-    if (m->kind != MATERIAL_DIFFUSE) return vertex_init(sc, p, ng, material, wo, v);
-    v->m = m;
-    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
-    v->p = p;
-    /* wo_local.z: the frame's z axis is n itself. */
-    return vec3_dot(wo, v->n) > 0.0;
-}
-
 /* ---- Lambertian lanes ------------------------------------------------------
    The set-up of both rays at a Lambertian point, written as straight-line
    functions of scalars (selects, no branches) so that the loop over a row's

@@ -34,9 +34,19 @@ bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int mate
                  struct vertex *v);
 /* The same for shading_setup_many, which reads only m, n and p of a
    Lambertian point (its lanes build the frame from n): there the frame and
-   wo_local are left unset, saving a division and twelve stores a point. */
-bool vertex_init_lanes(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
-                       struct vertex *v);
+   wo_local are left unset, saving a division and twelve stores a point.
+   Inline: a film row calls it for every pixel. */
+static inline bool vertex_init_lanes(const struct scene *sc, struct vec3 p, struct vec3 ng, int material,
+                                     struct vec3 wo, struct vertex *v)
+{
+    const struct material *m = &sc->materials[material];
+    if (m->kind != MATERIAL_DIFFUSE) return vertex_init(sc, p, ng, material, wo, v);
+    v->m = m;
+    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
+    v->p = p;
+    /* wo_local.z: the frame's z axis is n itself. */
+    return vec3_dot(wo, v->n) > 0.0;
+}
 
 /* Counters a render thread accumulates; summed across threads. The set-up
    functions below count the rays they prepare. */

@@ -11,17 +11,7 @@
 
 static bool uses_portals(enum strategy_kind k)
 {
-    switch (k) {
-    case STRATEGY_LIGHT_AREA:
-    case STRATEGY_LIGHT:
-        return false;
-    case STRATEGY_PORTAL:
-    case STRATEGY_PROJECTION:
-    case STRATEGY_ANTISHADOW:
-    case STRATEGY_ANTISHADOW_EXACT:
-        return true;
-    }
-    return false;
+    return strategy_kind_uses_portals(k);
 }
 
 /* The antishadow strategies classify; `portal` and `projection` are the
@@ -376,14 +366,10 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     return 0.0;
 }
 
-void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch, struct vec3 p, struct vec3 n,
-                      struct strategy_point *pt)
+void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
 {
-    pt->p = p;
-    pt->n = n;
-    pt->scratch = scratch;
-    pt->total = 0.0;
-    if (!uses_portals(s->kind)) return;
+    struct strategy_scratch *scratch = pt->scratch;
+    struct vec3 p = pt->p;
     /* Forget the previous point's candidates (only those were touched). */
     for (int k = 0; k < scratch->n_cand; ++k) {
         scratch->cand_pos[scratch->cand[k]] = -1;
@@ -594,10 +580,6 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     return true;
 }
 
-bool strategy_batches(const struct strategy *s)
-{
-    return !uses_portals(s->kind);
-}
 
 /* Points per batch (stack arrays, no allocation). */
 #define STRATEGY_MANY_CHUNK 64

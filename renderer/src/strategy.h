@@ -76,8 +76,46 @@ struct strategy_point {
     struct strategy_scratch *scratch;
 };
 
-void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch, struct vec3 p, struct vec3 n,
-                      struct strategy_point *pt);
+/* Whether a strategy of kind k samples through portals (and so keeps
+   per-point state in the scratch). */
+static inline bool strategy_kind_uses_portals(enum strategy_kind k)
+{
+    switch (k) {
+    case STRATEGY_LIGHT_AREA:
+    case STRATEGY_LIGHT:
+        return false;
+    case STRATEGY_PORTAL:
+    case STRATEGY_PROJECTION:
+    case STRATEGY_ANTISHADOW:
+    case STRATEGY_ANTISHADOW_EXACT:
+        return true;
+    }
+    return false;
+}
+
+/* True when strategy_prepare keeps nothing in the scratch (the light-only
+   strategies), so that many points can be prepared first and sampled
+   together with strategy_sample_many. */
+static inline bool strategy_batches(const struct strategy *s)
+{
+    return !strategy_kind_uses_portals(s->kind);
+}
+
+/* The portal strategies' part of strategy_prepare: the candidate pairs of
+   pt->p and their weights, into pt->scratch. */
+void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt);
+
+/* Inline: a film row prepares every shading point, and for the light-only
+   strategies this is all there is to it. */
+static inline void strategy_prepare(const struct strategy *s, struct strategy_scratch *scratch, struct vec3 p,
+                                    struct vec3 n, struct strategy_point *pt)
+{
+    pt->p = p;
+    pt->n = n;
+    pt->scratch = scratch;
+    pt->total = 0.0;
+    if (!strategy_batches(s)) strategy_prepare_pairs(s, pt);
+}
 
 struct light_sample {
     struct vec3 wi;           /* unit */
@@ -93,10 +131,6 @@ struct light_sample {
 bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
                      struct light_sample *out);
 
-/* True when strategy_prepare keeps nothing in the scratch (the light-only
-   strategies), so that many points can be prepared first and sampled
-   together with strategy_sample_many. */
-bool strategy_batches(const struct strategy *s);
 /* strategy_sample at n points: ok[i] and out[i] are what strategy_sample
    would give for pts[i] and u[i], bit for bit. The `light` strategy
    samples its rectangles in vectorised batches; the others call
