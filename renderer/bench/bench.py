@@ -84,11 +84,11 @@ def section_raw_embree(ctx: Context) -> dict[str, Any]:
 
 def raw_limit_now(ctx: Context) -> dict[str, float]:
     """Rays per CPU second of one thread for the renderer's ray mix (lampshade),
-    measured now, for a ratio taken in the same round as the renders it is
-    compared with (the machine's speed drifts by tens of percent over
+    measured now, for a ratio taken right next to the renders it is compared
+    with (the machine's speed drifts by tens of percent within seconds to
     minutes). 'best' is the faster of single rays and streams."""
     raw = bl.run_json([str(ctx.bins["raw_embree"]), str(LAMPSHADE), "--seconds", "0.15", "--reps", "1",
-                       "--spp", "1", "--max-threads", "1"])
+                       "--spp", "1", "--max-threads", "1", "--mix-only"])
     cells = {c["api"]: c["median_rays_per_cpu_s"] for c in raw["cells"] if c["kind"] == "mix" and c["threads"] == 1}
     return {"single": cells["embree"], "stream": cells["stream"], "best": max(cells["embree"], cells["stream"])}
 
@@ -130,23 +130,31 @@ def wasted(run: dict[str, Any]) -> dict[str, float]:
 def section_throughput(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     spp = {"direct": 3 if q else 8, "path": 2 if q else 4}
-    reps = 1 if q else 3
+    reps = 1 if q else 5
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "spp": spp, "reps": reps, "threads": 2,
               "order": "round-robin over (integrator, strategy) per round; seed = round",
+              "raw_limit": "raw_embree --mix-only measured before and after each (integrator, strategy) pair "
+                           "of renders; a run's ratio uses the mean of the two",
               "cpu_rates": "differential: (run at spp) - (same run stopped after 1 pass), so load and EXR "
                            "write are excluded"}
     out = TMP / "runs" / "throughput"
     bl.run_render(ctx, LAMPSHADE, out / "warmup", "--spp", "1", "--threads", "2")
     runs: dict[str, list[dict[str, Any]]] = {}
-    limits: list[dict[str, float]] = []
+    # The raw limit next to each pair of renders: the mean of the
+    # measurements just before and just after it, per key and round.
+    limits: dict[str, list[dict[str, float]]] = {}
     for r in range(reps):
         log(f"throughput: round {r + 1}/{reps}")
-        limits.append(raw_limit_now(ctx))
+        before = raw_limit_now(ctx)
         for integ in ("direct", "path"):
             for s in STRATEGIES:
                 common = ["--threads", "2", "--strategy", s, "--integrator", integ, "--seed", str(r + 1)]
                 a = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), *common).summary()
                 b = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}_1", "--spp", "1", *common).summary()
+                after = raw_limit_now(ctx)
+                limits.setdefault(f"{integ}/{s}", []).append(
+                    {k: 0.5 * (before[k] + after[k]) for k in ("single", "stream", "best")})
+                before = after
                 runs.setdefault(f"{integ}/{s}", []).append({**a, "diff": bl.differential(a, b), "one_pass": b})
     table = {}
     for key, rs in runs.items():
@@ -157,9 +165,11 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         row["rays_per_sample"] = median([x["rays"] / x["samples"] for x in rs])
         # Against the raw limit of the same round: the best Embree API, and
         # single rays (rtcIntersect1/rtcOccluded1) alone.
-        row["raw_fraction_cpu"] = median([x["diff"]["rays_per_cpu_s"] / l["best"] for x, l in zip(rs, limits)])
+        row["raw_fraction_cpu_runs"] = [x["diff"]["rays_per_cpu_s"] / l["best"] for x, l in zip(rs, limits[key])]
+        row["raw_fraction_cpu"] = median(row["raw_fraction_cpu_runs"])
         row["raw_fraction_cpu_single"] = median(
-            [x["diff"]["rays_per_cpu_s"] / l["single"] for x, l in zip(rs, limits)])
+            [x["diff"]["rays_per_cpu_s"] / l["single"] for x, l in zip(rs, limits[key])])
+        row["raw_limit_best"] = median([l["best"] for l in limits[key]])
         # Strategy cost: time per sample relative to `light`, same integrator, same round.
         light = runs[f"{integ}/light"]
         row["cost_vs_light_cpu"] = ratio_stats(
@@ -168,7 +178,7 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
             [(x["time_s"] / x["samples"]) / (l["time_s"] / l["samples"]) for x, l in zip(rs, light)])
         row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
         table[key] = row
-    bl.write_result(ctx, "throughput", {**params, "raw_limit_per_round": limits}, {"table": table, "runs": runs})
+    bl.write_result(ctx, "throughput", {**params, "raw_limit_per_run": limits}, {"table": table, "runs": runs})
     # The wasted-ray table of section 9 at the default scene (s_L = 0.6).
     wasted_rows = {key: wasted(rs[0]) for key, rs in runs.items() if key.startswith("direct/")}
     bl.write_result(ctx, "wasted_rays", {"config": params["config"], "s_L": 0.6, "integrator": "direct",

@@ -281,8 +281,10 @@ static void usage(const char *argv0)
 {
     fprintf(stderr,
             "usage: %s CONFIG [--set KEY=VALUE]... [--seconds S] [--reps R] [--max-threads T] [--spp K]\n"
+            "          [--mix-only]\n"
             "Times incoherent camera, bounce and shadow rays of CONFIG's scene with 1..T threads;\n"
-            "prints one JSON object on stdout, progress on stderr.\n",
+            "prints one JSON object on stdout, progress on stderr. --mix-only: only the mixed batch,\n"
+            "single rays and streams (a quick yardstick next to a render).\n",
             argv0);
 }
 
@@ -292,8 +294,11 @@ int main(int argc, char **argv)
     struct bench_overrides ov = { 0 };
     double seconds = 0.3;
     int reps = 5, max_threads = 2, spp = 2;
+    bool mix_only = false;
     for (int i = 1; i < argc; ++i) {
         if (bench_take_set(&ov, argc, argv, &i)) continue;
+        if (!strcmp(argv[i], "--mix-only")) mix_only = true;
+        else
         if (!strcmp(argv[i], "--seconds") && i + 1 < argc) seconds = atof(argv[++i]);
         else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--max-threads") && i + 1 < argc) max_threads = atoi(argv[++i]);
@@ -335,15 +340,18 @@ int main(int argc, char **argv)
     for (int k = 0; k < BATCH_COUNT; ++k)
         hit_fraction[k] = b[k].n ? (double)trace_range(&sc, &b[k], API_EMBREE, 0, b[k].n) / b[k].n : 0.0;
 
+    /* --mix-only: the mix batch with rtcIntersect1/rtcOccluded1 and streams,
+       nothing else (a quick yardstick to take right next to a render). */
+    int k0 = mix_only ? BATCH_MIX : 0, a0 = mix_only ? API_EMBREE : 0;
     /* Warm-up: caches, page faults of the batches, CPU clocks. */
-    for (int k = 0; k < BATCH_COUNT; ++k)
-        for (int a = 0; a < API_COUNT; ++a) measure(&sc, &b[k], a, 1, 0.05);
+    for (int k = k0; k < BATCH_COUNT; ++k)
+        for (int a = a0; a < API_COUNT; ++a) measure(&sc, &b[k], a, 1, 0.05);
 
     static double wall[BATCH_COUNT][API_COUNT][16][64], cpu[BATCH_COUNT][API_COUNT][16][64];
     for (int r = 0; r < reps; ++r) {
         fprintf(stderr, "raw_embree: round %d/%d\n", r + 1, reps);
-        for (int k = 0; k < BATCH_COUNT; ++k)
-            for (int a = 0; a < API_COUNT; ++a)
+        for (int k = k0; k < BATCH_COUNT; ++k)
+            for (int a = a0; a < API_COUNT; ++a)
                 for (int t = 1; t <= max_threads; ++t) {
                     struct measurement m = measure(&sc, &b[k], a, t, seconds);
                     wall[k][a][t - 1][r] = m.rays_per_s;
@@ -353,11 +361,11 @@ int main(int argc, char **argv)
 
     /* The renderer builds with RTC_SCENE_FLAG_ROBUST (scene.c): rebuild
        without it and time the mix again, to show what the flag costs. */
-    double nr_wall[64], nr_cpu[64];
+    double nr_wall[64] = { 0 }, nr_cpu[64] = { 0 };
     rtcSetSceneFlags(sc.rtc_scene, RTC_SCENE_FLAG_NONE);
     rtcCommitScene(sc.rtc_scene);
-    measure(&sc, &b[BATCH_MIX], API_EMBREE, 1, 0.05);
-    for (int r = 0; r < reps; ++r) {
+    if (!mix_only) measure(&sc, &b[BATCH_MIX], API_EMBREE, 1, 0.05);
+    for (int r = 0; r < (mix_only ? 0 : reps); ++r) {
         struct measurement m = measure(&sc, &b[BATCH_MIX], API_EMBREE, 1, seconds);
         nr_wall[r] = m.rays_per_s;
         nr_cpu[r] = m.rays_per_cpu_s;
@@ -375,8 +383,8 @@ int main(int argc, char **argv)
                hit_fraction[k]);
     printf("},\"cells\":[");
     int first = 1;
-    for (int k = 0; k < BATCH_COUNT; ++k)
-        for (int a = 0; a < API_COUNT; ++a)
+    for (int k = k0; k < BATCH_COUNT; ++k)
+        for (int a = a0; a < API_COUNT; ++a)
             for (int t = 1; t <= max_threads; ++t) {
                 printf("%s{\"kind\":\"%s\",\"api\":\"%s\",\"threads\":%d,\"rays_per_s\":[", first ? "" : ",",
                        batch_names[k], api_names[a], t);
@@ -389,8 +397,11 @@ int main(int argc, char **argv)
                        "\"median_rays_per_cpu_s\":%.1f}",
                        mw, mw / t, mc);
             }
-    printf("],\"mix_embree_1t_without_robust_flag\":{\"median_rays_per_s\":%.1f,\"median_rays_per_cpu_s\":%.1f}}\n",
-           bench_median(nr_wall, reps), bench_median(nr_cpu, reps));
+    if (mix_only)
+        printf("],\"mix_embree_1t_without_robust_flag\":null}\n");
+    else
+        printf("],\"mix_embree_1t_without_robust_flag\":{\"median_rays_per_s\":%.1f,\"median_rays_per_cpu_s\":%.1f}}\n",
+               bench_median(nr_wall, reps), bench_median(nr_cpu, reps));
 
     for (int k = 0; k < BATCH_COUNT; ++k) {
         free(b[k].rays);

@@ -79,13 +79,16 @@ def throughput(d: dict[str, Any]) -> list[str]:
     light = t.get("direct/light", {})
     frac = light.get("raw_fraction_cpu")
     p = d["params"]
-    lims = p.get("raw_limit_per_round", [])
+    # raw_limit_per_round: results written before the limit was taken next to every run.
+    lims = p.get("raw_limit_per_run", {}).get("direct/light") or p.get("raw_limit_per_round", [])
     lim_txt = ", ".join(f"{mega(l['best'])} ({mega(l['single'])} single)" for l in lims)
+    runs_txt = ", ".join(pct(x) for x in light.get("raw_fraction_cpu_runs", []))
     out = [f"Lampshade (s_L = 0.6), 2 threads, spp {p['spp']}, {p['reps']} round(s), medians. "
            "'% raw' = renderer rays per CPU-second / raw Embree rays per CPU-second of the renderer's ray mix "
-           "(raw_embree mix batch, 1 thread), measured at the start of the same round, with the faster of single "
-           "rays and streams; '% raw single' uses rtcIntersect1/rtcOccluded1 alone. Raw limit per round, "
-           f"M rays/CPU-s: {lim_txt}. Cost = time per sample / that of `light`, same integrator "
+           "(raw_embree mix batch, 1 thread), with the faster of single rays and streams, measured just before "
+           "and just after each pair of renders (their mean); '% raw single' uses rtcIntersect1/rtcOccluded1 "
+           f"alone. Raw limit next to the `direct/light` runs, M rays/CPU-s: {lim_txt}; their % raw: "
+           f"{runs_txt or 'n/a'}. Cost = time per sample / that of `light`, same integrator "
            "and round (section 5).", ""]
     out += table(["integrator/strategy", "M samples/s", "M rays/s", "M samples/CPU-s", "M rays/CPU-s", "rays/sample",
                   "% raw", "% raw single", "cost vs light (CPU)", "cost vs light (wall)"], rows)
