@@ -29,12 +29,9 @@ double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
 bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
                  struct vertex *v)
 {
-    v->m = &sc->materials[material];
-    /* Two-sided surfaces: shade the side wo leaves from. */
-    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
+    vertex_orient(sc, p, ng, material, wo, v);
     v->frame = frame_from_normal(v->n);
     v->wo_local = frame_to_local(&v->frame, wo);
-    v->p = p;
     return v->wo_local.z > 0.0;
 }
 

@@ -29,6 +29,16 @@ struct vertex {
     struct vec3 p;           /* the surface point */
 };
 
+/* m, n and p of a vertex: what every kind of vertex needs. Two-sided
+   surfaces: n is the side wo leaves from. */
+static inline void vertex_orient(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
+                                 struct vertex *v)
+{
+    v->m = &sc->materials[material];
+    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
+    v->p = p;
+}
+
 /* False when wo lies in the surface's plane (nothing is reflected). */
 bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
                  struct vertex *v);
@@ -39,11 +49,8 @@ bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int mate
 static inline bool vertex_init_lanes(const struct scene *sc, struct vec3 p, struct vec3 ng, int material,
                                      struct vec3 wo, struct vertex *v)
 {
-    const struct material *m = &sc->materials[material];
-    if (m->kind != MATERIAL_DIFFUSE) return vertex_init(sc, p, ng, material, wo, v);
-    v->m = m;
-    v->n = vec3_dot(ng, wo) > 0.0 ? ng : vec3_neg(ng);
-    v->p = p;
+    if (sc->materials[material].kind != MATERIAL_DIFFUSE) return vertex_init(sc, p, ng, material, wo, v);
+    vertex_orient(sc, p, ng, material, wo, v);
     /* wo_local.z: the frame's z axis is n itself. */
     return vec3_dot(wo, v->n) > 0.0;
 }

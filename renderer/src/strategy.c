@@ -9,11 +9,6 @@
    the light itself there; the first pair of the light carries it. */
 #define PAIR_LIGHT_SIDE (REGION_ANTI_ANTUMBRA + 1)
 
-static bool uses_portals(enum strategy_kind k)
-{
-    return strategy_kind_uses_portals(k);
-}
-
 /* The antishadow strategies classify; `portal` and `projection` are the
    plain techniques of the paper and must not benefit from classification. */
 static bool classifies(enum strategy_kind k)
@@ -112,7 +107,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
 {
     s->kind = rd->strategy;
     s->weight = rd->portal_weight;
-    s->defensive = uses_portals(rd->strategy) ? rd->defensive : 0.0;
+    s->defensive = strategy_kind_uses_portals(rd->strategy) ? rd->defensive : 0.0;
     s->scene = scene;
     s->pairs = NULL;
     s->first_pair = NULL;
@@ -129,7 +124,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
 
     int n = 0;
     for (int i = 0; i < scene->n_lights; ++i) {
-        int np = uses_portals(s->kind) ? scene->lights[i].n_portals : 0;
+        int np = strategy_kind_uses_portals(s->kind) ? scene->lights[i].n_portals : 0;
         n += np > 0 ? np : 1;
     }
     s->pairs = malloc(sizeof *s->pairs * (size_t)n);
@@ -141,7 +136,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
     for (int i = 0; i < scene->n_lights; ++i) {
         const struct light *l = &scene->lights[i];
         s->first_pair[i] = s->n_pairs;
-        if (uses_portals(s->kind) && l->n_portals > 0) {
+        if (strategy_kind_uses_portals(s->kind) && l->n_portals > 0) {
             for (int k = 0; k < l->n_portals; ++k)
                 s->pairs[s->n_pairs++] = (struct strategy_pair){ i, l->first_portal + k };
         } else {
@@ -494,7 +489,7 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
 
 double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi)
 {
-    if (!uses_portals(s->kind)) {
+    if (!strategy_kind_uses_portals(s->kind)) {
         const struct light *l = &s->scene->lights[light];
         double sel = s->power.prob[light];
         return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
@@ -545,7 +540,7 @@ static void finish_sample(const struct strategy *s, const struct strategy_point 
     out->radiance = light_emitted(l, vec3_neg(tp->wi));
     /* Light-only strategies know their density already; mixtures must add
        every other way of producing the same direction. */
-    if (!uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp->pdf_sa;
+    if (!strategy_kind_uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp->pdf_sa;
     else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, tp->pdf_sa);
     else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0);
 }
@@ -559,7 +554,7 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     enum technique t;
     int index = -1;
 
-    if (uses_portals(s->kind) && u0 >= s->defensive) {
+    if (strategy_kind_uses_portals(s->kind) && u0 >= s->defensive) {
         /* Rescale u0 to [0,1) and pick a pair by the point's weights. */
         if (!(pt->total > 0.0)) return false;
         u0 = (u0 - s->defensive) / (1.0 - s->defensive);
@@ -567,7 +562,7 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
         pair = &s->pairs[index];
         t = strategy_technique(s, pair, region_of(pt, index));
     } else {
-        if (uses_portals(s->kind)) u0 = u0 / s->defensive;
+        if (strategy_kind_uses_portals(s->kind)) u0 = u0 / s->defensive;
         light_only.light = alias_sample(&s->power, u0, NULL);
         light_only.portal = -1;
         pair = &light_only;
@@ -579,7 +574,6 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     finish_sample(s, pt, pair, index, &tp, out);
     return true;
 }
-
 
 /* Points per batch (stack arrays, no allocation). */
 #define STRATEGY_MANY_CHUNK 64
