@@ -185,7 +185,7 @@ struct integrator_row {
     bool *ok;
     struct shadow_query *shadow;
     struct bsdf_query *bsdf;
-    bool *occluded;
+    struct ray_stream shadow_rays, bsdf_rays;
     int *light;
     int *pixel;
 };
@@ -206,11 +206,10 @@ struct integrator_row *integrator_row_create(int n, struct error *err)
     row->ok = malloc(m * sizeof *row->ok);
     row->shadow = malloc(m * sizeof *row->shadow);
     row->bsdf = malloc(m * sizeof *row->bsdf);
-    row->occluded = malloc(m * sizeof *row->occluded);
     row->light = malloc(m * sizeof *row->light);
     row->pixel = malloc(m * sizeof *row->pixel);
-    if (row->v && row->sp && row->u && row->ub && row->ls && row->ok && row->shadow && row->bsdf && row->occluded &&
-        row->light && row->pixel)
+    if (row->v && row->sp && row->u && row->ub && row->ls && row->ok && row->shadow && row->bsdf && row->light &&
+        row->pixel && ray_stream_init(&row->shadow_rays, (int)m, err) && ray_stream_init(&row->bsdf_rays, (int)m, err))
         return row;
     integrator_row_destroy(row);
     error_set(err, "out of memory for a row of %d shading points", n);
@@ -228,7 +227,8 @@ void integrator_row_destroy(struct integrator_row *row)
     free(row->ok);
     free(row->shadow);
     free(row->bsdf);
-    free(row->occluded);
+    ray_stream_free(&row->shadow_rays);
+    ray_stream_free(&row->bsdf_rays);
     free(row->light);
     free(row->pixel);
     free(row);
@@ -268,12 +268,11 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
     }
     strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
     shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, mis ? (const double(*)[2])row->ub : NULL, lanes, stats,
-                       row->shadow, row->bsdf);
-    for (int k = 0; k < lanes; ++k) row->occluded[k] = shadow_trace(it, &row->shadow[k]);
-    if (mis)
-        for (int k = 0; k < lanes; ++k) row->light[k] = bsdf_trace(it, &row->bsdf[k]);
+                       row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
+    scene_occluded_stream(sc, &row->shadow_rays, lanes);
+    if (mis) scene_first_light_stream(sc, &row->bsdf_rays, lanes, row->light);
     for (int k = 0; k < lanes; ++k) {
-        struct rgb L = shadow_resolve(&row->shadow[k], row->occluded[k], stats);
+        struct rgb L = shadow_resolve(&row->shadow[k], ray_stream_blocked(&row->shadow_rays, k), stats);
         if (mis) L = rgb_add(L, bsdf_resolve(it, &row->sp[k], &row->bsdf[k], row->light[k]));
         out[row->pixel[k]] = L;
     }

@@ -249,6 +249,38 @@ int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, doubl
     return trace_closest(s, o, d, tmax, &rh) ? s->geometries[rh.hit.geomID].light : -1;
 }
 
+/* Embree's view of a stream's arrays. */
+static struct RTCRayNp ray_np(struct ray_stream *r)
+{
+    struct RTCRayNp np = { r->ox, r->oy, r->oz, r->tnear, r->dx, r->dy, r->dz, r->time, r->tfar, r->mask, r->id,
+                           r->flags };
+    return np;
+}
+
+void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayNp np = ray_np(rays);
+    rtcOccludedNp(s->rtc_scene, &ctx, &np, (unsigned)n);
+}
+
+void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light)
+{
+    for (int i = 0; i < n; ++i) rays->geom_id[i] = RTC_INVALID_GEOMETRY_ID;
+    for (int i = 0; i < n; ++i) rays->inst_id[i] = RTC_INVALID_GEOMETRY_ID;
+    struct RTCRayHitNp np = { ray_np(rays),
+                              { rays->ng_x, rays->ng_y, rays->ng_z, rays->u, rays->v, rays->prim_id, rays->geom_id,
+                                { rays->inst_id } } };
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);
+    for (int i = 0; i < n; ++i) {
+        unsigned g = rays->geom_id[i];
+        light[i] = g != RTC_INVALID_GEOMETRY_ID ? s->geometries[g].light : -1;
+    }
+}
+
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
     struct RTCIntersectContext ctx;

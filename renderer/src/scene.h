@@ -13,6 +13,7 @@
 #include "error.h"
 #include "fastmath.h"
 #include "light.h"
+#include "ray_stream.h"
 #include "vec.h"
 
 /* One portal of a light, with its antishadow precomputed at load. */
@@ -69,6 +70,15 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
    hits a surface first or nothing. Cheaper than scene_intersect when only
    emission matters (the MIS ray of direct lighting). */
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
+/* The first n rays of a stream, traced incoherently (rays from many
+   points, such as the shadow or BSDF rays of a film row), one Embree call
+   for all. Occlusion: afterwards ray_stream_blocked(s, i) tells whether an
+   active ray i was blocked. */
+void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n);
+/* Closest hits: light[i] = the light ray i hits first, -1 when it hits a
+   surface first or nothing (scene_first_light for each ray) or is
+   inactive. */
+void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light);
 /* A ray still to trace: o + t d for t in (0, tmax). */
 struct scene_ray {
     struct vec3 o, d;

@@ -129,28 +129,36 @@ FM_INLINE struct bsdf_lane lambert_bsdf_lane(double scale, struct vec3 n, struct
     return out;
 }
 
-static void shadow_from_lane(const struct shadow_lane *l, struct vec3 wi, struct integrator_stats *stats,
-                             struct shadow_query *q)
+/* A query from a lane; the ray itself only with_ray (the row keeps its
+   rays in streams, see shading_setup_many). */
+FM_INLINE void shadow_from_lane(const struct shadow_lane *l, struct vec3 wi, bool with_ray,
+                                struct integrator_stats *stats, struct shadow_query *q)
 {
     if (l->counted != 0.0) {
         ++stats->rays;
         ++stats->shadow_rays;
     }
     q->trace = l->trace != 0.0;
-    q->ray.o = vec3_make(l->ox, l->oy, l->oz);
-    q->ray.d = wi;
-    q->ray.tmax = l->tmax;
+    if (with_ray) {
+        q->ray.o = vec3_make(l->ox, l->oy, l->oz);
+        q->ray.d = wi;
+        q->ray.tmax = l->tmax;
+    }
     q->value = rgb_make(l->r, l->g, l->b);
 }
 
-static void bsdf_from_lane(const struct bsdf_lane *l, const struct material *m, struct integrator_stats *stats,
-                           struct bsdf_query *q)
+/* The same for the BSDF ray; its direction is always set (the light it
+   reaches is weighted by the strategy's density in that direction). */
+FM_INLINE void bsdf_from_lane(const struct bsdf_lane *l, const struct material *m, bool with_ray,
+                              struct integrator_stats *stats, struct bsdf_query *q)
 {
     q->trace = l->trace != 0.0;
     if (!q->trace) return;
-    q->ray.o = vec3_make(l->ox, l->oy, l->oz);
+    if (with_ray) {
+        q->ray.o = vec3_make(l->ox, l->oy, l->oz);
+        q->ray.tmax = INFINITY;
+    }
     q->ray.d = vec3_make(l->dx, l->dy, l->dz);
-    q->ray.tmax = INFINITY;
     q->weight = m->albedo;
     q->pdf = l->pdf;
     ++stats->rays;
@@ -174,7 +182,7 @@ void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex
     if (v->m->kind == MATERIAL_DIFFUSE) {
         struct shadow_lane l = lambert_shadow_lane(sc->scale, mis, v->m->albedo, v->n, v->p, ls->wi, ls->dist,
                                                    ls->pdf_sa, ls->radiance, nl);
-        shadow_from_lane(&l, ls->wi, stats, q);
+        shadow_from_lane(&l, ls->wi, true, stats, q);
         return;
     }
     /* Any other BSDF: the same shadow ray, with its own f and pdf. */
@@ -182,7 +190,7 @@ void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex
     struct shadow_lane l = shadow_lane(sc->scale, mis, bsdf_eval(v->m, v->wo_local, wi_local), wi_local.z,
                                        bsdf_pdf(v->m, v->wo_local, wi_local), v->n, v->p, ls->wi, ls->dist,
                                        ls->pdf_sa, ls->radiance, nl);
-    shadow_from_lane(&l, ls->wi, stats, q);
+    shadow_from_lane(&l, ls->wi, true, stats, q);
 }
 
 void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct integrator_stats *stats,
@@ -190,7 +198,7 @@ void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2
 {
     if (v->m->kind == MATERIAL_DIFFUSE) {
         struct bsdf_lane l = lambert_bsdf_lane(sc->scale, v->n, v->p, u[0], u[1]);
-        bsdf_from_lane(&l, v->m, stats, q);
+        bsdf_from_lane(&l, v->m, true, stats, q);
         return;
     }
     struct bsdf_sample bs;
@@ -261,10 +269,54 @@ FM_INLINE void bsdf_block(double scale, double in[IN_COUNT][LANE_BLOCK], double 
     }
 }
 
+/* A block's rays into the streams at lanes b..b+LANE_BLOCK-1 (the
+   streams have room: their arrays are rounded up to whole blocks), with
+   the one-ray wrappers' conversion. Lanes that trace nothing are inactive. */
+FM_INLINE void shadow_stream_block(double in[IN_COUNT][LANE_BLOCK], double so[SO_COUNT][LANE_BLOCK],
+                                   struct ray_stream *r, int b)
+{
+#pragma omp simd
+    for (int i = 0; i < LANE_BLOCK; ++i) {
+        bool trace = so[SO_TRACE][i] != 0.0;
+        r->ox[b + i] = (float)so[SO_OX][i];
+        r->oy[b + i] = (float)so[SO_OY][i];
+        r->oz[b + i] = (float)so[SO_OZ][i];
+        r->dx[b + i] = (float)in[IN_WX][i];
+        r->dy[b + i] = (float)in[IN_WY][i];
+        r->dz[b + i] = (float)in[IN_WZ][i];
+        r->tnear[b + i] = trace ? 0.0f : 1.0f;
+        r->tfar[b + i] = trace ? ray_stream_tfar(so[SO_TMAX][i]) : 0.0f;
+    }
+}
+
+FM_INLINE void bsdf_stream_block(double bo[BO_COUNT][LANE_BLOCK], struct ray_stream *r, int b)
+{
+#pragma omp simd
+    for (int i = 0; i < LANE_BLOCK; ++i) {
+        bool trace = bo[BO_TRACE][i] != 0.0;
+        r->ox[b + i] = (float)bo[BO_OX][i];
+        r->oy[b + i] = (float)bo[BO_OY][i];
+        r->oz[b + i] = (float)bo[BO_OZ][i];
+        r->dx[b + i] = (float)bo[BO_DX][i];
+        r->dy[b + i] = (float)bo[BO_DY][i];
+        r->dz[b + i] = (float)bo[BO_DZ][i];
+        r->tnear[b + i] = trace ? 0.0f : 1.0f;
+        r->tfar[b + i] = trace ? INFINITY : 0.0f;
+    }
+}
+
+/* A query's ray into a stream (the points that take the one-point path). */
+static void stream_from_query(struct ray_stream *r, int k, bool trace, const struct scene_ray *ray)
+{
+    if (trace) ray_stream_set(r, k, ray->o, ray->d, ray->tmax);
+    else ray_stream_skip(r, k);
+}
+
 FM_SIMD_CLONES
 void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct vertex *v, const bool *ok,
                         const struct light_sample *ls, const double (*ub)[2], int n, struct integrator_stats *stats,
-                        struct shadow_query *shadow, struct bsdf_query *bsdf)
+                        struct shadow_query *shadow, struct ray_stream *shadow_rays, struct bsdf_query *bsdf,
+                        struct ray_stream *bsdf_rays)
 {
     const double scale = sc->scale;
     /* The lanes' counts, added to stats at the end: increments through the
@@ -315,12 +367,20 @@ void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct 
         case MIS_BALANCE: shadow_block(scale, MIS_BALANCE, in, so); break;
         case MIS_POWER: shadow_block(scale, MIS_POWER, in, so); break;
         }
-        if (ub) bsdf_block(scale, in, bo);
+        shadow_stream_block(in, so, shadow_rays, b);
+        if (ub) {
+            bsdf_block(scale, in, bo);
+            bsdf_stream_block(bo, bsdf_rays, b);
+        }
         for (int i = 0; i < m; ++i) {
             int k = b + i;
             if (v[k].m->kind != MATERIAL_DIFFUSE) {
                 shadow_setup(sc, mis, &v[k], ok[k], &ls[k], stats, &shadow[k]);
-                if (ub) bsdf_setup(sc, &v[k], ub[k], stats, &bsdf[k]);
+                stream_from_query(shadow_rays, k, shadow[k].trace, &shadow[k].ray);
+                if (ub) {
+                    bsdf_setup(sc, &v[k], ub[k], stats, &bsdf[k]);
+                    stream_from_query(bsdf_rays, k, bsdf[k].trace, &bsdf[k].ray);
+                }
                 continue;
             }
             /* The counting and early outs of shadow_setup. */
@@ -332,13 +392,13 @@ void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct 
                 else {
                     struct shadow_lane l = { so[SO_OX][i], so[SO_OY][i], so[SO_OZ][i], so[SO_TMAX][i], so[SO_R][i],
                                              so[SO_G][i], so[SO_B][i], so[SO_COUNTED][i], so[SO_TRACE][i] };
-                    shadow_from_lane(&l, ls[k].wi, &c, &shadow[k]);
+                    shadow_from_lane(&l, ls[k].wi, false, &c, &shadow[k]);
                 }
             }
             if (ub) {
                 struct bsdf_lane l = { bo[BO_OX][i], bo[BO_OY][i], bo[BO_OZ][i], bo[BO_DX][i],
                                        bo[BO_DY][i], bo[BO_DZ][i], bo[BO_PDF][i], bo[BO_TRACE][i] };
-                bsdf_from_lane(&l, v[k].m, &c, &bsdf[k]);
+                bsdf_from_lane(&l, v[k].m, false, &c, &bsdf[k]);
             }
         }
     }

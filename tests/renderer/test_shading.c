@@ -3,7 +3,9 @@
    against shadow_setup / bsdf_setup one point at a time: the same queries
    bit for bit and the same counters, over random points of Lambertian,
    black and GGX materials, every MIS kind, with and without BSDF rays, for
-   rows that do not fill the last block. And the Lambertian fast path
+   rows that do not fill the last block; the row's rays, which it writes to
+   ray streams, are the one-point queries' rays as ray_stream_set converts
+   them (inactive where a query traces nothing). And the Lambertian fast path
    against the generic formulas: value = f Le cos w / pdf with f = albedo /
    pi and w the MIS weight of mis_weight, the BSDF ray the one bsdf_sample
    draws, its weight f cos / pdf = albedo. */
@@ -100,19 +102,48 @@ static bool same_stats(const struct integrator_stats *a, const struct integrator
            a->light_samples == b->light_samples && a->light_missed == b->light_missed;
 }
 
-static bool same_shadow(const struct shadow_query *a, const struct shadow_query *b)
+static bool same_float(float a, float b)
 {
-    if (a->trace != b->trace || !same_rgb(a->value, b->value)) return false;
-    return !a->trace || (same_vec(a->ray.o, b->ray.o) && same_vec(a->ray.d, b->ray.d) &&
-                         same_bits(a->ray.tmax, b->ray.tmax));
+    return memcmp(&a, &b, sizeof a) == 0;
 }
 
-static bool same_bsdf(const struct bsdf_query *a, const struct bsdf_query *b)
+/* Ray k of a stream is the query's ray (or inactive when it traces nothing). */
+static bool stream_holds(const struct ray_stream *r, int k, bool trace, const struct scene_ray *ray)
 {
-    if (a->trace != b->trace) return false;
-    return !a->trace || (same_vec(a->ray.o, b->ray.o) && same_vec(a->ray.d, b->ray.d) &&
-                         same_bits(a->ray.tmax, b->ray.tmax) && same_rgb(a->weight, b->weight) &&
-                         same_bits(a->pdf, b->pdf));
+    if (!trace) return r->tnear[k] > r->tfar[k];
+    struct ray_stream one;
+    if (!ray_stream_init(&one, 1, NULL)) return false;
+    ray_stream_set(&one, 0, ray->o, ray->d, ray->tmax);
+    bool same = same_float(r->ox[k], one.ox[0]) && same_float(r->oy[k], one.oy[0]) &&
+                same_float(r->oz[k], one.oz[0]) && same_float(r->dx[k], one.dx[0]) &&
+                same_float(r->dy[k], one.dy[0]) && same_float(r->dz[k], one.dz[0]) &&
+                same_float(r->tnear[k], one.tnear[0]) && same_float(r->tfar[k], one.tfar[0]);
+    ray_stream_free(&one);
+    return same;
+}
+
+static void stream_scribble(struct ray_stream *r, int n)
+{
+    float *arrays[] = { r->ox, r->oy, r->oz, r->dx, r->dy, r->dz, r->tnear, r->tfar };
+    for (size_t a = 0; a < sizeof arrays / sizeof arrays[0]; ++a)
+        for (int k = 0; k < n; ++k) arrays[a][k] = -1.0f - (float)k;
+}
+
+/* The row's queries hold no rays (the streams do), except the BSDF ray's
+   direction. */
+static bool same_shadow(const struct shadow_query *one, const struct shadow_query *many,
+                        const struct ray_stream *rays, int k)
+{
+    return one->trace == many->trace && same_rgb(one->value, many->value) &&
+           stream_holds(rays, k, one->trace, &one->ray);
+}
+
+static bool same_bsdf(const struct bsdf_query *one, const struct bsdf_query *many, const struct ray_stream *rays,
+                      int k)
+{
+    if (one->trace != many->trace || !stream_holds(rays, k, one->trace, &one->ray)) return false;
+    return !one->trace || (same_vec(one->ray.d, many->ray.d) && same_rgb(one->weight, many->weight) &&
+                           same_bits(one->pdf, many->pdf));
 }
 
 static struct shadow_query shadow_one[N_POINTS], shadow_many[N_POINTS];
@@ -125,6 +156,8 @@ static void test_many_matches_one(void)
     const enum mis_kind kinds[] = { MIS_NONE, MIS_BALANCE, MIS_POWER };
     const int sizes[] = { N_POINTS, 16, 17, 1, 0 };
     long traced = 0, counted_short = 0;
+    struct ray_stream shadow_rays, bsdf_rays;
+    CHECK(ray_stream_init(&shadow_rays, N_POINTS, NULL) && ray_stream_init(&bsdf_rays, N_POINTS, NULL));
     for (int mk = 0; mk < 3; ++mk)
         for (int with_bsdf = 0; with_bsdf < 2; ++with_bsdf)
             for (int si = 0; si < 5; ++si) {
@@ -137,13 +170,17 @@ static void test_many_matches_one(void)
                     shadow_setup(&f.sc, kinds[mk], &f.v[k], f.ok[k], &f.ls[k], &s1, &shadow_one[k]);
                     if (ub) bsdf_setup(&f.sc, &f.v[k], ub[k], &s1, &bsdf_one[k]);
                 }
-                shading_setup_many(&f.sc, kinds[mk], f.v, f.ok, f.ls, ub, n, &s2, shadow_many, bsdf_many);
+                /* Streams start as garbage: every ray must be written. */
+                stream_scribble(&shadow_rays, N_POINTS);
+                stream_scribble(&bsdf_rays, N_POINTS);
+                shading_setup_many(&f.sc, kinds[mk], f.v, f.ok, f.ls, ub, n, &s2, shadow_many, &shadow_rays,
+                                   bsdf_many, &bsdf_rays);
                 int differ = 0;
                 for (int k = 0; k < n; ++k) {
-                    differ += !same_shadow(&shadow_one[k], &shadow_many[k]);
+                    differ += !same_shadow(&shadow_one[k], &shadow_many[k], &shadow_rays, k);
                     /* Never NaN, also for an infinite pdf (either path, any material). */
                     differ += !rgb_is_finite(shadow_many[k].value);
-                    if (ub) differ += !same_bsdf(&bsdf_one[k], &bsdf_many[k]);
+                    if (ub) differ += !same_bsdf(&bsdf_one[k], &bsdf_many[k], &bsdf_rays, k);
                     traced += shadow_one[k].trace;
                 }
                 CHECK_MSG(differ == 0, "mis %d, bsdf %d, n %d: %d queries differ", (int)kinds[mk], with_bsdf, n,
@@ -152,6 +189,8 @@ static void test_many_matches_one(void)
                           n);
                 if (n == N_POINTS) counted_short += (long)s1.shadow_rays;
             }
+    ray_stream_free(&shadow_rays);
+    ray_stream_free(&bsdf_rays);
     /* The comparison must have covered both kinds of material and traced rays. */
     fprintf(stderr, "  %ld Lambertian and %ld GGX points, %ld shadow rays traced\n", f.diffuse, f.ggx, traced);
     CHECK(f.diffuse > 500 && f.ggx > 100);
@@ -166,13 +205,19 @@ static void test_lambert_matches_generic(void)
     fixture_init(&f, 11);
     const enum mis_kind kinds[] = { MIS_NONE, MIS_BALANCE, MIS_POWER };
     long checked = 0;
+    struct ray_stream shadow_rays, bsdf_rays;
+    CHECK(ray_stream_init(&shadow_rays, N_POINTS, NULL) && ray_stream_init(&bsdf_rays, N_POINTS, NULL));
     for (int mk = 0; mk < 3; ++mk) {
         struct integrator_stats s = { 0, 0, 0, 0, 0 };
         shading_setup_many(&f.sc, kinds[mk], f.v, f.ok, f.ls, (const double(*)[2])f.ub, f.n, &s, shadow_many,
-                           bsdf_many);
+                           &shadow_rays, bsdf_many, &bsdf_rays);
         for (int k = 0; k < f.n; ++k) {
             const struct vertex *v = &f.v[k];
             if (v->m->kind != MATERIAL_DIFFUSE) continue;
+            /* The segments: those of the one-point queries, which are the
+               row's bit for bit (many_matches_one). */
+            shadow_setup(&f.sc, kinds[mk], v, f.ok[k], &f.ls[k], &s, &shadow_one[k]);
+            bsdf_setup(&f.sc, v, f.ub[k], &s, &bsdf_one[k]);
             const struct light_sample *ls = &f.ls[k];
             /* Shadow: the generic estimator f Le cos w / pdf. */
             struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
@@ -191,10 +236,10 @@ static void test_lambert_matches_generic(void)
             CHECK_NEAR(got.b, want.b, tol);
             if (shadow_many[k].trace) {
                 /* The segment lies on the sampled line, between the two ends. */
-                struct vec3 from = vec3_sub(shadow_many[k].ray.o, v->p);
+                struct vec3 from = vec3_sub(shadow_one[k].ray.o, v->p);
                 CHECK_NEAR(vec3_length(vec3_cross(from, ls->wi)), 0.0, 1e-12);
                 CHECK(vec3_dot(from, ls->wi) > 0.0);
-                CHECK(vec3_dot(from, ls->wi) + shadow_many[k].ray.tmax < ls->dist);
+                CHECK(vec3_dot(from, ls->wi) + shadow_one[k].ray.tmax < ls->dist);
             }
             /* BSDF: the direction bsdf_sample draws, its weight the albedo. */
             struct bsdf_sample bs;
@@ -207,10 +252,12 @@ static void test_lambert_matches_generic(void)
             CHECK_NEAR(bsdf_many[k].weight.r, wg.r, 1e-14);
             CHECK_NEAR(bsdf_many[k].weight.g, wg.g, 1e-14);
             CHECK_NEAR(bsdf_many[k].weight.b, wg.b, 1e-14);
-            CHECK(vec3_dot(vec3_sub(bsdf_many[k].ray.o, v->p), bsdf_many[k].ray.d) > 0.0);
+            CHECK(vec3_dot(vec3_sub(bsdf_one[k].ray.o, v->p), bsdf_one[k].ray.d) > 0.0);
             ++checked;
         }
     }
+    ray_stream_free(&shadow_rays);
+    ray_stream_free(&bsdf_rays);
     CHECK(checked > 1500);
 }
 

@@ -1,0 +1,176 @@
+/* test_ray_stream.c: tracing a ray stream (scene_occluded_stream,
+   scene_first_light_stream, one Embree call for many rays) against the
+   one-ray wrappers (scene_occluded, scene_first_light) on the lampshade
+   scene: the same answer for every ray, inactive rays left out (clear, no
+   light), rays of every kind among them (blocked and clear segments, rays
+   that reach the light, hit a surface first or leave the scene). */
+#include "rng.h"
+#include "scene.h"
+#include "scene_util.h"
+#include "testlib.h"
+
+#define SCENE "configs/scenes/lampshade.yaml"
+
+enum { N_RAYS = 4099 };
+
+struct fixture {
+    struct config cfg;
+    struct scene sc;
+    struct scene_ray rays[N_RAYS];
+    bool active[N_RAYS];
+};
+
+static double uniform(struct rng *r, double lo, double hi)
+{
+    return lo + (hi - lo) * rng_uniform(r);
+}
+
+/* A point of the light's polygon (a random vertex pulled towards another
+   and towards the first: inside, the polygon being convex). */
+static struct vec3 light_point(const struct light *l, struct rng *r)
+{
+    const struct polygon *poly = &l->target.polygon;
+    int a = (int)(rng_uniform(r) * poly->n) % poly->n, b = (a + 1) % poly->n;
+    struct vec3 p = vec3_add(poly->v[a], vec3_scale(vec3_sub(poly->v[b], poly->v[a]), rng_uniform(r)));
+    return vec3_add(p, vec3_scale(vec3_sub(poly->v[(a + 2) % poly->n], p), uniform(r, 0.01, 0.99)));
+}
+
+/* Rays from random points of the scene's box: half towards a point of the
+   light (segments ending just before it, or unbounded), half in random
+   directions; one in ten inactive. */
+static bool fixture_init(struct fixture *f, uint64_t seed)
+{
+    if (!test_scene_load(SCENE, NULL, 0, &f->cfg, &f->sc)) return false;
+    struct rng r;
+    rng_seed(&r, seed, 0, 0);
+    struct vec3 lo = f->sc.bounds_lo, hi = f->sc.bounds_hi;
+    for (int i = 0; i < N_RAYS; ++i) {
+        struct vec3 o = vec3_make(uniform(&r, lo.x, hi.x), uniform(&r, lo.y, hi.y), uniform(&r, lo.z, hi.z));
+        struct scene_ray *ray = &f->rays[i];
+        ray->o = o;
+        if (rng_uniform(&r) < 0.5) {
+            const struct light *l = &f->sc.lights[0];
+            struct vec3 lp = light_point(l, &r);
+            /* Half of them from near the light's emitting side, where most
+               reach it; from the rest of the room the shade blocks most. */
+            if (rng_uniform(&r) < 0.5) {
+                struct vec3 w = vec3_make(uniform(&r, -1, 1), uniform(&r, -1, 1), uniform(&r, -1, 1));
+                if (vec3_dot(w, l->target.normal) < 0.0) w = vec3_neg(w);
+                o = ray->o = vec3_madd(lp, w, uniform(&r, 0.02, 0.3));
+            }
+            struct vec3 to = vec3_sub(lp, o);
+            double dist = vec3_length(to);
+            ray->d = vec3_scale(to, 1.0 / dist);
+            ray->tmax = rng_uniform(&r) < 0.5 ? dist * (1.0 - 1e-4) : INFINITY;
+        } else {
+            double z = uniform(&r, -1.0, 1.0), phi = uniform(&r, 0.0, 2.0 * M_PI), s = sqrt(1.0 - z * z);
+            ray->d = vec3_make(s * cos(phi), s * sin(phi), z);
+            ray->tmax = rng_uniform(&r) < 0.5 ? uniform(&r, 0.0, 3.0) : INFINITY;
+        }
+        f->active[i] = rng_uniform(&r) >= 0.1;
+    }
+    return true;
+}
+
+static void fixture_free(struct fixture *f)
+{
+    scene_destroy(&f->sc);
+    config_free(&f->cfg);
+}
+
+static void fill(struct ray_stream *s, const struct fixture *f, int n)
+{
+    for (int i = 0; i < n; ++i) {
+        if (f->active[i]) ray_stream_set(s, i, f->rays[i].o, f->rays[i].d, f->rays[i].tmax);
+        else ray_stream_skip(s, i);
+    }
+}
+
+static void test_occluded_matches_one(void)
+{
+    static struct fixture f;
+    if (!fixture_init(&f, 3)) {
+        CHECK(false);
+        return;
+    }
+    struct ray_stream s;
+    CHECK(ray_stream_init(&s, N_RAYS, NULL));
+    long blocked = 0, clear = 0, differ = 0;
+    /* A whole stream, a stream shorter than one vector, and none. */
+    const int sizes[] = { N_RAYS, 5, 0 };
+    for (int si = 0; si < 3; ++si) {
+        int n = sizes[si];
+        fill(&s, &f, n);
+        scene_occluded_stream(&f.sc, &s, n);
+        for (int i = 0; i < n; ++i) {
+            const struct scene_ray *ray = &f.rays[i];
+            bool want = f.active[i] && scene_occluded(&f.sc, ray->o, ray->d, ray->tmax);
+            differ += ray_stream_blocked(&s, i) != want;
+            if (f.active[i] && n == N_RAYS) {
+                blocked += want;
+                clear += !want;
+            }
+        }
+    }
+    fprintf(stderr, "  %ld blocked, %ld clear\n", blocked, clear);
+    CHECK_MSG(differ == 0, "%ld rays differ", differ);
+    CHECK(blocked > 500 && clear > 500);
+    ray_stream_free(&s);
+    fixture_free(&f);
+}
+
+static void test_first_light_matches_one(void)
+{
+    static struct fixture f;
+    if (!fixture_init(&f, 5)) {
+        CHECK(false);
+        return;
+    }
+    struct ray_stream s;
+    CHECK(ray_stream_init(&s, N_RAYS, NULL));
+    static int light[N_RAYS];
+    long reach = 0, surface_or_none = 0, differ = 0;
+    const int sizes[] = { N_RAYS, 5, 0 };
+    for (int si = 0; si < 3; ++si) {
+        int n = sizes[si];
+        fill(&s, &f, n);
+        for (int i = 0; i < n; ++i) light[i] = 1234;
+        scene_first_light_stream(&f.sc, &s, n, light);
+        for (int i = 0; i < n; ++i) {
+            const struct scene_ray *ray = &f.rays[i];
+            int want = f.active[i] ? scene_first_light(&f.sc, ray->o, ray->d, ray->tmax) : -1;
+            differ += light[i] != want;
+            if (f.active[i] && n == N_RAYS) {
+                reach += want >= 0;
+                surface_or_none += want < 0;
+            }
+        }
+    }
+    /* The same stream again with rays that leave the scene (from outside
+       its box, pointing away): all miss, also where the rays before hit
+       the light (no hit is left over from the trace before). */
+    fill(&s, &f, N_RAYS);
+    scene_first_light_stream(&f.sc, &s, N_RAYS, light);
+    long misses = 0;
+    struct vec3 centre = vec3_scale(vec3_add(f.sc.bounds_lo, f.sc.bounds_hi), 0.5);
+    double radius = vec3_length(vec3_sub(f.sc.bounds_hi, f.sc.bounds_lo));
+    for (int i = 0; i < N_RAYS; ++i) {
+        struct vec3 d = vec3_normalize(vec3_sub(f.rays[i].o, centre));
+        ray_stream_set(&s, i, vec3_madd(centre, d, radius), d, INFINITY);
+    }
+    scene_first_light_stream(&f.sc, &s, N_RAYS, light);
+    for (int i = 0; i < N_RAYS; ++i) misses += light[i] == -1;
+    CHECK_MSG(misses == N_RAYS, "%ld of %d rays leaving the scene hit a light", N_RAYS - misses, (int)N_RAYS);
+    fprintf(stderr, "  %ld reach the light, %ld do not\n", reach, surface_or_none);
+    CHECK_MSG(differ == 0, "%ld rays differ", differ);
+    CHECK(reach > 200 && surface_or_none > 500);
+    ray_stream_free(&s);
+    fixture_free(&f);
+}
+
+static const struct test_case tests[] = {
+    { "occluded_matches_one", test_occluded_matches_one },
+    { "first_light_matches_one", test_first_light_matches_one },
+};
+
+TEST_MAIN(tests)
