@@ -173,6 +173,9 @@ class RenderRun:
             "rays_per_s": f["rays"] / max(self.time_s, 1e-9),
             "samples_per_cpu_s": self.samples / max(self.cpu_s, 1e-9),
             "rays_per_cpu_s": f["rays"] / max(self.cpu_s, 1e-9),
+            # CPU time of the render threads in passes: no load, BVH build
+            # or EXR write in it.
+            "render_cpu_s": f.get("render_cpu_s"),
             "cpu_share": self.cpu_s / max(self.process_wall_s, 1e-9),
             "shadow_rays": f.get("shadow_rays"),
             "shadow_blocked": f.get("shadow_blocked"),

@@ -12,14 +12,14 @@
              (camera, shadow, bounce), i.e. the renderer's own ray mix.
 
    Three APIs are timed on the same batches: "wrapper" (scene_intersect /
-   scene_occluded, the renderer's thin wrappers over rtcIntersect1 /
+   scene_occluded, the renderer's thin one-ray wrappers over rtcIntersect1 /
    rtcOccluded1: double->float conversion, normal normalisation), "embree"
    (rtcIntersect1 / rtcOccluded1 on prebuilt float rays: the floor of
-   single-ray tracing, the renderer's API) and "stream" (rtcIntersect1M /
-   rtcOccluded1M over chunks of 1024 rays split by kind: what a wavefront
-   renderer would get, to tell whether restructuring for streams pays). Each (kind, api, threads) cell runs for a
-   fixed time, repeated round-robin, and the median is reported as JSON on
-   stdout. Last, the scene is rebuilt without RTC_SCENE_FLAG_ROBUST (which
+   single-ray tracing) and "stream" (rtcIntersect1M / rtcOccluded1M over
+   chunks of 1024 rays split by kind: what a wavefront renderer gets; the
+   renderer traces a film row's camera, shadow and BSDF rays as streams).
+   Each (kind, api, threads) cell runs for a fixed time, repeated
+   round-robin, and the median is reported as JSON on stdout. Last, the scene is rebuilt without RTC_SCENE_FLAG_ROBUST (which
    scene.c sets) and the mix is timed again, to show what the flag costs. */
 #include <embree3/rtcore.h>
 #include <pmmintrin.h>

@@ -68,6 +68,7 @@ static void test_render_outputs(void)
     run_render(a, 0, 0, &r);
     CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
     int lines = 0, snaps = 0, finals = 0, starts = 0;
+    double render_cpu_s = -1.0, time_s = -1.0;
     for (char *line = r.out; *line;) {
         char *nl = strchr(line, '\n');
         if (!nl) break;
@@ -77,9 +78,18 @@ static void test_render_outputs(void)
         starts += strstr(line, "\"event\":\"start\"") != NULL;
         snaps += strstr(line, "\"event\":\"snapshot\"") != NULL;
         finals += strstr(line, "\"event\":\"final\"") != NULL && strstr(line, "\"spp\":6");
+        if (strstr(line, "\"event\":\"final\"")) {
+            const char *c = strstr(line, "\"render_cpu_s\":"), *t = strstr(line, "\"time_s\":");
+            if (c) sscanf(c + strlen("\"render_cpu_s\":"), "%lf", &render_cpu_s);
+            if (t) sscanf(t + strlen("\"time_s\":"), "%lf", &time_s);
+        }
         line = nl + 1;
     }
     CHECK(starts == 1 && finals == 1);
+    /* The render threads' CPU time: some, and no more than two threads can
+       spend in the render time (plus the clocks' granularity). */
+    CHECK_MSG(render_cpu_s > 0.0 && time_s > 0.0 && render_cpu_s <= 2.0 * time_s + 0.002,
+              "render_cpu_s %g, time_s %g", render_cpu_s, time_s);
     CHECK_MSG(snaps == 3, "%d snapshots (expected at spp 2, 4, 6)", snaps);
     char path[700];
     const char *files[] = { "config.yaml", "final.exr", "snapshot_0001.exr", "snapshot_0003.exr" };
