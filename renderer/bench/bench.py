@@ -256,33 +256,45 @@ def section_threads(ctx: Context) -> dict[str, Any]:
 def section_snapshots(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     secs, reps, every = (1.5 if q else 2.0), (1 if q else 5), 0.25
+    threads = 2
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "strategy": "light", "integrator": "direct",
-              "time_s": secs, "reps": reps, "every_s": every, "threads": 2}
+              "time_s": secs, "reps": reps, "every_s": every, "threads": threads,
+              "measured": "snapshot_cpu_s (writer thread + the main thread's copies) and snapshot_pause_s (render "
+                          "threads paused for the copies) from the renderer's final JSON line, per run"}
     out = TMP / "runs" / "snapshots"
     rounds = []
     for r in range(reps):
         log(f"snapshots: round {r + 1}/{reps}")
-        common = ["--threads", "2", "--seed", str(r + 1)]
-        none = bl.run_render(ctx, LAMPSHADE, out / "none", "--time", str(secs), "--spp", "0", *common).summary()
-        snap = bl.run_render(ctx, LAMPSHADE, out / "every", "--time", str(secs), "--spp", "0", *common,
-                             "--set", f"render.snapshots.every={every}", snapshots=True).summary()
-        one = bl.run_render(ctx, LAMPSHADE, out / "one", "--spp", "1", *common).summary()
-        d = bl.differential(none, one)
-        # CPU of one snapshot: what the run with snapshots used beyond its
-        # fixed costs and its samples at the snapshot-free rate.
-        extra = snap["cpu_s"] - d["fixed_cpu_s"] - snap["samples"] / d["samples_per_cpu_s"]
-        rounds.append({"none": none, "every": snap, "one_pass": one,
-                       "cpu_per_snapshot_s": extra / max(snap["snapshots"], 1)})
-    cps = median([x["cpu_per_snapshot_s"] for x in rounds])
+        common = ["--threads", str(threads), "--seed", str(r + 1), "--time", str(secs), "--spp", "0"]
+        none = bl.run_render(ctx, LAMPSHADE, out / "none", *common).summary()
+        snap = bl.run_render(ctx, LAMPSHADE, out / "every", *common, "--set", f"render.snapshots.every={every}",
+                             snapshots=True).summary()
+        if snap.get("snapshot_cpu_s") is None:
+            raise RuntimeError("the renderer's final JSON line has no snapshot_cpu_s (a build older than this bench)")
+        n = max(snap["snapshots"], 1)
+        rounds.append({
+            "none": none, "every": snap,
+            # The snapshots' CPU time over the render threads' in the same run.
+            "overhead_cpu": snap["snapshot_cpu_s"] / snap["render_cpu_s"],
+            # On an idle machine: the pauses stop the render, the writer's
+            # CPU comes out of the render threads' cores (an upper bound: the
+            # copies' CPU is counted in both terms).
+            "overhead_idle_estimate": (snap["snapshot_pause_s"] + snap["snapshot_cpu_s"] / threads) / snap["time_s"],
+            # Cross-check from two runs seconds apart: samples per CPU second
+            # (render threads + snapshots) with snapshots vs without.
+            "overhead_cpu_paired": 1 - (snap["samples"] / (snap["render_cpu_s"] + snap["snapshot_cpu_s"]))
+                                   / (none["samples"] / none["render_cpu_s"]),
+            "overhead_wall_paired": 1 - snap["samples_per_s"] / none["samples_per_s"],
+            "cpu_per_snapshot_s": snap["snapshot_cpu_s"] / n,
+            "pause_per_snapshot_s": snap["snapshot_pause_s"] / n,
+        })
     table = {
-        # Overhead = 1 - rate with snapshots / rate without.
-        "overhead_wall": ratio_stats([1 - x["every"]["samples_per_s"] / x["none"]["samples_per_s"] for x in rounds]),
-        "overhead_cpu": ratio_stats(
-            [1 - x["every"]["samples_per_cpu_s"] / x["none"]["samples_per_cpu_s"] for x in rounds]),
-        "cpu_per_snapshot_ms": 1e3 * cps,
-        # On an otherwise idle machine the writer takes its CPU from the render
-        # threads, which own every core: the overhead is that share.
-        "overhead_idle_machine_estimate": cps / (every * (ctx.machine["nproc"] or 1)),
+        "overhead_cpu": ratio_stats([x["overhead_cpu"] for x in rounds]),
+        "overhead_idle_machine_estimate": median([x["overhead_idle_estimate"] for x in rounds]),
+        "overhead_cpu_paired": ratio_stats([x["overhead_cpu_paired"] for x in rounds]),
+        "overhead_wall_paired": ratio_stats([x["overhead_wall_paired"] for x in rounds]),
+        "cpu_per_snapshot_ms": 1e3 * median([x["cpu_per_snapshot_s"] for x in rounds]),
+        "pause_per_snapshot_ms": 1e3 * median([x["pause_per_snapshot_s"] for x in rounds]),
         "snapshots_written": median([x["every"]["snapshots"] for x in rounds]),
         "cpu_share_none": median([x["none"]["cpu_share"] for x in rounds]),
     }

@@ -176,6 +176,10 @@ class RenderRun:
             # CPU time of the render threads in passes: no load, BVH build
             # or EXR write in it.
             "render_cpu_s": f.get("render_cpu_s"),
+            # The timed snapshots' CPU time (writer and copies) and the wall
+            # time the render threads were paused for the copies.
+            "snapshot_cpu_s": f.get("snapshot_cpu_s"),
+            "snapshot_pause_s": f.get("snapshot_pause_s"),
             "cpu_share": self.cpu_s / max(self.process_wall_s, 1e-9),
             "shadow_rays": f.get("shadow_rays"),
             "shadow_blocked": f.get("shadow_blocked"),

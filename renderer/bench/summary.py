@@ -127,17 +127,24 @@ def threads(d: dict[str, Any]) -> list[str]:
 
 def snapshots(d: dict[str, Any]) -> list[str]:
     t, p = d["results"]["table"], d["params"]
-    ow, oc, oi = t["overhead_wall"], t["overhead_cpu"], t.get("overhead_idle_machine_estimate")
+    if "overhead_cpu_paired" not in t:   # results of an older bench
+        return ["(old format; rerun `BENCH_ONLY=snapshots make bench`)", ""]
+    oc, oi, cp, wp = t["overhead_cpu"], t["overhead_idle_machine_estimate"], t["overhead_cpu_paired"], \
+        t["overhead_wall_paired"]
     return table(["", "overhead (median)", "range"], [
-        ["samples per render second", pct(ow["median"]), f"{pct(ow['min'])} .. {pct(ow['max'])}"],
-        ["samples per CPU second", pct(oc["median"]), f"{pct(oc['min'])} .. {pct(oc['max'])}"],
-        ["estimate for an idle machine", pct(oi), f"{f(t.get('cpu_per_snapshot_ms'), '.1f')} ms CPU per snapshot"],
-    ]) + [f"{p['time_s']} s renders, snapshots every {p['every_s']} s ({f(t['snapshots_written'], '.0f')} written), "
-          f"{p['reps']} round(s), cores used without snapshots {f(t.get('cpu_share_none'), '.2f')}. "
-          f"Target < 2%: {verdict(oc['median'] < 0.02)} per CPU second (load-robust: includes the writer "
-          f"thread's CPU), {verdict(None if oi is None else oi < 0.02)} idle-machine estimate (CPU per snapshot / "
-          "(period x cores)). The per-render-second figure compares two runs made seconds apart and follows "
-          "the machine's load; trust it only when 'cores used' is near 2.", ""]
+        ["snapshot CPU / render-thread CPU, same run", pct(oc["median"]), f"{pct(oc['min'])} .. {pct(oc['max'])}"],
+        ["estimate for an idle machine (pauses + writer CPU / threads) / render time", pct(oi), ""],
+        ["cross-check, samples per CPU second vs a run without", pct(cp["median"]),
+         f"{pct(cp['min'])} .. {pct(cp['max'])}"],
+        ["cross-check, samples per render second vs a run without", pct(wp["median"]),
+         f"{pct(wp['min'])} .. {pct(wp['max'])}"],
+    ]) + [f"{p['time_s']} s renders, {p['threads']} threads, snapshots every {p['every_s']} s "
+          f"({f(t['snapshots_written'], '.0f')} written), {p['reps']} round(s); per snapshot "
+          f"{f(t['cpu_per_snapshot_ms'], '.1f')} ms CPU (EXR encoding on the writer thread, the film copy on the "
+          f"main thread) and {f(t['pause_per_snapshot_ms'], '.2f')} ms with the render threads paused. "
+          f"Target < 2%: {verdict(oc['median'] < 0.02)} (CPU, same run), "
+          f"{verdict(oi < 0.02)} (idle-machine estimate). The cross-checks compare two runs made seconds apart "
+          "and follow the machine's load.", ""]
 
 
 def scene_scaling(d: dict[str, Any]) -> list[str]:

@@ -265,6 +265,7 @@ struct writer {
     struct snapshot_info info;
     char path[CONFIG_PATH_MAX + 64];
     int index;
+    double cpu_s;              /* CPU time spent writing snapshots */
 };
 
 static void json_string(FILE *f, const char *s)
@@ -297,6 +298,7 @@ static void *writer_main(void *arg)
         while (!w->busy && !w->quit) pthread_cond_wait(&w->cond, &w->lock);
         if (!w->busy && w->quit) break;
         pthread_mutex_unlock(&w->lock);
+        double cpu0 = thread_cpu_s();
         struct error err;
         bool ok = film_write_exr(w->path, &w->image, &w->info, &err);
         if (ok) {
@@ -304,7 +306,9 @@ static void *writer_main(void *arg)
             fputs("}\n", w->json);
             fflush(w->json);
         }
+        double cpu = thread_cpu_s() - cpu0;
         pthread_mutex_lock(&w->lock);
+        w->cpu_s += cpu;
         if (!ok && !w->failed) {
             w->failed = true;
             w->err = err;
@@ -420,6 +424,9 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     struct schedule_state sched;
     schedule_init(&sched, &rd->snapshots);
     double elapsed = 0.0, last_pass = 0.0;
+    /* What the snapshot schedule costs the main thread: wall time with the
+       render threads paused, and CPU time (the writer's is wr.cpu_s). */
+    double pause_s = 0.0, pause_cpu_s = 0.0;
     int64_t pass = 0;
     while (ok) {
         if (rd->spp > 0 && pass >= rd->spp) break;
@@ -445,6 +452,7 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         if (schedule_due(&sched, elapsed, pass)) {
             /* Waiting for the writer and copying the film happen between
                passes, outside the render clock. */
+            double w0 = now_s(), c0 = thread_cpu_s();
             writer_wait_idle(&wr);
             pthread_mutex_lock(&wr.lock);
             if (wr.failed) {
@@ -458,6 +466,8 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
             wr.busy = true;
             pthread_cond_broadcast(&wr.cond);
             pthread_mutex_unlock(&wr.lock);
+            pause_s += now_s() - w0;
+            pause_cpu_s += thread_cpu_s() - c0;
         }
     }
 
@@ -492,10 +502,11 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         if (ok) {
             json_snapshot(json, "final", 0, path, &info);
             fprintf(json, ",\"interrupted\":%s,\"shadow_rays\":%llu,\"shadow_blocked\":%llu,"
-                          "\"light_samples\":%llu,\"light_missed\":%llu,\"render_cpu_s\":%.6f}\n",
+                          "\"light_samples\":%llu,\"light_missed\":%llu,\"render_cpu_s\":%.6f,"
+                          "\"snapshot_cpu_s\":%.6f,\"snapshot_pause_s\":%.6f}\n",
                     result->interrupted ? "true" : "false", (unsigned long long)pc.stats.shadow_rays,
                     (unsigned long long)pc.stats.shadow_blocked, (unsigned long long)pc.stats.light_samples,
-                    (unsigned long long)pc.stats.light_missed, pc.cpu_s);
+                    (unsigned long long)pc.stats.light_missed, pc.cpu_s, wr.cpu_s + pause_cpu_s, pause_s);
             fflush(json);
         }
     }

@@ -68,7 +68,7 @@ static void test_render_outputs(void)
     run_render(a, 0, 0, &r);
     CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
     int lines = 0, snaps = 0, finals = 0, starts = 0;
-    double render_cpu_s = -1.0, time_s = -1.0;
+    double render_cpu_s = -1.0, time_s = -1.0, snapshot_cpu_s = -1.0, snapshot_pause_s = -1.0;
     for (char *line = r.out; *line;) {
         char *nl = strchr(line, '\n');
         if (!nl) break;
@@ -82,6 +82,9 @@ static void test_render_outputs(void)
             const char *c = strstr(line, "\"render_cpu_s\":"), *t = strstr(line, "\"time_s\":");
             if (c) sscanf(c + strlen("\"render_cpu_s\":"), "%lf", &render_cpu_s);
             if (t) sscanf(t + strlen("\"time_s\":"), "%lf", &time_s);
+            const char *sc = strstr(line, "\"snapshot_cpu_s\":"), *sp = strstr(line, "\"snapshot_pause_s\":");
+            if (sc) sscanf(sc + strlen("\"snapshot_cpu_s\":"), "%lf", &snapshot_cpu_s);
+            if (sp) sscanf(sp + strlen("\"snapshot_pause_s\":"), "%lf", &snapshot_pause_s);
         }
         line = nl + 1;
     }
@@ -90,6 +93,9 @@ static void test_render_outputs(void)
        spend in the render time (plus the clocks' granularity). */
     CHECK_MSG(render_cpu_s > 0.0 && time_s > 0.0 && render_cpu_s <= 2.0 * time_s + 0.002,
               "render_cpu_s %g, time_s %g", render_cpu_s, time_s);
+    /* Three snapshots were written: they took some CPU, and some pause. */
+    CHECK_MSG(snapshot_cpu_s > 0.0 && snapshot_pause_s > 0.0, "snapshot_cpu_s %g, snapshot_pause_s %g",
+              snapshot_cpu_s, snapshot_pause_s);
     CHECK_MSG(snaps == 3, "%d snapshots (expected at spp 2, 4, 6)", snaps);
     char path[700];
     const char *files[] = { "config.yaml", "final.exr", "snapshot_0001.exr", "snapshot_0003.exr" };
