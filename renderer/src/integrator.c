@@ -236,7 +236,8 @@ void integrator_row_destroy(struct integrator_row *row)
 
 /* Direct lighting a row at a time, one step for every shading point before
    the next: shading points and their uniforms; all light samples at once
-   (vectorised); shadow and BSDF ray set-up; the rays; the sums. Apart from
+   (vectorised); shadow and BSDF ray set-up, into ray streams; the streams,
+   one Embree call each; the sums. Apart from
    the batched sampler this lets the processor overlap the long dependency
    chains of neighbouring pixels, which ray tracing calls in between would
    otherwise serialise. Each pixel draws its uniforms in the same order as

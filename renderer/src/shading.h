@@ -93,9 +93,11 @@ void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2
 /* shadow_setup for the n points of a row and, unless ub is NULL,
    bsdf_setup with uniforms ub; the same results, bit for bit, and the same
    counts. Lambertian points go through vectorised loops, others one at a
-   time. Point k's rays also go to ray k of the streams (inactive where a
-   query traces nothing), for one Embree call each (scene_occluded_stream,
-   scene_first_light_stream); the streams need room for n rays. */
+   time. Point k's rays go to ray k of the streams instead (inactive where
+   a query traces nothing), for one Embree call each (scene_occluded_stream,
+   scene_first_light_stream); the streams need room for n rays. The queries
+   then hold what resolving needs: trace and value (shadow), trace, weight,
+   pdf and the direction ray.d (BSDF); their other ray fields are unset. */
 void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct vertex *v, const bool *ok,
                         const struct light_sample *ls, const double (*ub)[2], int n, struct integrator_stats *stats,
                         struct shadow_query *shadow, struct ray_stream *shadow_rays, struct bsdf_query *bsdf,
