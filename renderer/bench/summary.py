@@ -164,9 +164,10 @@ def scene_scaling(d: dict[str, Any]) -> list[str]:
         f"antishadow_exact a = {f(fa['a'], '.0f')}, b = {f(fa['b_per_lamp'], '.2f')} ns/lamp. Marginal cost per "
         f"lamp between the two largest N: light {f(t['light'].get('marginal_ns_per_lamp'), '.2f')} ns, "
         f"antishadow_exact {f(t['antishadow_exact'].get('marginal_ns_per_lamp'), '.2f')} ns. The portal "
-        "strategies' per-point pair distribution visits every lamp (classification: linear in N) and, with "
-        "the irradiance weight, clips the visible polygon of every lamp whose antishadow contains the point "
-        "(a fixed number here, set by the grid spacing: the cost that dominates up to N ~ 100). `light` picks "
+        "strategies find the light/portal pairs that may reach a point through a BVH over the pairs' lit "
+        "regions (pair_bvh.c, O(log N + k)) and, with the irradiance weight, clip the visible polygon of each "
+        "candidate whose antishadow contains the point (k, a fixed number here, set by the grid spacing: the "
+        "cost that grows up to N ~ 100 and is flat after). `light` picks "
         "lamps from a global power table (O(1)) and only pays for the deeper BVH, but wastes almost every "
         "shadow ray at large N.", ""]
 
