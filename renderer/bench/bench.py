@@ -26,6 +26,7 @@ import hashlib
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -403,8 +404,70 @@ def section_harness(ctx: Context) -> dict[str, Any]:
             "check_mse": mse,
             "check_rel_mse": rel["rel_mse"],
         }
+    table["sweep"] = sweep_overhead(ctx)
     bl.write_result(ctx, "harness", params, table)
     return table
+
+
+SWEEP_EXPERIMENT = """\
+# A small sweep for the bench (section 7): what share of its wall time is
+# not spent rendering. Written by renderer/bench/bench.py.
+name: bench_sweep
+scene: {scene}
+integrator: direct
+strategies: [light, antishadow_exact]
+sweep:
+  params.s_L: [0.3, 0.6]
+fixed:
+  film.width: 256
+  film.height: 256
+budget:
+  time_s: {time_s}
+  spp: 0
+  threads: 2
+  snapshots: {{every: 0.25}}
+reference:
+  strategy: light
+  time_s: {ref_s}
+  threads: 2
+"""
+
+
+def sweep_overhead(ctx: Context) -> dict[str, Any]:
+    """A small experiment run through the harness's `sweep` command into a
+    fresh results folder: its wall time against the render time of its runs
+    and references (their manifests). The rest is the renderer processes'
+    own overhead (start, load, BVH build, snapshot pauses, final EXR write)
+    and the harness's (Python start, EXR reading, metrics, index, summary)."""
+    q = ctx.quick
+    time_s, ref_s = (0.5, 1.0) if q else (2.0, 4.0)
+    folder = TMP / "runs" / "harness_sweep"
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    exp = folder / "bench_sweep.yaml"
+    exp.write_text(SWEEP_EXPERIMENT.format(scene=LAMPSHADE, time_s=time_s, ref_s=ref_s))
+    results = folder / "results"
+    cmd = [sys.executable, "-m", "portal_harness", "sweep", str(exp), "--results", str(results),
+           "--renderer", str(ctx.render), "--jobs", "1"]
+    w0 = time.monotonic()
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.monotonic() - w0
+    if p.returncode != 0:
+        raise RuntimeError(f"harness sweep failed ({p.returncode}): {' '.join(cmd)}\n{p.stderr.strip()[-2000:]}")
+    manifests = [json.loads(m.read_text()) for m in results.glob("*/*/manifest.json")]
+    if not manifests:
+        raise RuntimeError(f"harness sweep left no manifests under {results}")
+    render = sum(m["timings"]["render_time_s"] for m in manifests)
+    process = sum(m["timings"]["wall_s"] for m in manifests)
+    return {
+        "renders": len(manifests), "run_time_s": time_s, "reference_time_s": ref_s,
+        "sweep_wall_s": wall, "render_s": render, "renderer_process_s": process,
+        # Shares of the sweep's wall time.
+        "not_rendering_share": 1 - render / wall,
+        "renderer_overhead_share": (process - render) / wall,
+        "harness_share": (wall - process) / wall,
+    }
 
 
 # ---- 8, 11. efficiency at equal time against a cached reference --------------------------

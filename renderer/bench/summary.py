@@ -174,8 +174,19 @@ def scene_scaling(d: dict[str, Any]) -> list[str]:
 
 def harness(d: dict[str, Any]) -> list[str]:
     rows = [[f"{s}x{s}", f(r["read_two_exr_ms"], ".1f"), f(r["metrics_ms"], ".1f"), f(r["total_ms"], ".1f"),
-             f(r.get("portal_harness_total_ms"), ".1f")] for s, r in d["results"].items()]
-    return table(["image", "read 2 EXR ms", "MSE+relMSE+noise ms", "total ms", "portal_harness path ms"], rows)
+             f(r.get("portal_harness_total_ms"), ".1f")] for s, r in d["results"].items() if s != "sweep"]
+    out = table(["image", "read 2 EXR ms", "MSE+relMSE+noise ms", "total ms", "portal_harness path ms"], rows)
+    sw = d["results"].get("sweep")
+    if sw:
+        out += [f"A sweep through the harness (`portal-harness sweep`, fresh results folder, one job): "
+                f"{sw['renders']} renders (2 strategies x 2 ratios at {f(sw['run_time_s'], 'g')} s, 2 references "
+                f"at {f(sw['reference_time_s'], 'g')} s, 256x256, snapshots every 0.25 s) took "
+                f"{f(sw['sweep_wall_s'], '.1f')} s of wall time, {f(sw['render_s'], '.1f')} s of it rendering: "
+                f"**{pct(sw['not_rendering_share'])} not spent rendering**, of which "
+                f"{pct(sw['renderer_overhead_share'])} in the renderer processes outside their render time (start, "
+                f"load, BVH build, snapshot pauses, final EXR write) and {pct(sw['harness_share'])} in the harness "
+                "(Python start, EXR reading, metrics, index, summary).", ""]
+    return out
 
 
 def eff_cell(r: dict[str, Any]) -> tuple[str, bool]:
