@@ -29,7 +29,6 @@ bool ray_stream_init(struct ray_stream *s, int cap, struct error *err)
     size_t nf = sizeof floats / sizeof floats[0], nu = sizeof uints / sizeof uints[0];
     for (size_t k = 0; k < nf; ++k) *floats[k] = f + k * n;
     for (size_t k = 0; k < nu; ++k) *uints[k] = (unsigned *)(f + (nf + k) * n);
-    s->cap = cap;
     /* What every ray of the renderer has: no motion blur (time 0), every
        geometry visible, no ray flags (0); inactive until set. */
     for (size_t i = 0; i < n; ++i) {

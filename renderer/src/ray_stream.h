@@ -18,7 +18,6 @@
 /* Ray i is o + t d for t in (tnear[i], tfar[i]). A ray with tnear > tfar is
    inactive: Embree skips it and leaves it as it is. */
 struct ray_stream {
-    int cap;
     float *ox, *oy, *oz, *dx, *dy, *dz, *tnear, *tfar;
     /* Embree's other components: time, mask, id and flags are set once at
        creation; the hit fields are written by closest-hit tracing
@@ -29,7 +28,8 @@ struct ray_stream {
     unsigned *prim_id, *geom_id, *inst_id;
 };
 
-/* Room for cap rays; false (err set) when out of memory. */
+/* Room for cap rays (rounded up to whole vectors); false (err set) when
+   out of memory. */
 bool ray_stream_init(struct ray_stream *s, int cap, struct error *err);
 void ray_stream_free(struct ray_stream *s);
 
@@ -41,21 +41,33 @@ static inline float ray_stream_tfar(double tmax)
     return tmax < 3.0e38 ? (float)tmax : INFINITY;
 }
 
+/* The segment (tnear, tfar) of a ray that is traced up to tmax, or of an
+   inactive one: (1, 0). Its tfar is 0 because an occlusion trace sets tfar
+   to -inf for blocked rays only, so an inactive ray reads as clear.
+   Selects, so that vectorised loops (shading.c) write them too. */
+static inline float ray_stream_tnear_for(bool active)
+{
+    return active ? 0.0f : 1.0f;
+}
+static inline float ray_stream_tfar_for(bool active, double tmax)
+{
+    return active ? ray_stream_tfar(tmax) : 0.0f;
+}
+
 /* Sets ray i to o + t d, t in (0, tmax). */
 static inline void ray_stream_set(struct ray_stream *s, int i, struct vec3 o, struct vec3 d, double tmax)
 {
     s->ox[i] = (float)o.x, s->oy[i] = (float)o.y, s->oz[i] = (float)o.z;
     s->dx[i] = (float)d.x, s->dy[i] = (float)d.y, s->dz[i] = (float)d.z;
-    s->tnear[i] = 0.0f;
-    s->tfar[i] = ray_stream_tfar(tmax);
+    s->tnear[i] = ray_stream_tnear_for(true);
+    s->tfar[i] = ray_stream_tfar_for(true, tmax);
 }
 
-/* Marks ray i as not to be traced. Its tfar is 0: an occlusion trace sets
-   tfar to -inf for blocked rays only, so an inactive ray reads as clear. */
+/* Marks ray i as not to be traced. */
 static inline void ray_stream_skip(struct ray_stream *s, int i)
 {
-    s->tnear[i] = 1.0f;
-    s->tfar[i] = 0.0f;
+    s->tnear[i] = ray_stream_tnear_for(false);
+    s->tfar[i] = ray_stream_tfar_for(false, 0.0);
 }
 
 /* After scene_occluded_stream: whether ray i was blocked. */

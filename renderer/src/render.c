@@ -515,7 +515,6 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     result->time_s = elapsed;
     result->nonfinite_samples = pc.nonfinite;
     result->stats = pc.stats;
-    result->cpu_s = pc.cpu_s;
     free(workers);
     pthread_mutex_destroy(&pc.lock);
     pthread_cond_destroy(&pc.start);

@@ -20,7 +20,6 @@ struct render_result {
     bool interrupted;            /* stopped by SIGINT/SIGTERM */
     uint64_t nonfinite_samples;
     struct integrator_stats stats;
-    double cpu_s;                /* CPU time of the render threads in passes (summed) */
 };
 
 /* Installs SIGINT/SIGTERM handlers that ask a running render to stop after

@@ -178,7 +178,7 @@ static void ray_setup(struct RTCRay *r, struct vec3 o, struct vec3 d, double tma
     r->org_x = (float)o.x, r->org_y = (float)o.y, r->org_z = (float)o.z;
     r->dir_x = (float)d.x, r->dir_y = (float)d.y, r->dir_z = (float)d.z;
     r->tnear = 0.0f;
-    r->tfar = tmax < 3.0e38 ? (float)tmax : INFINITY;
+    r->tfar = ray_stream_tfar(tmax);
     r->time = 0.0f;
     r->mask = ~0u;
     r->id = 0;

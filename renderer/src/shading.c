@@ -270,8 +270,8 @@ FM_INLINE void bsdf_block(double scale, double in[IN_COUNT][LANE_BLOCK], double 
 }
 
 /* A block's rays into the streams at lanes b..b+LANE_BLOCK-1 (the
-   streams have room: their arrays are rounded up to whole blocks), with
-   the one-ray wrappers' conversion. Lanes that trace nothing are inactive. */
+   streams have room: their arrays are rounded up to whole blocks), as
+   ray_stream_set converts them. Lanes that trace nothing are inactive. */
 FM_INLINE void shadow_stream_block(double in[IN_COUNT][LANE_BLOCK], double so[SO_COUNT][LANE_BLOCK],
                                    struct ray_stream *r, int b)
 {
@@ -284,8 +284,8 @@ FM_INLINE void shadow_stream_block(double in[IN_COUNT][LANE_BLOCK], double so[SO
         r->dx[b + i] = (float)in[IN_WX][i];
         r->dy[b + i] = (float)in[IN_WY][i];
         r->dz[b + i] = (float)in[IN_WZ][i];
-        r->tnear[b + i] = trace ? 0.0f : 1.0f;
-        r->tfar[b + i] = trace ? ray_stream_tfar(so[SO_TMAX][i]) : 0.0f;
+        r->tnear[b + i] = ray_stream_tnear_for(trace);
+        r->tfar[b + i] = ray_stream_tfar_for(trace, so[SO_TMAX][i]);
     }
 }
 
@@ -300,8 +300,8 @@ FM_INLINE void bsdf_stream_block(double bo[BO_COUNT][LANE_BLOCK], struct ray_str
         r->dx[b + i] = (float)bo[BO_DX][i];
         r->dy[b + i] = (float)bo[BO_DY][i];
         r->dz[b + i] = (float)bo[BO_DZ][i];
-        r->tnear[b + i] = trace ? 0.0f : 1.0f;
-        r->tfar[b + i] = trace ? INFINITY : 0.0f;
+        r->tnear[b + i] = ray_stream_tnear_for(trace);
+        r->tfar[b + i] = ray_stream_tfar_for(trace, INFINITY);
     }
 }
 
