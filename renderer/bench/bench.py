@@ -128,14 +128,21 @@ def wasted(run: dict[str, Any]) -> dict[str, float]:
     }
 
 
+def final_field(run: dict[str, Any], key: str) -> float:
+    """A timing the renderer reports in its final JSON line (render_cpu_s,
+    snapshot_cpu_s, snapshot_pause_s); a clear error for a build too old
+    to report it."""
+    if run.get(key) is None:
+        raise RuntimeError(f"the renderer's final JSON line has no {key} (a build older than this bench)")
+    return float(run[key])
+
+
 def render_rates(run: dict[str, Any]) -> dict[str, float]:
     """Samples and rays per CPU second of the render threads (the renderer's
     render_cpu_s): pure rendering, without the process's load, BVH build and
     EXR write (whose CPU time varied by 0.01-0.07 s between identical runs,
     as much as a fifth of a short render)."""
-    if run.get("render_cpu_s") is None:
-        raise RuntimeError("the renderer's final JSON line has no render_cpu_s (a build older than this bench)")
-    cpu = max(run["render_cpu_s"], 1e-9)
+    cpu = max(final_field(run, "render_cpu_s"), 1e-9)
     return {"samples_per_cpu_s": run["samples"] / cpu, "rays_per_cpu_s": run["rays"] / cpu}
 
 
@@ -144,8 +151,8 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
     spp = {"direct": 4 if q else 16, "path": 2 if q else 8}
     reps = 1 if q else 7
     # One render thread: the raw limit is one thread's, and two threads on
-    # this machine's two vCPUs slow each other (raw Embree by ~30% per
-    # thread, the renderer by ~6%); section 3 measures the scaling.
+    # this machine's two vCPUs slow each other (raw Embree by 3-36% per
+    # thread over runs, the renderer by 4-8%); section 3 measures the scaling.
     params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "spp": spp, "reps": reps, "threads": 1,
               "order": "round-robin over (integrator, strategy) per round; seed = round",
               "raw_limit": "raw_embree --mix-only measured before and after each (integrator, strategy) "
@@ -270,24 +277,24 @@ def section_snapshots(ctx: Context) -> dict[str, Any]:
         none = bl.run_render(ctx, LAMPSHADE, out / "none", *common).summary()
         snap = bl.run_render(ctx, LAMPSHADE, out / "every", *common, "--set", f"render.snapshots.every={every}",
                              snapshots=True).summary()
-        if snap.get("snapshot_cpu_s") is None:
-            raise RuntimeError("the renderer's final JSON line has no snapshot_cpu_s (a build older than this bench)")
+        snap_cpu, pause = final_field(snap, "snapshot_cpu_s"), final_field(snap, "snapshot_pause_s")
+        render_cpu = final_field(snap, "render_cpu_s")
         n = max(snap["snapshots"], 1)
         rounds.append({
             "none": none, "every": snap,
             # The snapshots' CPU time over the render threads' in the same run.
-            "overhead_cpu": snap["snapshot_cpu_s"] / snap["render_cpu_s"],
+            "overhead_cpu": snap_cpu / render_cpu,
             # On an idle machine: the pauses stop the render, the writer's
             # CPU comes out of the render threads' cores (an upper bound: the
             # copies' CPU is counted in both terms).
-            "overhead_idle_estimate": (snap["snapshot_pause_s"] + snap["snapshot_cpu_s"] / threads) / snap["time_s"],
+            "overhead_idle_estimate": (pause + snap_cpu / threads) / snap["time_s"],
             # Cross-check from two runs seconds apart: samples per CPU second
             # (render threads + snapshots) with snapshots vs without.
-            "overhead_cpu_paired": 1 - (snap["samples"] / (snap["render_cpu_s"] + snap["snapshot_cpu_s"]))
-                                   / (none["samples"] / none["render_cpu_s"]),
+            "overhead_cpu_paired": 1 - (snap["samples"] / (render_cpu + snap_cpu))
+                                   / render_rates(none)["samples_per_cpu_s"],
             "overhead_wall_paired": 1 - snap["samples_per_s"] / none["samples_per_s"],
-            "cpu_per_snapshot_s": snap["snapshot_cpu_s"] / n,
-            "pause_per_snapshot_s": snap["snapshot_pause_s"] / n,
+            "cpu_per_snapshot_s": snap_cpu / n,
+            "pause_per_snapshot_s": pause / n,
         })
     table = {
         "overhead_cpu": ratio_stats([x["overhead_cpu"] for x in rounds]),
