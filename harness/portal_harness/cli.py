@@ -21,6 +21,7 @@ from portal_harness.config import load_experiment
 from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
 from portal_harness.metrics import Region
+from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
 from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
 from portal_harness.renderer import renderer_version
 from portal_harness.spec import INTEGRATORS, NO_SNAPSHOTS, STRATEGIES
@@ -283,8 +284,9 @@ def _parse_insets(items: list[str]) -> tuple[Region, ...]:
 
 def cmd_metrics(args: argparse.Namespace) -> int:
     layout = _layout(args)
-    regions = load_experiment(args.experiment).insets if args.experiment else ()
-    regions += _parse_insets(args.inset)
+    experiment = load_experiment(args.experiment) if args.experiment else None
+    insets = (experiment.insets if experiment else ()) + _parse_insets(args.inset)
+    lit_threshold = experiment.lit_threshold if experiment else DEFAULT_LIT_THRESHOLD
     conn = index.connect(layout.index_path)
     status = 0
     results: list[dict[str, Any]] = []
@@ -304,10 +306,11 @@ def cmd_metrics(args: argparse.Namespace) -> int:
                 reference = exr.read_snapshot(ref_run.final)
             except CorruptExrError as e:
                 raise HarnessError(f"reference unusable: {e}") from None
-            for r in regions:
+            for r in insets:
                 if not r.fits(reference.header.width, reference.header.height):
                     raise ConfigError("--inset", r.name, f"does not fit the {reference.header.width}x"
                                                          f"{reference.header.height} image")
+            regions = regions_of(reference, insets, lit_threshold)
             rows = measure.compute(run, manifest, reference, regions)
             measure.write_files(run, manifest["key"], ref_key, regions, rows)
             index.record_run(conn, manifest, run.dir)

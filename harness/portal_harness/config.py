@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from portal_harness.errors import ConfigError
+from portal_harness.exr import REGION_CLASSES
 from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
 from portal_harness.spec import (
@@ -27,6 +28,11 @@ from portal_harness.spec import (
 )
 
 CURVE_METRICS = ("rel_mse", "mse")
+# Every reference render carries the region AOV (the region masks come from
+# it) and keeps its film state (so it can be extended with render --resume).
+REFERENCE_RENDER_OVERRIDES: Overrides = (("render.aov.region", "true"), ("render.resumable", "true"))
+# Region names the harness gives itself (regions.py); insets may not take them.
+RESERVED_REGION_NAMES = frozenset({WHOLE_IMAGE, "lit", *REGION_CLASSES})
 
 
 @dataclass(frozen=True)
@@ -38,15 +44,25 @@ class Budget:
     threads: int
     seed: int
     snapshots: Overrides
+    replicates: int = 1
 
 
 @dataclass(frozen=True)
 class ReferenceSettings:
-    strategy: str
+    """How each point's reference is made (references.py): `strategies` are
+    the one or two independent renders combined into it, or empty to let a
+    pilot choose (the lowest-variance strategy, plus `light` or the runner-up
+    as the second, independent one)."""
+
+    strategies: tuple[str, ...]
     spp: int
     time_s: float
     seed: int
     threads: int
+    noise_ratio: float = 0.1      # reference noise / smallest error compared, at most
+    max_time_s: float = 0.0       # cap on one reference's extended render time (0: none)
+    pilot_time_s: float = 0.5     # per candidate strategy
+    bias_z: float = 4.0           # the two references may disagree by at most this many sigma
 
 
 @dataclass(frozen=True)
@@ -98,6 +114,7 @@ class Experiment:
     curve_metric: str
     scene_params: tuple[tuple[str, Any], ...]
     scene_sha256: str               # of the scene and its includes, read once at load
+    lit_threshold: float = 0.001    # regions.lit_threshold: reference radiance above which a pixel is lit
 
     def points(self) -> list[Point]:
         keys = [k for k, _ in self.sweep]
@@ -129,9 +146,21 @@ class Experiment:
     def _labels(self, point: Point) -> tuple[tuple[str, float], ...]:
         return (("ratio", point.axis_value),) if self.axis.divide_by is not None else ()
 
-    def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None) -> RunSpec:
+    def replicate_seed(self, strategy: str, replicate: int) -> int:
+        """Seed of replicate k of a strategy: one per (replicate, strategy)
+        counted from budget.seed, so that no two runs of a point share random
+        streams (the replicates' spread and the ratios between strategies are
+        then of independent estimates; equal seeds would share, e.g., the
+        camera jitter)."""
+        assert self.budget is not None
+        return self.budget.seed + replicate * len(STRATEGIES) + STRATEGIES.index(strategy)
+
+    def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None,
+                 replicate: int = 0) -> RunSpec:
         if self.budget is None:
             raise ConfigError(str(self.path), "budget", "required to run a sweep")
+        if seed is None:
+            seed = self.replicate_seed(strategy, replicate)
         return RunSpec(
             scene=str(self.scene),
             scene_sha256=self.scene_sha256,
@@ -139,7 +168,7 @@ class Experiment:
             integrator=self.integrator,
             spp=self.budget.spp if spp is None else spp,
             time_s=self.budget.time_s if spp is None else 0.0,
-            seed=self.budget.seed if seed is None else seed,
+            seed=seed,
             threads=self.budget.threads,
             overrides=self._overrides(point),
             snapshots=self.budget.snapshots,
@@ -169,21 +198,42 @@ class Experiment:
             return self.regress.baseline
         return default_dir / f"{self.name}.json"
 
-    def reference_spec(self, point: Point) -> RunSpec:
+    def reference_spec(self, point: Point, strategy: str, part: int = 0) -> RunSpec:
+        """Reference render `part` (0 or 1) of a point with `strategy`: its
+        own seed, the region AOV on, and resumable, so that it can be
+        extended (references.py)."""
         r = self.reference
         return RunSpec(
             scene=str(self.scene),
             scene_sha256=self.scene_sha256,
-            strategy=r.strategy,
+            strategy=strategy,
             integrator=self.integrator,
             spp=r.spp,
             time_s=r.time_s,
-            seed=r.seed,
+            seed=r.seed + 7 * part,
             threads=r.threads,
-            overrides=self._overrides(point),
+            overrides=self._overrides(point) + REFERENCE_RENDER_OVERRIDES,
             snapshots=NO_SNAPSHOTS,
             reference=True,
             labels=self._labels(point),
+        )
+
+    def pilot_spec(self, point: Point, strategy: str) -> RunSpec:
+        """A short render of a candidate reference strategy: its own
+        variance layer says how efficient the strategy is here."""
+        r = self.reference
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=self.scene_sha256,
+            strategy=strategy,
+            integrator=self.integrator,
+            spp=0,
+            time_s=r.pilot_time_s,
+            seed=r.seed + 1000,
+            threads=r.threads,
+            overrides=self._overrides(point) + (("render.aov.region", "true"),),
+            snapshots=NO_SNAPSHOTS,
+            labels=self._labels(point) + (("pilot", 1.0),),
         )
 
 
@@ -202,7 +252,7 @@ def load_experiment(path: Path | str) -> Experiment:
         read_yaml(p, "experiment file"),
         "",
         allowed={"name", "scene", "integrator", "strategies", "sweep", "fixed", "budget", "reference", "insets",
-                 "axis", "regress", "figures", "description"},
+                 "axis", "regress", "figures", "description", "regions"},
         required={"scene", "strategies", "sweep"},
     )
     name = r.string(root.get("name", p.stem), "name")
@@ -259,7 +309,7 @@ def load_experiment(path: Path | str) -> Experiment:
 
     budget = None
     if "budget" in root:
-        b = r.mapping(root["budget"], "budget", {"time_s", "spp", "threads", "seed", "snapshots"})
+        b = r.mapping(root["budget"], "budget", {"time_s", "spp", "threads", "seed", "snapshots", "replicates"})
         time_s = r.number(b.get("time_s", 0), "budget.time_s")
         spp = r.integer(b.get("spp", 0), "budget.spp")
         if time_s == 0 and spp == 0:
@@ -271,20 +321,10 @@ def load_experiment(path: Path | str) -> Experiment:
             for k, v in sorted(snaps_node.items())
         )
         budget = Budget(time_s=time_s, spp=spp, threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
-                        seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots)
+                        seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots,
+                        replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1))
 
-    ref_node = r.mapping(root.get("reference", {}) or {}, "reference", {"strategy", "spp", "time_s", "seed", "threads"})
-    ref_time = r.number(ref_node.get("time_s", 0), "reference.time_s")
-    reference = ReferenceSettings(
-        strategy=r.choice(ref_node.get("strategy", "light"), "reference.strategy", STRATEGIES, "strategy"),
-        # Exactly the limits given: 1024 spp only when no time is given.
-        spp=r.integer(ref_node.get("spp", 0 if ref_time > 0 else 1024), "reference.spp"),
-        time_s=ref_time,
-        seed=r.integer(ref_node.get("seed", 7919), "reference.seed"),
-        threads=parse_threads(ref_node.get("threads", budget.threads if budget else 1), r, "reference.threads"),
-    )
-    if reference.spp == 0 and reference.time_s == 0:
-        raise r.fail("reference", "expected spp > 0 or time_s > 0")
+    reference = _reference_settings(r, root.get("reference", {}) or {}, budget)
 
     insets: list[Region] = []
     for i, node in enumerate(r.sequence(root.get("insets", []) or [], "insets", non_empty=False)):
@@ -297,7 +337,7 @@ def load_experiment(path: Path | str) -> Experiment:
             width=r.integer(m["width"], f"{key}.width", minimum=1),
             height=r.integer(m["height"], f"{key}.height", minimum=1),
         )
-        if region.name == WHOLE_IMAGE or region.name in {x.name for x in insets}:
+        if region.name in RESERVED_REGION_NAMES or region.name in {x.name for x in insets}:
             raise r.fail(f"{key}.name", f"inset name {region.name!r} is reserved or used twice")
         if not region.fits(width, height):
             raise r.fail(key, f"rectangle x={region.x} y={region.y} {region.width}x{region.height} "
@@ -338,6 +378,9 @@ def load_experiment(path: Path | str) -> Experiment:
             baseline=(p.parent / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
         )
 
+    regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
+    lit_threshold = r.number(regions_node.get("lit_threshold", 0.001), "regions.lit_threshold", positive=True)
+
     fig = r.mapping(root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric"})
     equal_time = fig.get("equal_time_s")
     return Experiment(
@@ -359,4 +402,44 @@ def load_experiment(path: Path | str) -> Experiment:
         curve_metric=r.choice(fig.get("curve_metric", "rel_mse"), "figures.curve_metric", CURVE_METRICS, "metric"),
         scene_params=tuple((k, v) for k, v in scene_info.scalars.items() if k.startswith("params.")),
         scene_sha256=scene_info.sha256,
+        lit_threshold=lit_threshold,
+    )
+
+
+REFERENCE_KEYS = {"strategy", "strategies", "spp", "time_s", "seed", "threads", "noise_ratio", "max_time_s",
+                  "pilot_time_s", "bias_z"}
+
+
+def _reference_settings(r: Reader, node: Any, budget: Budget | None) -> ReferenceSettings:
+    m = r.mapping(node, "reference", REFERENCE_KEYS)
+    if "strategy" in m and "strategies" in m:
+        raise r.fail("reference", "give strategy (one reference) or strategies (one or two), not both")
+    if "strategy" in m:
+        strategies: tuple[str, ...] = (r.choice(m["strategy"], "reference.strategy", STRATEGIES, "strategy"),)
+    elif m.get("strategies", "auto") == "auto":
+        strategies = ()
+    else:
+        items = r.sequence(m["strategies"], "reference.strategies")
+        strategies = tuple(r.choice(s, f"reference.strategies.{i}", STRATEGIES, "strategy")
+                           for i, s in enumerate(items))
+        if len(strategies) > 2 or len(set(strategies)) != len(strategies):
+            raise r.fail("reference.strategies", "expected auto, or one or two different strategies")
+    time_s = r.number(m.get("time_s", 0), "reference.time_s")
+    # Exactly the limits given: 1024 spp only when no time is given.
+    spp = r.integer(m.get("spp", 0 if time_s > 0 else 1024), "reference.spp")
+    if spp == 0 and time_s == 0:
+        raise r.fail("reference", "expected spp > 0 or time_s > 0")
+    noise_ratio = r.number(m.get("noise_ratio", 0.1), "reference.noise_ratio", positive=True)
+    if noise_ratio >= 1:
+        raise r.fail("reference.noise_ratio", f"expected a ratio below 1, got {noise_ratio:g}")
+    return ReferenceSettings(
+        strategies=strategies,
+        spp=spp,
+        time_s=time_s,
+        seed=r.integer(m.get("seed", 7919), "reference.seed"),
+        threads=parse_threads(m.get("threads", budget.threads if budget else 1), r, "reference.threads"),
+        noise_ratio=noise_ratio,
+        max_time_s=r.number(m.get("max_time_s", 0), "reference.max_time_s"),
+        pilot_time_s=r.number(m.get("pilot_time_s", 0.5), "reference.pilot_time_s", positive=True),
+        bias_z=r.number(m.get("bias_z", 4.0), "reference.bias_z", positive=True),
     )

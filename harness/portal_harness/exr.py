@@ -3,13 +3,17 @@
 The format (renderer contract): float channels R, G, B (running mean of
 radiance) and variance.R/G/B (variance of that mean), with the header
 attributes render_time_s, spp, strategy, integrator, seed, config_hash,
-renderer_version, rays and nonfinite_samples. A file that cannot be read
+renderer_version, rays and nonfinite_samples; optionally (render.aov.region)
+the region AOV: one float channel per antishadow region class
+(REGION_CLASSES, `region.<class>`), the fraction of the pixel's samples whose
+primary hit fell in that class. A file that cannot be read
 completely, lacks a channel or attribute, or holds non-finite pixels raises
 CorruptExrError, so that it is reported and never averaged into a metric.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +25,9 @@ from portal_harness.errors import CorruptExrError
 
 RGB_CHANNELS = ("R", "G", "B")
 VARIANCE_CHANNELS = ("variance.R", "variance.G", "variance.B")
+# The renderer's region classes, in its order (renderer/src/aov.h).
+REGION_CLASSES = ("outside", "anti_umbra", "anti_penumbra", "anti_antumbra", "inside", "emitter", "miss")
+REGION_CHANNELS = tuple(f"region.{c}" for c in REGION_CLASSES)
 
 
 @dataclass(frozen=True)
@@ -49,6 +56,8 @@ class Snapshot:
     header: SnapshotHeader
     rgb: np.ndarray
     variance: np.ndarray
+    # (height, width, len(REGION_CLASSES)) fractions, or None without the AOV.
+    regions: np.ndarray | None = None
 
 
 def _scalar(value: Any) -> float:
@@ -113,10 +122,52 @@ def read_snapshot(path: Path | str) -> Snapshot:
             header = _header_from(p, raw)
             rgb = _stack(p, channels, RGB_CHANNELS, header.height, header.width)
             variance = _stack(p, channels, VARIANCE_CHANNELS, header.height, header.width)
+            regions = (_stack(p, channels, REGION_CHANNELS, header.height, header.width)
+                       if any(name in channels for name in REGION_CHANNELS) else None)
     except CorruptExrError:
         raise
     except (RuntimeError, ValueError, OSError, IndexError, KeyError) as e:
         raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
     if not (np.all(np.isfinite(rgb)) and np.all(np.isfinite(variance))):
         raise CorruptExrError(str(p), "non-finite pixel values")
-    return Snapshot(path=p, header=header, rgb=rgb, variance=variance)
+    if regions is not None and not np.all(np.isfinite(regions)):
+        raise CorruptExrError(str(p), "non-finite region fractions")
+    return Snapshot(path=p, header=header, rgb=rgb, variance=variance, regions=regions)
+
+
+def write_snapshot(path: Path, snapshot: Snapshot) -> None:
+    """Writes `snapshot` in the renderer's format (used for the combined
+    reference, which no single render produced): float channels, ZIP,
+    header attributes as the renderer writes them; to a temporary name,
+    fsynced, then renamed, so a reader never sees a partial file."""
+    h = snapshot.header
+    channels: dict[str, np.ndarray] = {}
+    for names, planes in ((RGB_CHANNELS, snapshot.rgb), (VARIANCE_CHANNELS, snapshot.variance),
+                          (REGION_CHANNELS, snapshot.regions)):
+        if planes is None:
+            continue
+        for i, name in enumerate(names):
+            channels[name] = np.ascontiguousarray(planes[..., i], dtype=np.float32)
+    header: dict[str, Any] = {
+        "compression": OpenEXR.ZIP_COMPRESSION,
+        "type": OpenEXR.scanlineimage,
+        # C doubles arrive and must leave as one-element float64 arrays.
+        "render_time_s": np.array([h.render_time_s], dtype=np.float64),
+        "spp": int(min(h.spp, 2**31 - 1)),
+        "strategy": h.strategy,
+        "integrator": h.integrator,
+        "seed": str(h.seed),
+        "config_hash": h.config_hash,
+        "renderer_version": h.renderer_version,
+        "rays": np.array([h.rays], dtype=np.float64),
+        "nonfinite_samples": np.array([h.nonfinite_samples], dtype=np.float64),
+    }
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        OpenEXR.File(header, channels).write(str(tmp))
+        with open(tmp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -1,22 +1,31 @@
-"""The three figures of an experiment, one function each, from the index
-(metrics) and the run folders (images through exr.py):
+"""The figures of an experiment, one function each, from the index
+(metrics), the tidy summary (summary.json) and the run folders (images
+through exr.py):
 
-1. error over time: log-log, one line per strategy, one panel per sweep point;
-2. insets: per sweep point, the reference with the inset rectangles drawn,
-   then each inset of the reference and of each strategy at equal render
-   time, with its relMSE under it;
-3. efficiency 1 / (relMSE x time) relative to light sampling against the
-   swept axis (the light/portal ratio), one panel per region.
+1. error over time: log-log, one line per strategy (the mean over
+   replicates, a band from the smallest to the largest replicate), one panel
+   per sweep point, for the `lit` region and the whole image;
+2. insets: per sweep point, the reference with the inset rectangles drawn
+   and its antishadow region classes beside it, then each inset of the
+   reference and of each strategy at equal render time (replicate 0), with
+   its relMSE under it;
+3. efficiency relative to light sampling against the swept axis (the
+   light/portal ratio), one panel per region (image, lit, insets, region
+   classes), error bars of one standard error over replicates, open
+   triangles where the value is only a lower bound; below it, the
+   equal-error speed-up in the same layout.
 
 PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sqlite3
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -30,11 +39,16 @@ from matplotlib.patches import Rectangle  # noqa: E402
 from matplotlib.axis import Axis as MplAxis  # noqa: E402
 from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
+from matplotlib.colors import ListedColormap  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+
 from portal_harness import display, exr, index  # noqa: E402
 from portal_harness.config import Experiment, Point  # noqa: E402
 from portal_harness.errors import CorruptExrError, HarnessError  # noqa: E402
-from portal_harness.metrics import WHOLE_IMAGE, Region, crop, floor_corrected_efficiency  # noqa: E402
+from portal_harness.index import ROLE_REFERENCE, ROLE_RUN  # noqa: E402
+from portal_harness.metrics import WHOLE_IMAGE, Region, crop  # noqa: E402
 from portal_harness.paths import ResultsLayout  # noqa: E402
+from portal_harness.regions import LIT, class_map  # noqa: E402
 from portal_harness.spec import STRATEGIES  # noqa: E402
 
 STRATEGY_COLOURS = dict(zip(STRATEGIES, ("#7f7f7f", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd")))
@@ -44,6 +58,10 @@ STRATEGY_LABELS = {
 }
 INSET_COLOURS = ("#ffd700", "#00e5ff", "#ff4fd8", "#7CFC00")
 METRIC_LABELS = {"rel_mse": "relMSE", "mse": "MSE"}
+# One colour per region class (exr.REGION_CLASSES order), and grey for no majority.
+CLASS_COLOURS = ("#3b3b3b", "#f5d142", "#e8743b", "#4a90d9", "#9b59b6", "#ffffff", "#111111")
+CLASS_LABELS = ("outside", "anti-umbra", "anti-penumbra", "anti-antumbra", "inside shade", "emitter", "miss")
+NO_MAJORITY_COLOUR = "#9a9a9a"
 
 
 @dataclass(frozen=True)
@@ -59,24 +77,33 @@ class Cell:
 @dataclass(frozen=True)
 class ExperimentData:
     points: tuple[Point, ...]
-    runs: dict[tuple[str, str], Cell]
+    runs: dict[tuple[str, str], Cell]                  # replicate 0 of (point, strategy)
+    replicates: dict[tuple[str, str], list[Cell]]      # every replicate
     references: dict[str, Cell]
+    summary: list[dict[str, Any]]                      # summary.json's tidy rows
 
 
-def load(experiment: Experiment, conn: sqlite3.Connection) -> ExperimentData:
+def load(experiment: Experiment, conn: sqlite3.Connection, layout: ResultsLayout) -> ExperimentData:
     rows = index.membership(conn, experiment.name)
     runs: dict[tuple[str, str], Cell] = {}
+    replicates: dict[tuple[str, str], list[Cell]] = {}
     references: dict[str, Cell] = {}
     for r in rows:
         cell = Cell(r["key"], r["reference_key"], r["status"], Path(r["run_dir"]) if r["run_dir"] else None)
-        if r["role"] == "reference":
+        if r["role"] == ROLE_REFERENCE:
             references[r["point"]] = cell
-        else:
-            runs[(r["point"], r["strategy"])] = cell
+        elif r["role"] == ROLE_RUN:
+            replicates.setdefault((r["point"], r["strategy"]), []).append(cell)
+            if r["replicate"] == 0:
+                runs[(r["point"], r["strategy"])] = cell
     points = tuple(p for p in experiment.points() if p.id in references)
     if not points:
         raise HarnessError(f"no runs of experiment {experiment.name!r} in the index: run `portal-harness sweep` first")
-    return ExperimentData(points, runs, references)
+    try:
+        summary = json.loads(layout.summary_json(experiment.name).read_text())["rows"]
+    except (OSError, ValueError, KeyError):
+        raise HarnessError(f"no summary of experiment {experiment.name!r}: run `portal-harness sweep` first") from None
+    return ExperimentData(points, runs, replicates, references, summary)
 
 
 def _point_title(experiment: Experiment, point: Point) -> str:
@@ -107,56 +134,88 @@ def _done(cell: Cell | None) -> bool:
     return cell is not None and cell.status == "done" and cell.run_dir is not None
 
 
+def _curve(conn: sqlite3.Connection, cell: Cell, region: str, metric: str) -> list[tuple[float, float, float]]:
+    """(time_s, metric, reference noise) of a run's images in one region, in time order."""
+    return sorted((m["time_s"], m[metric], m["floor_rel"] or 0.0)
+                  for m in index.metrics_of(conn, cell.key, cell.reference_key)
+                  if m["region"] == region and m["error"] is None and m["time_s"] and m[metric])
+
+
+def _mean_curve(curves: list[list[tuple[float, float, float]]]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                            np.ndarray]:
+    """Replicates aligned by image index (the same snapshot schedule): mean
+    time, mean value, smallest and largest value."""
+    n = min(len(c) for c in curves)
+    t = np.array([[c[i][0] for i in range(n)] for c in curves])
+    v = np.array([[c[i][1] for i in range(n)] for c in curves])
+    return t.mean(axis=0), v.mean(axis=0), v.min(axis=0), v.max(axis=0)
+
+
 def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
                         layout: ResultsLayout) -> list[Path]:
-    """Error against render time, log-log, one panel per sweep point."""
+    """Error against render time, log-log: one column per sweep point, one
+    row per region (lit, whole image); mean over replicates with their range."""
     metric = experiment.curve_metric
+    regions = [LIT, WHOLE_IMAGE]
     n = len(data.points)
-    cols = min(n, 5)
-    rows = math.ceil(n / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.9 * rows), squeeze=False, sharey=True)
-    for i, point in enumerate(data.points):
-        ax = axes[i // cols][i % cols]
-        floor: float | None = None
-        for strategy in experiment.strategies:
-            cell = data.runs.get((point.id, strategy))
-            if not _done(cell):
-                continue
-            assert cell is not None
-            pts = [(m["time_s"], m[metric], m["floor_rel"]) for m in index.metrics_of(conn, cell.key, cell.reference_key)
-                   if m["region"] == WHOLE_IMAGE and m["error"] is None and m["time_s"] and m[metric]]
-            pts.sort()
-            if not pts:
-                continue
-            t, v, f = zip(*pts)
-            ax.plot(t, v, marker=".", ms=3, lw=1.2, color=STRATEGY_COLOURS[strategy], label=STRATEGY_LABELS[strategy])
-            floor = f[0]
-        if metric == "rel_mse" and floor:
-            ax.axhline(floor, color="k", ls=":", lw=0.8, label="reference noise")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_title(_point_title(experiment, point), fontsize=9)
-        ax.set_xlabel("render time (s)", fontsize=8)
-        if i % cols == 0:
-            ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
-        ax.grid(True, which="both", alpha=0.2)
-    for j in range(n, rows * cols):
-        axes[j // cols][j % cols].set_visible(False)
-    for ax in axes.flat[:n]:
-        _plain_log_ticks(ax.xaxis)
-        _plain_log_ticks(ax.yaxis)
-        ax.tick_params(which="both", labelsize=7)
+    fig, axes = plt.subplots(len(regions), n, figsize=(3.2 * n, 2.9 * len(regions)), squeeze=False)
+    for row, region in enumerate(regions):
+        for i, point in enumerate(data.points):
+            ax = axes[row][i]
+            floor: float | None = None
+            for strategy in experiment.strategies:
+                cells = [c for c in data.replicates.get((point.id, strategy), []) if _done(c)]
+                curves = [c for c in (_curve(conn, cell, region, metric) for cell in cells) if c]
+                if not curves:
+                    continue
+                t, v, lo, hi = _mean_curve(curves)
+                colour_ = STRATEGY_COLOURS[strategy]
+                ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=STRATEGY_LABELS[strategy])
+                if len(curves) > 1:
+                    ax.fill_between(t, lo, hi, color=colour_, alpha=0.2, lw=0)
+                floor = curves[0][0][2]
+            if metric == "rel_mse" and floor:
+                ax.axhline(floor, color="k", ls=":", lw=0.8, label="reference noise")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_title(f"{_point_title(experiment, point)}: {_region_title(region)}", fontsize=8)
+            ax.set_xlabel("render time (s)", fontsize=8)
+            if i == 0:
+                ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
+            ax.grid(True, which="both", alpha=0.2)
+            _plain_log_ticks(ax.xaxis)
+            _plain_log_ticks(ax.yaxis)
+            ax.tick_params(which="both", labelsize=7)
+    _legend_below(fig, axes, 2)
+    reps = experiment.budget.replicates if experiment.budget else 1
+    fig.suptitle(f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
+                 f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, layout, experiment, "error_time")
+
+
+def _legend_below(fig: Figure, axes: Any, rows: int, extra: list[tuple[Any, str]] = ()) -> None:  # type: ignore[assignment]
     handles, labels = [], []
     for ax in axes.flat:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
+    for h, lab in extra:
+        handles.append(h)
+        labels.append(lab)
     fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 7), fontsize=8, frameon=False,
                bbox_to_anchor=(0.5, -0.02 - 0.02 * rows))
-    fig.suptitle(f"{experiment.name}: {METRIC_LABELS[metric]} of the whole image over time", fontsize=10)
-    fig.tight_layout()
-    return _save(fig, layout, experiment, "error_time")
+
+
+def _region_title(region: str) -> str:
+    if region == WHOLE_IMAGE:
+        return "whole image"
+    if region == LIT:
+        return "lit pixels"
+    if region in exr.REGION_CLASSES:
+        return CLASS_LABELS[exr.REGION_CLASSES.index(region)]
+    return f"inset {region}"
 
 
 @dataclass(frozen=True)
@@ -215,9 +274,13 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
     outer = fig.add_gridspec(len(data.points), 1, hspace=0.1, top=1 - 0.55 / height, bottom=0.25 / height)
     for p_i, point in enumerate(data.points):
         ref_cell = data.references.get(point.id)
-        grid = outer[p_i].subgridspec(n_sub, 1 + len(columns), width_ratios=[ref_w / cell_in] + [1] * len(columns),
+        grid = outer[p_i].subgridspec(n_sub, 2 + len(columns),
+                                      width_ratios=[ref_w / cell_in] * 2 + [1] * len(columns),
                                       wspace=0.06, hspace=label_in / inset_h * 1.1)
         ref_ax = fig.add_subplot(grid[:, 0])
+        class_ax = fig.add_subplot(grid[:, 1])
+        class_ax.set_xticks([])
+        class_ax.set_yticks([])
         ref_ax.set_xticks([])
         ref_ax.set_yticks([])
         ref_ax.set_ylabel(_point_title(experiment, point), fontsize=8)
@@ -232,12 +295,15 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
             continue
         exposure = display.exposure_from_reference(reference.rgb)
         ref_ax.imshow(display.to_display(reference.rgb, exposure), interpolation="nearest")
+        _draw_classes(class_ax, reference)
         for r_i, region in enumerate(regions):
             colour_ = INSET_COLOURS[r_i % len(INSET_COLOURS)]
-            ref_ax.add_patch(Rectangle((region.x - 0.5, region.y - 0.5), region.width, region.height,
-                                       fill=False, ec=colour_, lw=1.2))
+            for ax_ in (ref_ax, class_ax):
+                ax_.add_patch(Rectangle((region.x - 0.5, region.y - 0.5), region.width, region.height,
+                                        fill=False, ec=colour_, lw=1.2))
         if p_i == 0:
             ref_ax.set_title("reference", fontsize=8)
+            class_ax.set_title("antishadow region classes", fontsize=8)
         t_eq = equal_time(experiment, conn, data, point)
         if math.isfinite(t_eq):
             ref_ax.set_ylabel(f"{_point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
@@ -265,7 +331,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                 else:
                     label = (cell.status if cell and cell.status else "missing")
             for r_i, region in enumerate(regions):
-                ax = fig.add_subplot(grid[r_i, 1 + c_i])
+                ax = fig.add_subplot(grid[r_i, 2 + c_i])
                 ax.set_xticks([])
                 ax.set_yticks([])
                 for spine in ax.spines.values():
@@ -282,77 +348,95 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                 text = label_time if column == "reference" else (
                     f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
+    fig.legend(handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS)]
+               + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
+               loc="lower center", ncol=8, fontsize=7, frameon=False, bbox_to_anchor=(0.5, -0.01))
     fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10,
                  y=0.995)
     return _save(fig, layout, experiment, "insets")
 
 
+def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
+    """The region class holding the majority of each pixel's primary hits (the renderer's AOV)."""
+    if reference.regions is None:
+        ax.text(0.5, 0.5, "no region AOV", ha="center", va="center", fontsize=7, transform=ax.transAxes)
+        return
+    classes = class_map(reference.regions)
+    cmap = ListedColormap([NO_MAJORITY_COLOUR, *CLASS_COLOURS])
+    ax.imshow(classes + 1, cmap=cmap, vmin=-0.5, vmax=len(CLASS_COLOURS) + 0.5, interpolation="nearest")
+
+
+def _summary_regions(experiment: Experiment, data: ExperimentData) -> list[str]:
+    """Regions in report order that the summary has rows for: image, lit, insets, classes."""
+    found: list[str] = []
+    for r in data.summary:
+        if r["region"] not in found:
+            found.append(r["region"])
+    return found
+
+
 def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
                       layout: ResultsLayout) -> list[Path]:
-    """Efficiency 1 / (relMSE x time) of the final images relative to light
-    sampling against the swept axis; one panel per region."""
-    regions = [WHOLE_IMAGE, *(r.name for r in experiment.insets)]
-    fig, axes = plt.subplots(1, len(regions), figsize=(3.6 * len(regions), 3.2), squeeze=False)
-    for r_i, region in enumerate(regions):
-        ax = axes[0][r_i]
-        for strategy in experiment.strategies:
-            xs, ys, bounds = [], [], []
-            for point in data.points:
-                eff = _efficiency(conn, data.runs.get((point.id, strategy)), region)
-                base = _efficiency(conn, data.runs.get((point.id, "light")), region)
-                if eff is not None and base is not None and base[0] > 0:
-                    xs.append(point.axis_value)
-                    ys.append(eff[0] / base[0])
-                    bounds.append(eff[1] or base[1])
-            if not xs:
-                continue
-            colour_ = STRATEGY_COLOURS[strategy]
-            ax.plot(xs, ys, lw=1.3, color=colour_, label=STRATEGY_LABELS[strategy])
-            ax.plot([x for x, b in zip(xs, bounds) if not b], [y for y, b in zip(ys, bounds) if not b],
-                    ls="none", marker="o", ms=4, color=colour_)
-            ax.plot([x for x, b in zip(xs, bounds) if b], [y for y, b in zip(ys, bounds) if b],
-                    ls="none", marker="^", ms=6, mfc="white", color=colour_)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel(experiment.axis.label, fontsize=8)
-        if r_i == 0:
-            ax.set_ylabel("efficiency relative to light sampling", fontsize=8)
-        ax.set_title("whole image" if region == WHOLE_IMAGE else f"inset {region}", fontsize=9)
-        ax.grid(True, which="both", alpha=0.2)
-        ax.set_xticks(sorted({p.axis_value for p in data.points}))
-        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        _plain_log_ticks(ax.yaxis)
-        ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
-        ax.tick_params(which="both", labelsize=7)
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    handles.append(Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"))
-    labels.append("lower bound (error within 2x the reference's noise)")
-    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 7), fontsize=8, frameon=False,
-               bbox_to_anchor=(0.5, -0.08))
-    fig.suptitle(f"{experiment.name}: efficiency 1/(relMSE x time) relative to light sampling "
-                 "(reference noise removed)", fontsize=10)
+    """Efficiency relative to light sampling (top row) and equal-error
+    speed-up (bottom row) against the swept axis, one column per region,
+    from the tidy summary; error bars of one standard error over replicates,
+    open triangles for bounds."""
+    regions = _summary_regions(experiment, data)
+    measures = (("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
+                ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound",
+                 "speed-up at light's final error"))
+    fig, axes = plt.subplots(len(measures), len(regions), figsize=(3.3 * len(regions), 3.0 * len(measures)),
+                             squeeze=False)
+    for m_i, (column, se_column, bound_column, label) in enumerate(measures):
+        for r_i, region in enumerate(regions):
+            ax = axes[m_i][r_i]
+            for strategy in experiment.strategies:
+                rows = sorted((r for r in data.summary if r["region"] == region and r["strategy"] == strategy
+                               and isinstance(r.get(column), (int, float)) and r[column] > 0),
+                              key=lambda r: r["axis"])
+                if not rows:
+                    continue
+                xs = [r["axis"] for r in rows]
+                ys = [r[column] for r in rows]
+                colour_ = STRATEGY_COLOURS[strategy]
+                ax.plot(xs, ys, lw=1.3, color=colour_, label=STRATEGY_LABELS[strategy])
+                for r in rows:
+                    se = r.get(se_column)
+                    bounded = bool(r.get(bound_column))
+                    if isinstance(se, (int, float)) and math.isfinite(se) and se > 0:
+                        lo = max(r[column] - se, r[column] * 1e-3)
+                        ax.errorbar([r["axis"]], [r[column]], yerr=[[r[column] - lo], [se]], color=colour_,
+                                    lw=0.9, capsize=2, ls="none")
+                    marker = {"lower": "^", "upper": "v"}.get(r.get(bound_column) or "", "D" if bounded else "o")
+                    ax.plot([r["axis"]], [r[column]], ls="none", marker=marker, ms=5 if bounded else 4,
+                            mfc="white" if bounded else colour_, color=colour_)
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel(experiment.axis.label, fontsize=8)
+            if r_i == 0:
+                ax.set_ylabel(label, fontsize=8)
+            ax.set_title(_region_title(region), fontsize=9)
+            ax.grid(True, which="both", alpha=0.2)
+            ax.set_xticks(sorted({p.axis_value for p in data.points}))
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
+            ax.tick_params(which="both", labelsize=7)
+    extra = [(Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
+             (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound")]
+    _legend_below(fig, axes, len(measures), extra)
+    reps = experiment.budget.replicates if experiment.budget else 1
+    fig.suptitle(f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
+                 f"sampling (reference noise removed; bars: one standard error over {reps} replicates)",
+                 fontsize=10)
     fig.tight_layout()
     return _save(fig, layout, experiment, "efficiency")
-
-
-def _efficiency(conn: sqlite3.Connection, cell: Cell | None, region: str) -> tuple[float, bool] | None:
-    """(efficiency of the final image with the reference noise removed, whether it is only a lower bound)."""
-    if not _done(cell):
-        return None
-    assert cell is not None
-    final = [m for m in index.metrics_of(conn, cell.key, cell.reference_key)
-             if m["is_final"] and m["region"] == region and m["error"] is None]
-    if not final or final[0]["rel_mse"] is None or final[0]["time_s"] is None:
-        return None
-    value, bound = floor_corrected_efficiency(final[0]["rel_mse"], final[0]["floor_rel"] or 0.0, final[0]["time_s"])
-    return (value, bound) if math.isfinite(value) else None
 
 
 def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
     conn = index.connect(layout.index_path)
     try:
-        data = load(experiment, conn)
+        data = load(experiment, conn, layout)
         paths = figure_error_curves(experiment, data, conn, layout)
         paths += figure_insets(experiment, data, conn, layout)
         paths += figure_efficiency(experiment, data, conn, layout)

@@ -48,10 +48,11 @@ CREATE TABLE IF NOT EXISTS experiment_runs (
     point TEXT NOT NULL,
     strategy TEXT NOT NULL,
     role TEXT NOT NULL,
+    replicate INTEGER NOT NULL,
     key TEXT NOT NULL,
     reference_key TEXT,
     axis_value REAL,
-    PRIMARY KEY (experiment, point, strategy, role)
+    PRIMARY KEY (experiment, point, strategy, role, replicate)
 );
 CREATE TABLE IF NOT EXISTS metrics (
     key TEXT NOT NULL,
@@ -81,6 +82,11 @@ def connect(path: Path) -> sqlite3.Connection:
     conn.execute("PRAGMA synchronous = NORMAL")
     conn.execute("PRAGMA foreign_keys = ON")
     with _transaction(conn):
+        # Membership without replicates (an older harness's): every sweep
+        # records its membership afresh, so the table can simply be rebuilt.
+        columns = [r[1] for r in conn.execute("PRAGMA table_info(experiment_runs)")]
+        if columns and "replicate" not in columns:
+            conn.execute("DROP TABLE experiment_runs")
         for statement in _SCHEMA.split(";"):
             if statement.strip():
                 conn.execute(statement)
@@ -131,14 +137,23 @@ def record_run(conn: sqlite3.Connection, manifest: dict[str, Any], run_dir: Path
         )
 
 
-def record_membership(
-    conn: sqlite3.Connection, experiment: str, rows: Iterable[tuple[str, str, str, str, str | None, float]]
-) -> None:
-    """Rows (point, strategy, role, key, reference_key, axis_value) of an experiment,
-    replacing those of the same (point, strategy, role)."""
+# Roles of an experiment's renders in experiment_runs.
+ROLE_RUN = "run"                       # replicate k of (point, strategy)
+ROLE_REFERENCE = "reference"           # the point's (combined) reference
+ROLE_REFERENCE_PART = "reference_part"  # one of its independent renders (replicate = part)
+ROLE_PILOT = "pilot"                   # a pilot render choosing the reference strategy
+
+MembershipRow = tuple[str, str, str, int, str, str | None, float]
+
+
+def record_membership(conn: sqlite3.Connection, experiment: str, rows: Iterable[MembershipRow]) -> None:
+    """The rows (point, strategy, role, replicate, key, reference_key,
+    axis_value) of an experiment, replacing all its earlier rows (a sweep
+    records its whole plan)."""
     with _transaction(conn):
+        conn.execute("DELETE FROM experiment_runs WHERE experiment = ?", (experiment,))
         conn.executemany(
-            "INSERT OR REPLACE INTO experiment_runs VALUES (?, ?, ?, ?, ?, ?, ?)",
+            "INSERT OR REPLACE INTO experiment_runs VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             [(experiment, *row) for row in rows],
         )
 

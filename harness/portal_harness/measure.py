@@ -15,8 +15,9 @@ from typing import Any
 from portal_harness import exr, metrics, store
 from portal_harness.errors import CorruptExrError
 from portal_harness.index import MetricRow
-from portal_harness.metrics import WHOLE_IMAGE, Region
+from portal_harness.metrics import WHOLE_IMAGE
 from portal_harness.paths import RunLayout
+from portal_harness.regions import NamedRegion, fingerprint
 
 
 def images_of(run: RunLayout, manifest: dict[str, Any]) -> list[tuple[str, bool, float, int]]:
@@ -29,11 +30,11 @@ def images_of(run: RunLayout, manifest: dict[str, Any]) -> list[tuple[str, bool,
 
 
 def compute(
-    run: RunLayout, manifest: dict[str, Any], reference: exr.Snapshot, regions: tuple[Region, ...]
+    run: RunLayout, manifest: dict[str, Any], reference: exr.Snapshot, regions: list[NamedRegion]
 ) -> list[MetricRow]:
-    """One row per image and region (the whole image is region "image")."""
-    named: list[tuple[str, Region | None]] = [(WHOLE_IMAGE, None)] + [(r.name, r) for r in regions]
-    floors = {name: metrics.rel_variance_floor(reference.rgb, reference.variance, region) for name, region in named}
+    """One row per image and region (regions.regions_of: image, lit, insets, classes)."""
+    named = [(r.name, r.mask) for r in regions]
+    floors = {name: metrics.rel_variance_floor(reference.rgb, reference.variance, mask) for name, mask in named}
     rows: list[MetricRow] = []
     for file, is_final, time_s, spp in images_of(run, manifest):
         try:
@@ -45,22 +46,23 @@ def compute(
         except CorruptExrError as e:
             rows.append(MetricRow(file, is_final, time_s, spp, WHOLE_IMAGE, None, None, None, str(e)))
             continue
-        for name, region in named:
+        for name, mask in named:
             rows.append(MetricRow(
                 image=file, is_final=is_final, time_s=snap.header.render_time_s, spp=snap.header.spp, region=name,
-                mse=metrics.mse(snap.rgb, reference.rgb, region),
-                rel_mse=metrics.rel_mse(snap.rgb, reference.rgb, region),
+                mse=metrics.mse(snap.rgb, reference.rgb, mask),
+                rel_mse=metrics.rel_mse(snap.rgb, reference.rgb, mask),
                 floor_rel=floors[name], error=None,
             ))
     return rows
 
 
-def _regions_json(regions: tuple[Region, ...]) -> list[dict[str, Any]]:
-    return [asdict(r) for r in regions]
+def _regions_json(regions: list[NamedRegion]) -> dict[str, Any]:
+    return {"names": [r.name for r in regions], "pixels": [r.pixels for r in regions],
+            "fingerprint": fingerprint(regions)}
 
 
-def up_to_date(run: RunLayout, reference_key: str, regions: tuple[Region, ...]) -> bool:
-    """True if the run's metrics files were computed against this reference and these insets."""
+def up_to_date(run: RunLayout, reference_key: str, regions: list[NamedRegion]) -> bool:
+    """True if the run's metrics files were computed against this reference and these region masks."""
     try:
         with open(run.metrics_json) as f:
             data = json.load(f)
@@ -69,7 +71,8 @@ def up_to_date(run: RunLayout, reference_key: str, regions: tuple[Region, ...]) 
     return bool(data.get("reference_key") == reference_key and data.get("regions") == _regions_json(regions))
 
 
-def write_files(run: RunLayout, key: str, reference_key: str, regions: tuple[Region, ...], rows: list[MetricRow]) -> None:
+def write_files(run: RunLayout, key: str, reference_key: str, regions: list[NamedRegion],
+                rows: list[MetricRow]) -> None:
     """metrics.csv (one line per image and region) and metrics.json (the same plus context)."""
     fields = list(MetricRow.__dataclass_fields__)
     buffer = io.StringIO()

@@ -47,37 +47,56 @@ def crop(image: np.ndarray, region: Region | None) -> np.ndarray:
     return image[region.y : region.y + region.height, region.x : region.x + region.width]
 
 
+# A region: a rectangle, a boolean mask of shape (height, width), or None
+# for the whole image.
+Selection = Region | np.ndarray | None
+
+
+def select(image: np.ndarray, region: Selection) -> np.ndarray:
+    """The pixels of `region`: a crop for a rectangle, (N, channels) for a mask."""
+    if region is None or isinstance(region, Region):
+        return crop(image, region)
+    if region.shape != image.shape[:2]:
+        raise ValueError(f"mask of shape {region.shape} does not fit an image of {image.shape[1]}x{image.shape[0]}")
+    return image[region]
+
+
+def _mean(values: np.ndarray) -> float:
+    """The mean, nan for an empty region (never a numpy warning)."""
+    return float(np.mean(values)) if values.size else math.nan
+
+
 def _check(image: np.ndarray, reference: np.ndarray) -> None:
     if image.shape != reference.shape:
         raise ValueError(f"image shape {image.shape} differs from reference shape {reference.shape}")
 
 
-def mse(image: np.ndarray, reference: np.ndarray, region: Region | None = None) -> float:
+def mse(image: np.ndarray, reference: np.ndarray, region: Selection = None) -> float:
     """Mean squared error over the pixels and channels of `region`."""
     _check(image, reference)
-    d = crop(image, region).astype(np.float64) - crop(reference, region).astype(np.float64)
-    return float(np.mean(d * d))
+    d = select(image, region).astype(np.float64) - select(reference, region).astype(np.float64)
+    return _mean(d * d)
 
 
 def rel_mse(
-    image: np.ndarray, reference: np.ndarray, region: Region | None = None, epsilon: float = REL_EPSILON
+    image: np.ndarray, reference: np.ndarray, region: Selection = None, epsilon: float = REL_EPSILON
 ) -> float:
     """Relative MSE: (x - r)^2 / (r^2 + epsilon) per pixel and channel, averaged."""
     _check(image, reference)
-    x = crop(image, region).astype(np.float64)
-    r = crop(reference, region).astype(np.float64)
-    return float(np.mean((x - r) ** 2 / (r * r + epsilon)))
+    x = select(image, region).astype(np.float64)
+    r = select(reference, region).astype(np.float64)
+    return _mean((x - r) ** 2 / (r * r + epsilon))
 
 
 def rel_variance_floor(
-    reference: np.ndarray, reference_variance: np.ndarray, region: Region | None = None, epsilon: float = REL_EPSILON
+    reference: np.ndarray, reference_variance: np.ndarray, region: Selection = None, epsilon: float = REL_EPSILON
 ) -> float:
     """The part of a relMSE that is the reference's own noise:
     E[(x - R)^2] = MSE(x) + Var(R) for an independent reference R, so a curve
     cannot fall below about mean(Var(R) / (R^2 + epsilon))."""
-    r = crop(reference, region).astype(np.float64)
-    v = crop(reference_variance, region).astype(np.float64)
-    return float(np.mean(v / (r * r + epsilon)))
+    r = select(reference, region).astype(np.float64)
+    v = select(reference_variance, region).astype(np.float64)
+    return _mean(v / (r * r + epsilon))
 
 
 def efficiency(rel_mse_value: float, time_s: float) -> float:

@@ -36,7 +36,7 @@ def _host() -> dict[str, Any]:
     }
 
 
-def _tail(path: Path, limit: int = 2000) -> str:
+def file_tail(path: Path, limit: int = 2000) -> str:
     try:
         data = path.read_bytes()
     except OSError:
@@ -134,7 +134,7 @@ def execute_in(
         "final": final,
         "malformed_stdout_lines": result.malformed_lines[:20],
         "stderr_file": run.relative(run.stderr),
-        "stderr_tail": _tail(run.stderr),
+        "stderr_tail": file_tail(run.stderr),
     }
     store.write_json_atomic(run.manifest, manifest)
     return manifest

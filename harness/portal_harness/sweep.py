@@ -1,5 +1,21 @@
 """`sweep`: expand an experiment's cross product, make each point's
-reference, run every (point, strategy), compute metrics, write a summary.
+reference, run every (point, strategy, replicate), compute metrics per
+region, check that the references resolve them, write the tidy summary.
+
+The stages, in order (references.py says more of each):
+1. pilots: when reference.strategies is auto, a short render per candidate
+   strategy and point chooses the reference strategies (pilot.py);
+2. references: one or two independent renders per point; two are tested
+   against each other region by region (a disagreement beyond
+   reference.bias_z sigma stops the sweep, exit status 1) and combined;
+3. runs: K = budget.replicates independent seeds per (point, strategy);
+4. metrics of every image against its point's reference, per region
+   (regions.py), then the noise check (noise_check.py): a reference whose
+   noise exceeds reference.noise_ratio of the smallest error in some
+   region is extended (extend.py, render --resume) and the metrics redone,
+   at most MAX_EXTENSION_ROUNDS times or until reference.max_time_s;
+5. the tidy summary (summary.py): summary.csv/json, one row per (point,
+   strategy, region); the printed table is its `lit` (or image) region.
 
 Resuming is the default: a run whose folder holds a "done" manifest is not
 rendered again; failed runs are retried (unless --skip-failed). A failed run
@@ -18,65 +34,54 @@ from typing import Any, TextIO
 
 from tqdm import tqdm
 
-from portal_harness import exr, index, measure, store
+from portal_harness import exr, extend, index, measure, noise_check, pilot, references, store, summary
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError
 from portal_harness.execute import Target, plan_jobs, run_dask, run_local
-from portal_harness.metrics import WHOLE_IMAGE, efficiency, floor_corrected_efficiency
+from portal_harness.index import ROLE_PILOT, ROLE_REFERENCE, ROLE_REFERENCE_PART, ROLE_RUN
+from portal_harness.metrics import WHOLE_IMAGE, rel_variance_floor
 from portal_harness.paths import ResultsLayout
+from portal_harness.references import PointReference
+from portal_harness.regions import LIT
 from portal_harness.spec import RunSpec
 
-ROLE_RUN = "run"
-ROLE_REFERENCE = "reference"
-BASELINE_STRATEGY = "light"
+MAX_EXTENSION_ROUNDS = 3
 
 
 @dataclass(frozen=True)
 class PlannedRun:
     point: Point
     strategy: str
+    replicate: int
     spec: RunSpec
     key: str
-    reference_key: str
 
 
-@dataclass(frozen=True)
-class Plan:
-    runs: tuple[PlannedRun, ...]
-    references: tuple[tuple[Point, RunSpec, str], ...]
-
-    def specs(self) -> list[RunSpec]:
-        """References first (each once), then runs, in sweep order."""
-        seen: set[str] = set()
-        out: list[RunSpec] = []
-        for _, spec, key in self.references:
-            if key not in seen:
-                seen.add(key)
-                out.append(spec)
-        out += [r.spec for r in self.runs]
-        return out
-
-
-def make_plan(experiment: Experiment, renderer_version: str) -> Plan:
-    runs: list[PlannedRun] = []
-    refs: list[tuple[Point, RunSpec, str]] = []
+def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]:
+    assert experiment.budget is not None
+    out = []
     for point in experiment.points():
-        ref = experiment.reference_spec(point)
-        ref_key = ref.key(renderer_version)
-        refs.append((point, ref, ref_key))
         for strategy in experiment.strategies:
-            spec = experiment.run_spec(point, strategy)
-            runs.append(PlannedRun(point, strategy, spec, spec.key(renderer_version), ref_key))
-    return Plan(runs=tuple(runs), references=tuple(refs))
+            for k in range(experiment.budget.replicates):
+                spec = experiment.run_spec(point, strategy, replicate=k)
+                out.append(PlannedRun(point, strategy, k, spec, spec.key(renderer_version)))
+    return out
 
 
-def record_plan(conn: sqlite3.Connection, experiment: Experiment, plan: Plan) -> None:
-    rows: list[tuple[str, str, str, str, str | None, float]] = [
-        (point.id, spec.strategy, ROLE_REFERENCE, key, None, point.axis_value) for point, spec, key in plan.references
-    ]
-    rows += [(r.point.id, r.strategy, ROLE_RUN, r.key, r.reference_key, r.point.axis_value) for r in plan.runs]
+def record_plan(conn: sqlite3.Connection, experiment: Experiment, runs: list[PlannedRun],
+                refs: dict[str, PointReference], pilots: dict[str, dict[str, str]]) -> None:
+    rows: list[index.MembershipRow] = []
+    for point_id, ref in refs.items():
+        axis = ref.point.axis_value
+        if ref.key is not None:
+            label = "+".join(ref.strategies)
+            rows.append((point_id, label, ROLE_REFERENCE, 0, ref.key, None, axis))
+        rows += [(point_id, p.spec.strategy, ROLE_REFERENCE_PART, i, p.key, None, axis)
+                 for i, p in enumerate(ref.parts)]
+        rows += [(point_id, s, ROLE_PILOT, 0, key, None, axis) for s, key in pilots.get(point_id, {}).items()]
+    rows += [(r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.point.id].key, r.point.axis_value)
+             for r in runs]
     index.record_membership(conn, experiment.name, rows)
-
 
 @dataclass(frozen=True)
 class SweepOptions:
@@ -137,124 +142,213 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
     return manifests
 
 
-def compute_metrics(experiment: Experiment, plan: Plan, options: SweepOptions, conn: sqlite3.Connection,
+def compute_metrics(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference],
+                    options: SweepOptions, conn: sqlite3.Connection,
                     manifests: dict[str, dict[str, Any]]) -> list[str]:
-    """Metrics of every finished run against its point's reference; returns problems found."""
+    """Metrics of every finished run against its point's reference, on the
+    point's regions; returns the problems found."""
     problems: list[str] = []
-    references: dict[str, exr.Snapshot | None] = {}
-    for planned in plan.runs:
+    for planned in runs:
         manifest = manifests.get(planned.key)
-        if manifest is None or manifest.get("status") != store.STATUS_DONE:
+        ref = refs[planned.point.id]
+        if manifest is None or manifest.get("status") != store.STATUS_DONE or ref.snapshot is None:
             continue
-        ref_key = planned.reference_key
-        if ref_key not in references:
-            ref_manifest = manifests.get(ref_key)
-            references[ref_key] = None
-            if ref_manifest is not None and ref_manifest.get("status") == store.STATUS_DONE:
-                try:
-                    references[ref_key] = exr.read_snapshot(options.layout.run(ref_key, True).final)
-                except CorruptExrError as e:
-                    problems.append(f"reference {ref_key} ({planned.point.id}): {e}")
-        reference = references[ref_key]
-        if reference is None:
-            continue
+        assert ref.key is not None
         run = options.layout.run(planned.key)
-        have_rows = bool(index.metrics_of(conn, planned.key, ref_key))
-        if measure.up_to_date(run, ref_key, experiment.insets):
+        if measure.up_to_date(run, ref.key, ref.regions):
             rows = measure.read_rows(run)
-            if not have_rows:
-                index.record_metrics(conn, planned.key, ref_key, rows)
+            if not index.metrics_of(conn, planned.key, ref.key):
+                index.record_metrics(conn, planned.key, ref.key, rows)
         else:
-            rows = measure.compute(run, manifest, reference, experiment.insets)
-            measure.write_files(run, planned.key, ref_key, experiment.insets, rows)
-            index.record_metrics(conn, planned.key, ref_key, rows)
+            rows = measure.compute(run, manifest, ref.snapshot, ref.regions)
+            measure.write_files(run, planned.key, ref.key, ref.regions, rows)
+            index.record_metrics(conn, planned.key, ref.key, rows)
         for row in rows:
             if row.error:
                 problems.append(f"{planned.strategy} {planned.point.id} {row.image}: {row.error}")
     return problems
 
 
-def summarize(experiment: Experiment, plan: Plan, conn: sqlite3.Connection,
-              manifests: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per (point, strategy): status and the final image's metrics;
-    efficiency = 1 / (relMSE x time); efficiency_vs_light uses the
-    reference-noise-corrected efficiency of both (metrics.floor_corrected_efficiency)
-    and is a lower bound where reference_limited is true."""
+def _final_errors(conn: sqlite3.Connection, runs: list[PlannedRun], ref: PointReference) -> dict[str, float]:
+    """Per region, the smallest mean (over replicates) final relMSE of any strategy."""
+    by: dict[tuple[str, str], list[float]] = {}
+    for r in runs:
+        if r.point.id != ref.point.id or ref.key is None:
+            continue
+        for m in index.metrics_of(conn, r.key, ref.key):
+            if m["is_final"] and m["error"] is None and m["rel_mse"] is not None:
+                by.setdefault((r.strategy, m["region"]), []).append(float(m["rel_mse"]))
+    smallest: dict[str, float] = {}
+    for (_, region), values in by.items():
+        mean = sum(values) / len(values)
+        smallest[region] = min(smallest.get(region, math.inf), mean)
+    return smallest
+
+
+def floors_of(ref: PointReference) -> dict[str, float]:
+    assert ref.snapshot is not None
+    return {r.name: rel_variance_floor(ref.snapshot.rgb, ref.snapshot.variance, r.mask) for r in ref.regions}
+
+
+def check_references(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference],
+                     conn: sqlite3.Connection) -> dict[str, list[noise_check.RegionCheck]]:
+    return {pid: noise_check.check(floors_of(ref), _final_errors(conn, runs, ref), experiment.reference.noise_ratio)
+            for pid, ref in refs.items() if ref.snapshot is not None}
+
+
+def extend_references(experiment: Experiment, refs: dict[str, PointReference],
+                      checks: dict[str, list[noise_check.RegionCheck]], options: SweepOptions,
+                      manifests: dict[str, dict[str, Any]], out: TextIO) -> list[str]:
+    """One round of extensions; returns the points extended."""
+    cap = experiment.reference.max_time_s
+    extended = []
+    for pid, found in checks.items():
+        ref = refs[pid]
+        failed = [c for c in found if not c.ok]
+        if not failed or ref.snapshot is None:
+            continue
+        plan = noise_check.plan_extension(failed, ref.part_snapshots, ref.snapshot.rgb, ref.regions,
+                                          experiment.reference.noise_ratio)
+        if plan is None:
+            continue
+        part = ref.parts[plan.part]
+        snap = ref.part_snapshots[plan.part]
+        factor = plan.factor
+        if cap > 0 and snap.header.render_time_s * factor > cap:
+            factor = cap / max(snap.header.render_time_s, 1e-9)
+            ref.capped = True
+            if factor < 1.05:
+                continue
+        total = max(snap.header.spp + 1, math.ceil(snap.header.spp * factor))
+        print(f"extending reference {pid} {part.spec.strategy} from {snap.header.spp} to {total} spp "
+              f"(regions {', '.join(plan.regions)})", file=out)
+        manifest = extend.extend(options.layout, part.key, total, options.renderer, part.spec.threads)
+        if manifest.get("status") != store.STATUS_DONE:
+            print(f"  failed: {manifest.get('error')}", file=out)
+            continue
+        manifests[part.key] = manifest
+        extended.append(pid)
+    return extended
+
+
+def _status(runs: list[PlannedRun], manifests: dict[str, dict[str, Any]], point: str, strategy: str) -> str:
+    for r in runs:
+        if r.point.id == point and r.strategy == strategy:
+            status = (manifests.get(r.key) or {}).get("status", "missing")
+            if status != store.STATUS_DONE:
+                return str(status)
+    return store.STATUS_DONE
+
+
+def summarize(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference],
+              conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """The tidy rows (summary.py) of every point, region and strategy."""
     rows: list[dict[str, Any]] = []
-    for planned in plan.runs:
-        manifest = manifests.get(planned.key, {})
-        row: dict[str, Any] = {
-            "point": planned.point.id, "axis": planned.point.axis_value, "strategy": planned.strategy,
-            "key": planned.key, "reference_key": planned.reference_key,
-            "status": manifest.get("status", "missing"), "error": manifest.get("error"),
-        }
-        final = [m for m in index.metrics_of(conn, planned.key, planned.reference_key) if m["is_final"]]
-        for m in final:
-            suffix = "" if m["region"] == WHOLE_IMAGE else f"_{m['region']}"
-            row[f"rel_mse{suffix}"] = m["rel_mse"]
-            row[f"mse{suffix}"] = m["mse"]
-            if m["region"] == WHOLE_IMAGE:
-                row["time_s"] = m["time_s"]
-                row["spp"] = m["spp"]
-                row["rel_mse_floor"] = m["floor_rel"]
-                if m["rel_mse"] is not None:
-                    row["efficiency"] = efficiency(m["rel_mse"], m["time_s"])
-                    row["efficiency_corrected"], row["reference_limited"] = floor_corrected_efficiency(
-                        m["rel_mse"], m["floor_rel"] or 0.0, m["time_s"])
-        rows.append(row)
-    for row in rows:
-        base = next((r for r in rows if r["point"] == row["point"] and r["strategy"] == BASELINE_STRATEGY), None)
-        e, b = row.get("efficiency_corrected", math.nan), (base or {}).get("efficiency_corrected", math.nan)
-        row["efficiency_vs_light"] = e / b if math.isfinite(e) and math.isfinite(b) and b > 0 else math.nan
+    for pid, ref in refs.items():
+        if ref.snapshot is None or ref.key is None:
+            continue
+        floors = floors_of(ref)
+        regions = {r.name: summary.RegionInfo(r.kind, r.pixels, floors[r.name]) for r in ref.regions}
+        reps = {s: summary.replicates_of(conn, [r.key for r in runs if r.point.id == pid and r.strategy == s],
+                                         ref.key)
+                for s in experiment.strategies}
+        status = {s: _status(runs, manifests, pid, s) for s in experiment.strategies}
+        rows += summary.rows_for_point(pid, ref.point.axis_value, experiment.strategies, reps, regions,
+                                       experiment.reference.noise_ratio, status)
     return rows
 
 
+def _clean(value: Any) -> Any:
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
 def write_summary(experiment: Experiment, layout: ResultsLayout, rows: list[dict[str, Any]],
-                  failures: list[str], problems: list[str]) -> None:
+                  references_info: list[dict[str, Any]], failures: list[str], problems: list[str]) -> None:
     folder = layout.experiment_dir(experiment.name)
     folder.mkdir(parents=True, exist_ok=True)
-    clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()} for r in rows]
+    clean = [{k: _clean(r.get(k)) for k in summary.COLUMNS} for r in rows]
     store.write_json_atomic(layout.summary_json(experiment.name), {
-        "experiment": experiment.name, "file": str(experiment.path), "rows": clean,
-        "failures": failures, "problems": problems,
+        "experiment": experiment.name, "file": str(experiment.path), "columns": list(summary.COLUMNS),
+        "rows": clean, "references": references_info, "failures": failures, "problems": problems,
     })
-    fields: list[str] = []
-    for r in rows:
-        fields += [k for k in r if k not in fields]
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=list(summary.COLUMNS), lineterminator="\n")
     writer.writeheader()
     for r in clean:
-        writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in fields})
-    layout.summary_csv(experiment.name).write_text(buffer.getvalue())
+        writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in summary.COLUMNS})
+    tmp = layout.summary_csv(experiment.name).with_name(".summary.csv.tmp")
+    tmp.write_text(buffer.getvalue())
+    tmp.replace(layout.summary_csv(experiment.name))
+
+
+def references_info(refs: dict[str, PointReference], checks: dict[str, list[noise_check.RegionCheck]],
+                    manifests: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    out = []
+    for pid, ref in refs.items():
+        parts = []
+        for p in ref.parts:
+            final = (manifests.get(p.key) or {}).get("final") or {}
+            parts.append({"strategy": p.spec.strategy, "key": p.key, "spp": final.get("spp"),
+                          "time_s": final.get("time_s")})
+        out.append({
+            "point": pid, "key": ref.key, "parts": parts, "error": ref.error, "capped": ref.capped,
+            "bias_max_abs_z": _clean(references.max_abs_z(ref)),
+            "noise": [{"region": c.region, "floor": c.floor, "smallest_error": c.smallest_error,
+                       "ratio": _clean(c.ratio), "ok": c.ok} for c in checks.get(pid, [])],
+        })
+    return out
+
+
+def _fmt(v: Any, spec: str) -> str:
+    return format(v, spec) if isinstance(v, (int, float)) and math.isfinite(v) else "-"
 
 
 def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
-    header = (f"{'point':<22} {'strategy':<17} {'status':<12} {'time_s':>7} {'spp':>7} {'relMSE':>10} "
-              f"{'eff/light':>10}")
+    """The tidy summary's `lit` region (the whole image if there is none), one line per (point, strategy)."""
+    region = LIT if any(r["region"] == LIT for r in rows) else WHOLE_IMAGE
+    header = (f"{'point':<22} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
+              f"{'speed-up':>10} {'ref/err':>7}")
+    print(f"region {region}:", file=out)
     print(header, file=out)
     print("-" * len(header), file=out)
-    for r in rows:
-        def fmt(v: Any, spec: str) -> str:
-            return format(v, spec) if isinstance(v, (int, float)) and math.isfinite(v) else "-"
-        print(f"{r['point']:<22} {r['strategy']:<17} {r['status']:<12} {fmt(r.get('time_s'), '7.2f'):>7} "
-              f"{fmt(r.get('spp'), '7d'):>7} {fmt(r.get('rel_mse'), '10.3e'):>10} "
-              f"{'>' if r.get('reference_limited') else ' '}{fmt(r.get('efficiency_vs_light'), '9.3g'):>9}", file=out)
-    print("(eff/light: efficiency relative to light sampling, reference noise removed; "
-          "'>' a lower bound, the run's error being within 2x the reference's noise)", file=out)
+    for r in summary.wide(rows, region):
+        eff = f"{'>' if r.get('bound') else ' '}{_fmt(r.get('efficiency_vs_light'), '.3g')}"
+        if r.get("efficiency_vs_light_stderr") is not None and math.isfinite(r.get("efficiency_vs_light_stderr")
+                                                                              or math.nan):
+            eff += f" ±{_fmt(r['efficiency_vs_light_stderr'], '.2g')}"
+        mark = {"lower": ">", "upper": "<", "mixed": "~"}.get(r.get("speedup_bound") or "", " ")
+        print(f"{r['point']:<22} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
+              f"{_fmt(r.get('rel_mse'), '10.3e'):>10} {eff:>16} {mark}{_fmt(r.get('speedup_equal_error'), '.3g'):>9} "
+              f"{_fmt(r.get('reference_noise_ratio'), '7.3f'):>7}", file=out)
+    print("(eff/light: efficiency relative to light sampling, reference noise removed, ± a standard error over "
+          "replicates; '>' a lower bound where the reference does not resolve the error; speed-up: light's time "
+          "over the time to reach light's final error, '>'/'<' where the curve only bounds it; ref/err: reference "
+          "noise over the run's error)", file=out)
 
 
-def failures_of(plan: Plan, manifests: dict[str, dict[str, Any]]) -> list[str]:
+def print_references(info: list[dict[str, Any]], out: TextIO) -> None:
+    for ref in info:
+        parts = ", ".join(f"{p['strategy']} {_fmt(p['time_s'], '.1f')} s/{p['spp']} spp" for p in ref["parts"])
+        worst = max((c for c in ref["noise"] if c["ratio"] is not None), key=lambda c: c["ratio"], default=None)
+        noise = (f"worst noise ratio {worst['ratio']:.3f} ({worst['region']})" if worst else "noise ratio -")
+        capped = ", capped: values there are bounds" if ref["capped"] else ""
+        print(f"reference {ref['point']}: {parts}; bias |z| max {_fmt(ref['bias_max_abs_z'], '.2f')}; "
+              f"{noise}{capped}", file=out)
+
+
+def failures_of(runs: list[PlannedRun], refs: dict[str, PointReference],
+                manifests: dict[str, dict[str, Any]]) -> list[str]:
     out = []
-    for point, _, key in plan.references:
-        m = manifests.get(key)
-        if m is None or m.get("status") != store.STATUS_DONE:
-            out.append(f"reference {point.id} [{key}]: {(m or {}).get('status', 'missing')}: "
-                       f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip())
-    for r in plan.runs:
+    for pid, ref in refs.items():
+        for p in ref.parts:
+            m = manifests.get(p.key)
+            if m is None or m.get("status") != store.STATUS_DONE:
+                out.append(f"reference {pid} {p.spec.strategy} [{p.key}]: {(m or {}).get('status', 'missing')}: "
+                           f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip())
+    for r in runs:
         m = manifests.get(r.key)
         if m is None or m.get("status") != store.STATUS_DONE:
-            out.append(f"{r.strategy} {r.point.id} [{r.key}]: {(m or {}).get('status', 'missing')}: "
+            out.append(f"{r.strategy} {r.point.id} #{r.replicate} [{r.key}]: {(m or {}).get('status', 'missing')}: "
                        f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip())
     return out
 
@@ -264,29 +358,93 @@ def _last_line(text: str | None) -> str:
     return f"(stderr: {lines[-1][:160]})" if lines else ""
 
 
+def choose_reference_strategies(experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection,
+                                manifests: dict[str, dict[str, Any]]) -> tuple[dict[str, tuple[str, ...]],
+                                                                               dict[str, dict[str, str]]]:
+    """Per point, the reference strategies (given, or by pilot) and the pilots' keys by strategy."""
+    points = experiment.points()
+    given = experiment.reference.strategies
+    if given:
+        return {p.id: given for p in points}, {}
+    specs = {(p.id, s): experiment.pilot_spec(p, s) for p in points for s in experiment.strategies}
+    manifests.update(execute_specs(list(specs.values()), options, conn, desc="pilots"))
+    chosen: dict[str, tuple[str, ...]] = {}
+    keys: dict[str, dict[str, str]] = {}
+    for p in points:
+        snaps: dict[str, exr.Snapshot] = {}
+        for s in experiment.strategies:
+            key = specs[(p.id, s)].key(options.renderer_version)
+            keys.setdefault(p.id, {})[s] = key
+            if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
+                try:
+                    snaps[s] = exr.read_snapshot(options.layout.run(key).final)
+                except CorruptExrError:
+                    pass
+        chosen[p.id] = pilot.choose(pilot.score(snaps, experiment.lit_threshold)) if snaps else (pilot.BASELINE,)
+    return chosen, keys
+
+
 def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = None) -> int:
-    """Runs the whole sweep; returns the exit status (0 all done, 1 failures)."""
+    """Runs the whole sweep; returns the exit status (0 all done, 1 failures or a bias)."""
     out = out or sys.stdout
     layout = options.layout
     layout.root.mkdir(parents=True, exist_ok=True)
     store.clean_stale_attempts(layout)
-    plan = make_plan(experiment, options.renderer_version)
+    runs = plan_runs(experiment, options.renderer_version)
     conn = index.connect(layout.index_path)
+    manifests: dict[str, dict[str, Any]] = {}
     try:
-        record_plan(conn, experiment, plan)
-        specs = plan.specs()
-        manifests = execute_specs(specs, options, conn)
-        rendered = sum(1 for m in manifests.values() if not m.get("cached"))
-        problems = compute_metrics(experiment, plan, options, conn, manifests)
-        rows = summarize(experiment, plan, conn, manifests)
-        failures = failures_of(plan, manifests)
-        write_summary(experiment, layout, rows, failures, problems)
+        chosen, pilot_keys = choose_reference_strategies(experiment, options, conn, manifests)
+        refs = {p.id: references.plan(experiment, p, chosen[p.id], options.renderer_version)
+                for p in experiment.points()}
+        record_plan(conn, experiment, runs, refs, pilot_keys)
+        part_specs = [part.spec for ref in refs.values() for part in ref.parts]
+        manifests.update(execute_specs(part_specs, options, conn, desc="references"))
+        biased = build_references(experiment, refs, options, conn, manifests)
+        if biased:
+            record_plan(conn, experiment, runs, refs, pilot_keys)
+            for line in biased:
+                print(f"bias: {line}", file=out)
+            print(f"sweep {experiment.name}: stopped: the two references of a point disagree, so one of "
+                  f"their strategies is biased; no run was measured against them", file=out)
+            return 1
+        manifests.update(execute_specs([r.spec for r in runs], options, conn, desc="runs"))
+        problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
+        checks = check_references(experiment, runs, refs, conn)
+        for _ in range(MAX_EXTENSION_ROUNDS):
+            extended = extend_references(experiment, refs, checks, options, manifests, out)
+            if not extended:
+                break
+            for pid in extended:
+                for part in refs[pid].parts:
+                    index.record_run(conn, manifests[part.key], layout.run(part.key, True).dir)
+            biased = build_references(experiment, {pid: refs[pid] for pid in extended}, options, conn, manifests)
+            if biased:
+                record_plan(conn, experiment, runs, refs, pilot_keys)
+                for line in biased:
+                    print(f"bias: {line}", file=out)
+                print(f"sweep {experiment.name}: stopped after extending references: one strategy is biased",
+                      file=out)
+                return 1
+            problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
+            checks = check_references(experiment, runs, refs, conn)
+        record_plan(conn, experiment, runs, refs, pilot_keys)
+        rows = summarize(experiment, runs, refs, conn, manifests)
+        info = references_info(refs, checks, manifests)
+        failures = failures_of(runs, refs, manifests)
+        failures += [f"reference {pid}: {ref.error}" for pid, ref in refs.items() if ref.error]
+        write_summary(experiment, layout, rows, info, failures, problems)
     finally:
         conn.close()
-    print(f"sweep {experiment.name}: {len(specs)} renders ({len(plan.references)} references), "
-          f"{rendered} rendered now, {len(specs) - rendered} cached", file=out)
+    # Combined references are computed, not rendered: they have no command.
+    rendered = sum(1 for m in manifests.values() if not m.get("cached") and m.get("command"))
+    cached = sum(1 for m in manifests.values() if m.get("cached") and m.get("command"))
+    print(f"sweep {experiment.name}: {len(runs)} runs, {sum(len(r.parts) for r in refs.values())} reference "
+          f"renders, {rendered} rendered now, {cached} cached", file=out)
+    print_references(info, out)
     print_table(rows, out)
-    print(f"summary: {layout.summary_json(experiment.name)}", file=out)
+    print(f"summary: {layout.summary_json(experiment.name)} (and .csv: one row per point, strategy and region)",
+          file=out)
     for p in problems:
         print(f"problem: {p}", file=out)
     if failures:
@@ -294,3 +452,15 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         for f in failures:
             print(f"  {f}", file=out)
     return 1 if failures or problems else 0
+
+
+def build_references(experiment: Experiment, refs: dict[str, PointReference], options: SweepOptions,
+                     conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]) -> list[str]:
+    """Builds each point's reference; returns the bias-test failures, as messages."""
+    biased: list[str] = []
+    for ref in refs.values():
+        references.build(ref, experiment, options.layout, options.renderer_version, manifests)
+        if ref.key is not None and ref.key in manifests and len(ref.parts) > 1:
+            index.record_run(conn, manifests[ref.key], options.layout.run(ref.key, True).dir)
+        biased += references.format_disagreement(ref, experiment.reference.bias_z) if len(ref.parts) > 1 else []
+    return biased

@@ -99,7 +99,7 @@ def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
             "sweep": {"params.s_L": [0.15, 0.6]},
             "fixed": {"params.s_P": 0.3},
             "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
-            "reference": {"strategy": "light", "spp": 400, "seed": 99},
+            "reference": {"strategy": "light", "spp": 2000, "seed": 99},
             "insets": [{"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
                        {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5}],
             "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},

@@ -26,6 +26,7 @@ def write_snapshot(
     rays: float = 1000.0,
     nonfinite_samples: float = 0.0,
     omit: tuple[str, ...] = (),
+    extra_channels: dict[str, np.ndarray] | None = None,
 ) -> None:
     """Writes atomically (temporary name, then rename), like the renderer."""
     rgb = np.asarray(rgb, dtype=np.float32)
@@ -35,6 +36,8 @@ def write_snapshot(
         "variance.R": variance[..., 0].copy(), "variance.G": variance[..., 1].copy(),
         "variance.B": variance[..., 2].copy(),
     }
+    for name, plane in (extra_channels or {}).items():
+        channels[name] = np.asarray(plane, dtype=np.float32).copy()
     header: dict[str, Any] = {
         "compression": OpenEXR.ZIP_COMPRESSION,
         "type": OpenEXR.scanlineimage,

@@ -9,11 +9,19 @@ mean falls as 1/spp. Time is virtual: each pass costs COST[strategy]
 seconds of reported render time (and FAKE_RENDER_SLEEP real seconds per
 virtual second, default 0).
 
+Region AOV (render.aov.region: true): the left half of the image is
+anti_umbra, the right half anti_antumbra, the top two rows emitter (every
+sample of a pixel in one class). render.resumable: true keeps the film in
+final.state (numpy), and `render --resume DIR --spp N` continues it; each
+pass draws from its own generator (seed, strategy, s_L, pass), so a resumed
+render equals an uninterrupted one.
+
 Environment knobs:
   FAKE_RENDER_LOG=path           append one line per render (strategy seed out)
   FAKE_RENDER_CRASH=s1,s2        these strategies die by SIGSEGV after the first snapshot
   FAKE_RENDER_UNIMPLEMENTED=s1   these strategies exit 1 with "not implemented"
   FAKE_RENDER_SLEEP=x            real seconds slept per virtual second
+  PORTAL_LIGHTS_FAULT_BIAS=s:f   as the renderer: samples of strategy s are multiplied by f
 """
 
 from __future__ import annotations
@@ -49,6 +57,15 @@ def true_mean(width: int, height: int, s_L: float) -> np.ndarray:
     return shade[..., None] * COLOUR * (1.0 + 0.5 * s_L)
 
 
+REGION_CLASSES = ("outside", "anti_umbra", "anti_penumbra", "anti_antumbra", "inside", "emitter", "miss")
+
+
+def region_fractions(width: int, height: int) -> dict[str, np.ndarray]:
+    cls = np.where(np.arange(width)[None, :] < width // 2, 1, 3) * np.ones((height, 1), dtype=int)
+    cls[:2, :] = 5
+    return {f"region.{name}": (cls == i).astype(np.float32) for i, name in enumerate(REGION_CLASSES)}
+
+
 def usage(message: str) -> None:
     print(f"render: {message}", file=sys.stderr)
     sys.exit(2)
@@ -75,7 +92,18 @@ def main(argv: list[str]) -> int:
     if "--help" in argv or not argv:
         print("usage: render CONFIG [--set key=value]... [--out DIR] ...", file=sys.stderr)
         return 0 if argv else 2
-    config_path, rest = argv[0], argv[1:]
+    resume_dir: Path | None = None
+    if argv[0] == "--resume":
+        if len(argv) < 2:
+            usage("--resume needs a folder")
+        resume_dir = Path(argv[1])
+        config_path, rest = str(resume_dir / "config.yaml"), argv[2:]
+        if not (resume_dir / "final.state.npz").exists():
+            print(f"render: {resume_dir}/final.state: missing (render with render.resumable: true to resume)",
+                  file=sys.stderr)
+            return 2
+    else:
+        config_path, rest = argv[0], argv[1:]
     sets: list[tuple[str, str]] = []
     flags = {"--out": "render.output", "--spp": "render.spp", "--time": "render.time", "--seed": "render.seed",
              "--threads": "render.threads", "--strategy": "render.strategy", "--integrator": "render.integrator"}
@@ -103,6 +131,8 @@ def main(argv: list[str]) -> int:
     for key, value in sets:
         set_path(tree, key, yaml.safe_load(value))
     render = tree.setdefault("render", {})
+    if resume_dir is not None:
+        render["output"] = str(resume_dir)
     strategy = str(render.get("strategy", "light"))
     if strategy not in STRATEGIES:
         print(f"{config_path}:1:1: unknown strategy \"{strategy}\" (expected {'|'.join(STRATEGIES)})", file=sys.stderr)
@@ -127,9 +157,14 @@ def main(argv: list[str]) -> int:
         print(f"{config_path}:1:1: spp and time are both 0", file=sys.stderr)
         return 2
     s_L = float(tree.get("params", {}).get("s_L", 0.5))
+    aov = bool((render.get("aov") or {}).get("region", False))
+    resumable = bool(render.get("resumable", False))
     effective = yaml.safe_dump(tree, sort_keys=True)
     (out / "config.yaml").write_text(effective)
-    config_hash = hashlib.sha256(effective.encode()).hexdigest()[:16]
+    image_tree = {k: v for k, v in tree.items() if k != "render"}
+    config_hash = hashlib.sha256(yaml.safe_dump(image_tree, sort_keys=True).encode()).hexdigest()[:16]
+    bias_strategy, _, bias_factor = os.environ.get("PORTAL_LIGHTS_FAULT_BIAS", "").partition(":")
+    bias = float(bias_factor) if bias_strategy == strategy else 1.0
     if log := os.environ.get("FAKE_RENDER_LOG"):
         with open(log, "a") as f:
             f.write(f"{strategy} {seed} {out}\n")
@@ -152,29 +187,38 @@ def main(argv: list[str]) -> int:
     mean = true_mean(width, height, s_L)
     sigma = SIGMA[strategy]
     cost = COST[strategy]
-    rng = np.random.default_rng([seed, STRATEGIES.index(strategy), int(round(s_L * 1e6))])
     acc_mean = np.zeros_like(mean)
     acc_m2 = np.zeros_like(mean)
     passes = 0
     t = 0.0
+    index = 0
+    if resume_dir is not None:
+        state = np.load(resume_dir / "final.state.npz")
+        acc_mean, acc_m2 = state["mean"].copy(), state["m2"].copy()
+        passes, t, index = int(state["passes"]), float(state["time"]), int(state["index"])
     sleep = float(os.environ.get("FAKE_RENDER_SLEEP", "0"))
     crash = strategy in os.environ.get("FAKE_RENDER_CRASH", "").split(",")
     next_every = every if every > 0 else float("inf")
     next_doubling = doubling if doubling > 0 else float("inf")
+    while next_every <= t:
+        next_every += every
+    while next_doubling <= t:
+        next_doubling *= 2
     next_spp = every_spp if every_spp > 0 else None
-    index = 0
 
     def write(path: Path) -> None:
         var = acc_m2 / max(passes - 1, 1) / max(passes, 1) if passes >= 2 else np.zeros_like(acc_m2)
         write_snapshot(path, acc_mean, var, render_time_s=t, spp=passes, strategy=strategy, integrator=integrator,
-                       seed=seed, config_hash=config_hash, renderer_version=VERSION, rays=2.0 * passes * width * height)
+                       seed=seed, config_hash=config_hash, renderer_version=VERSION, rays=2.0 * passes * width * height,
+                       extra_channels=region_fractions(width, height) if aov else None)
 
     while not stop["now"]:
         if spp_target and passes >= spp_target:
             break
         if time_target and t >= time_target - 1e-12:
             break
-        sample = mean * (1.0 + sigma * rng.standard_normal(mean.shape))
+        rng = np.random.default_rng([seed, STRATEGIES.index(strategy), int(round(s_L * 1e6)), passes])
+        sample = bias * mean * (1.0 + sigma * rng.standard_normal(mean.shape))
         passes += 1
         d = sample - acc_mean
         acc_mean += d / passes
@@ -200,6 +244,10 @@ def main(argv: list[str]) -> int:
                 sys.stderr.flush()
                 os.kill(os.getpid(), signal.SIGSEGV)
     final = out / "final.exr"
+    if resumable:
+        tmp = out / ".final.state.tmp.npz"
+        np.savez(tmp, mean=acc_mean, m2=acc_m2, passes=passes, time=t, index=index)
+        os.replace(tmp, out / "final.state.npz")
     write(final)
     emit({"event": "final", "path": str(final), "time_s": round(t, 6), "spp": passes,
           "rays": 2 * passes * width * height, "nonfinite": 0, "interrupted": stop["now"]})

@@ -25,8 +25,15 @@ def test_01_expands_the_cross_product(write_experiment: Callable[..., Path]) -> 
     spec = exp.run_spec(points[0], "portal")
     assert dict(spec.overrides) == {"film.width": "16", "params.s_L": "0.15", "params.s_P": "0.3"}
     assert spec.time_s == 0.2 and spec.strategy == "portal" and spec.threads == 1
-    ref = exp.reference_spec(points[0])
-    assert ref.reference and ref.strategy == "light" and ref.spp == 400
+    ref = exp.reference_spec(points[0], "light")
+    assert ref.reference and ref.strategy == "light" and ref.spp == 2000
+    # every reference render carries the region AOV and its film state (to be extended)
+    assert ("render.aov.region", "true") in ref.overrides and ("render.resumable", "true") in ref.overrides
+    # the second, independent part of a reference has its own seed
+    assert exp.reference_spec(points[0], "portal", part=1).seed != ref.seed
+    # replicates: every (strategy, replicate) its own seed
+    seeds = {exp.run_spec(points[0], s, replicate=k).seed for s in ("light", "portal") for k in range(3)}
+    assert len(seeds) == 6
 
 
 def test_02_shipped_experiments_load() -> None:

@@ -25,19 +25,24 @@ def test_01_two_point_sweep_on_a_local_cluster(cli: CliRunner, write_experiment:
     assert status == 1, out + err  # the two projection runs failed
     assert "2 failed:" in out and "SIGSEGV" in out
     summary = json.loads((results / "experiments" / "tiny" / "summary.json").read_text())
-    done = [r for r in summary["rows"] if r["status"] == "done"]
+    image = [r for r in summary["rows"] if r["region"] == "image"]
+    done = [r for r in image if r["status"] == "done"]
     assert len(done) == 4 and all(r["rel_mse"] > 0 for r in done)
     assert len(render_log()) == 2 + 6
     # the files came back over the wire into this results folder; nothing left on the workers' side here
-    for row in summary["rows"]:
-        run = results / "runs" / row["key"]
-        assert (run / "manifest.json").exists() and (run / "stderr.txt").exists()
-        if row["status"] == "done":
-            assert (run / "final.exr").stat().st_size > 0 and (run / "metrics.json").exists()
-    failed = next(r for r in summary["rows"] if r["status"] == "failed")
-    assert "simulated crash" in (results / "runs" / failed["key"] / "stderr.txt").read_text()
     conn = sqlite3.connect(results / "index.sqlite")
-    assert conn.execute("SELECT count(*) FROM runs").fetchone()[0] == 8
+    members = conn.execute("SELECT e.key, e.strategy, r.status FROM experiment_runs e JOIN runs r ON r.key = e.key "
+                           "WHERE e.role = 'run'").fetchall()
+    assert len(members) == 6
+    for key, strategy, run_status in members:
+        run = results / "runs" / key
+        assert (run / "manifest.json").exists() and (run / "stderr.txt").exists()
+        if run_status == "done":
+            assert (run / "final.exr").stat().st_size > 0 and (run / "metrics.json").exists()
+        else:
+            assert strategy == "projection"
+            assert "simulated crash" in (run / "stderr.txt").read_text()
+    assert conn.execute("SELECT count(*) FROM runs WHERE kind = 'run'").fetchone()[0] == 6
     conn.close()
     # resuming locally renders only what failed
     monkeypatch.delenv("FAKE_RENDER_CRASH")

@@ -73,7 +73,7 @@ def test_02_tiny_sweep_figures_and_resume(real_renderer: Path, tmp_path: Path, r
     exp = _experiment(tmp_path, ["light_area", "light", "portal"])
     status, out, err = cli("sweep", str(exp), "--no-progress", renderer=real_renderer)
     summary = json.loads((results / "experiments" / "real_tiny" / "summary.json").read_text())
-    rows = {(r["point"], r["strategy"]): r for r in summary["rows"]}
+    rows = {(r["point"], r["strategy"]): r for r in summary["rows"] if r["region"] == "image"}
     for point in ("s_L=0.15", "s_L=1.2"):
         for strategy in ("light_area", "light"):
             r = rows[(point, strategy)]

@@ -29,22 +29,35 @@ def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experim
     exp = write_experiment()
     status, out, err = cli("sweep", str(exp), "--no-progress")
     assert status == 0, out + err
-    assert len(render_log()) == 2 + 4  # two references, two points x two strategies
-    assert "6 rendered now, 0 cached" in out
+    # two references (no extension needed at 2000 spp), two points x two strategies
+    assert len(render_log()) == 2 + 4, out
+    assert "6 rendered now" in out
 
     summary = json.loads((results / "experiments" / "tiny" / "summary.json").read_text())
-    assert len(summary["rows"]) == 4 and not summary["failures"]
+    # tidy: one row per (point, strategy, region); regions: image, lit, the two insets and the
+    # fake's three AOV classes (anti_umbra, anti_antumbra, emitter)
+    regions = ["image", "lit", "left", "right", "anti_umbra", "anti_antumbra", "emitter"]
+    assert len(summary["rows"]) == 2 * 2 * len(regions) and not summary["failures"]
+    assert sorted({r["region"] for r in summary["rows"]}) == sorted(regions)
     for row in summary["rows"]:
-        assert row["status"] == "done" and row["rel_mse"] > 0 and row["rel_mse_left"] > 0
+        assert row["status"] == "done" and row["rel_mse"] > 0 and row["replicates"] == 1
+        assert row["reference_noise_ratio"] <= 0.1 and row["bound"] == ""
     # the fake's portal strategy has a lower sigma at about the same cost: more efficient
     portal = [r for r in summary["rows"] if r["strategy"] == "portal"]
     assert all(r["efficiency_vs_light"] > 1.5 for r in portal)
-    assert (results / "experiments" / "tiny" / "summary.csv").read_text().startswith("point,")
+    assert all(r["speedup_equal_error"] > 1.5 for r in portal)
+    lit = {r["point"]: r for r in portal if r["region"] == "lit"}
+    # lit leaves out the emitter rows (the fake's top two rows) and nothing else
+    assert all(r["pixels"] == 16 * 14 for r in lit.values())
+    csv_text = (results / "experiments" / "tiny" / "summary.csv").read_text()
+    assert csv_text.startswith("point,axis,strategy,status,region,")
+    assert len(csv_text.strip().splitlines()) == 1 + len(summary["rows"])
 
     conn = sqlite3.connect(results / "index.sqlite")
     assert conn.execute("SELECT count(*) FROM runs WHERE status = 'done'").fetchone()[0] == 6
     assert conn.execute("SELECT count(*) FROM runs WHERE kind = 'reference'").fetchone()[0] == 2
-    assert conn.execute("SELECT count(*) FROM experiment_runs WHERE experiment = 'tiny'").fetchone()[0] == 6
+    # runs, reference parts and the reference the metrics use (here the only part)
+    assert conn.execute("SELECT count(*) FROM experiment_runs WHERE experiment = 'tiny'").fetchone()[0] == 4 + 2 + 2
     n_metrics = conn.execute("SELECT count(*) FROM metrics WHERE region = 'image'").fetchone()[0]
     assert n_metrics >= 4 * 4  # several snapshots per run
     conn.close()
@@ -67,7 +80,7 @@ def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experim
     before = len(render_log())
     status, out, _ = cli("sweep", str(exp), "--no-progress")
     assert status == 0 and len(render_log()) == before  # nothing rendered again
-    assert "0 rendered now, 6 cached" in out
+    assert "0 rendered now" in out
 
 
 def test_02_failed_runs_are_recorded_and_the_sweep_goes_on(cli: CliRunner, write_experiment: Callable[..., Path],
@@ -106,7 +119,9 @@ def test_03_killed_sweep_resumes_without_redoing_finished_runs(write_experiment:
                                                                render_log: Callable[[], list[str]]) -> None:
     exp = write_experiment(strategies=["light", "portal", "projection"])
     env = {**os.environ, "FAKE_RENDER_SLEEP": "2.0"}  # each render takes about 0.4 s (refs 8 s)
-    exp_doc = exp.read_text().replace("spp: 400", "spp: 20")
+    # short references, and a noise limit they meet without an extension
+    exp_doc = exp.read_text().replace("spp: 2000", "spp: 80\n  noise_ratio: 0.99")
+    assert "noise_ratio" in exp_doc
     exp.write_text(exp_doc)
     cmd = [sys.executable, "-m", "portal_harness", "sweep", str(exp), "--results", str(results),
            "--renderer", str(fake_renderer), "--no-progress", "--jobs", "1"]
@@ -127,7 +142,7 @@ def test_03_killed_sweep_resumes_without_redoing_finished_runs(write_experiment:
     status = subprocess.run(cmd, env={**os.environ}, capture_output=True, text=True, timeout=120)
     assert status.returncode == 0, status.stdout + status.stderr
     again = _keys_rendered(render_log())[len(started):]
-    assert not set(again) & finished  # nothing finished was redone
+    assert not set(again) & finished, status.stdout  # nothing finished was redone
     assert len(again) == 8 - len(finished)
     assert "cached" in status.stdout
     assert not any((results / "runs" / ".attempts").iterdir())
@@ -164,6 +179,7 @@ def test_05_metrics_command(cli: CliRunner, fake_scene: Path, results: Path,
     assert (run_dir / "metrics.csv").exists() and (run_dir / "metrics.json").exists()
     status, out, _ = cli("metrics", str(run_dir), "--json")
     rows = json.loads(out)
-    assert rows and all(r["region"] == "image" for r in rows)
+    # a reference without the region AOV: the whole image and its lit pixels only
+    assert rows and {r["region"] for r in rows} == {"image", "lit"}
     status, out, err = cli("metrics", key, "--inset", "huge=0,0,99,99")
     assert status == 2 and "does not fit" in err

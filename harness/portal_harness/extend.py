@@ -1,0 +1,80 @@
+"""Extending a finished reference with more samples (`render --resume`).
+
+The renderer continues the reference's running mean and variance with
+passes it had not drawn, bit-identical to an uninterrupted render of the
+total spp (renderer README, "Resuming a render"). The harness does it in
+a copy: the installed folder is copied to an attempt folder, resumed there,
+checked like any run, given its new manifest (the old one with the new
+final image and an `extensions` entry) and installed in place of the old
+folder. A failed or killed extension leaves the installed reference as it
+was. Extensions run on the local machine (they need the reference's film
+state), also when the sweep's renders go to Dask.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import shutil
+from typing import Any
+
+from portal_harness import exr, store
+from portal_harness.errors import CorruptExrError
+from portal_harness.paths import ResultsLayout
+from portal_harness.renderer import EXIT_OK, render
+from portal_harness.runs import default_timeout, file_tail
+from portal_harness.spec import RunSpec
+
+
+def _now() -> str:
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def resume_command(renderer: str, run_dir: str, total_spp: int, threads: int) -> list[str]:
+    """The renderer contract's resume call: totals, not increments."""
+    return [renderer, "--resume", run_dir, "--spp", str(total_spp), "--time", "0", "--threads", str(threads),
+            "--quiet"]
+
+
+def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threads: int) -> dict[str, Any]:
+    """Resumes reference `key` to `total_spp` samples per pixel; returns its
+    new manifest (status failed, and the old folder untouched, on failure)."""
+    target = layout.run(key, True)
+    old = store.read_manifest(target)
+    if old is None or old.get("status") != store.STATUS_DONE:
+        raise ValueError(f"reference {key} is not a finished run")
+    attempt = store.new_attempt(layout, key, True)
+    for item in target.dir.iterdir():
+        if item.is_file() and item.name != "manifest.json":
+            shutil.copy2(item, attempt.dir / item.name)
+    before = int(old["final"]["spp"])
+    command = resume_command(renderer, str(attempt.dir), total_spp, threads)
+    spec = RunSpec.from_dict(old["spec"])
+    started = _now()
+    result = render(command, attempt.events, attempt.stderr,
+                    timeout_s=default_timeout(spec) if spec.time_s > 0 else None)
+    entry: dict[str, Any] = {"from_spp": before, "to_spp": total_spp, "started": started, "finished": _now(),
+                             "wall_s": round(result.wall_s, 3), "exit_status": result.exit_status,
+                             "command": resume_command(renderer, str(target.dir), total_spp, threads)}
+    error = None
+    final = None
+    if result.exit_status != EXIT_OK or result.signal_name is not None:
+        error = f"render --resume exited with status {result.exit_status} {result.signal_name or ''}".rstrip()
+    else:
+        try:
+            snap = exr.read_snapshot(attempt.final)
+            if snap.header.spp != total_spp:
+                error = f"resumed reference has {snap.header.spp} spp, expected {total_spp}"
+            final = {"file": attempt.relative(attempt.final), "time_s": snap.header.render_time_s,
+                     "spp": snap.header.spp, "rays": snap.header.rays, "nonfinite": snap.header.nonfinite_samples}
+        except CorruptExrError as e:
+            error = str(e)
+    if error is not None:
+        tail = file_tail(attempt.stderr)
+        shutil.rmtree(attempt.dir, ignore_errors=True)
+        return {**old, "status": store.STATUS_FAILED, "error": f"extension failed: {error}", "stderr_tail": tail}
+    manifest = {**old, "final": final, "extensions": [*old.get("extensions", []), entry],
+                "timings": {**old.get("timings", {}), "render_time_s": final["time_s"] if final else None}}
+    store.write_json_atomic(attempt.manifest, manifest)
+    store.install(layout, key, True, attempt)
+    return manifest
+

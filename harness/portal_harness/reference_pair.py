@@ -1,0 +1,106 @@
+"""Two independent references of one point: a bias test between them, and
+their combination into the reference the metrics use.
+
+Bias test. Renders A and B with different strategies and seeds are
+independent, and both unbiased strategies have the same expected image. Over
+the N pixel-channels i of a region, D = sum_i (a_i - b_i) then has mean 0
+and variance sum_i (Var a_i + Var b_i) (each pixel its own random streams),
+estimated from the renders' variance layers, so
+
+    z = D / sqrt(sum_i (va_i + vb_i))  ~  N(0, 1)
+
+by the central limit theorem over the region. |z| > bias_z (default 4, a
+false alarm probability of 6e-5 per region) means one strategy is biased
+there, and the sweep stops: nothing measured against such a reference could
+be trusted. A region where both are exactly equal (no light reaches it) has
+z = 0.
+
+Combination. Each region class of the AOV (and the pixels with no majority
+class, as one more group) gets the inverse-variance weights of its pooled
+relative variances,
+
+    w_A = V_B / (V_A + V_B),  V_X = mean over the group of var_X / (m^2 + eps),
+
+with m = (a + b) / 2. Pooled over many pixels, V_X is nearly a constant, so
+the weights are (almost) independent of the pixel values they weight: per
+pixel weights from the pixel's own noisy variance would correlate with its
+value and bias the combination. The combined variance is
+w_A^2 va + w_B^2 vb.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from portal_harness import exr
+from portal_harness.metrics import REL_EPSILON
+from portal_harness.regions import NamedRegion, class_map
+
+
+@dataclass(frozen=True)
+class RegionDisagreement:
+    region: str
+    z: float
+    mean_difference: float   # mean of a - b over the region's pixel-channels
+    pixels: int
+
+
+def disagreement(a: exr.Snapshot, b: exr.Snapshot, regions: list[NamedRegion]) -> list[RegionDisagreement]:
+    out = []
+    for r in regions:
+        d = a.rgb[r.mask] - b.rgb[r.mask]
+        v = a.variance[r.mask] + b.variance[r.mask]
+        total, var = float(np.sum(d)), float(np.sum(v))
+        if var > 0:
+            z = total / math.sqrt(var)
+        else:
+            z = 0.0 if total == 0 else math.copysign(math.inf, total)
+        out.append(RegionDisagreement(r.name, z, float(np.mean(d)) if d.size else 0.0, r.pixels))
+    return out
+
+
+def failures(found: list[RegionDisagreement], z_max: float) -> list[RegionDisagreement]:
+    return [d for d in found if abs(d.z) > z_max]
+
+
+def _groups(a: exr.Snapshot) -> np.ndarray:
+    """Per pixel, the group its weights come from: its AOV class (-1 when no
+    class has the majority), or 0 everywhere without the AOV."""
+    if a.regions is None:
+        return np.zeros(a.rgb.shape[:2], dtype=np.int64)
+    return class_map(a.regions)
+
+
+def weights(a: exr.Snapshot, b: exr.Snapshot) -> np.ndarray:
+    """Per pixel, the weight of A (B gets 1 - it)."""
+    groups = _groups(a)
+    m = 0.5 * (a.rgb + b.rgb)
+    denom = m * m + REL_EPSILON
+    w = np.full(groups.shape, 0.5)
+    for g in np.unique(groups):
+        mask = groups == g
+        va = float(np.mean(a.variance[mask] / denom[mask]))
+        vb = float(np.mean(b.variance[mask] / denom[mask]))
+        if va + vb > 0:
+            w[mask] = vb / (va + vb)
+    return w
+
+
+def combine(a: exr.Snapshot, b: exr.Snapshot, strategy_label: str, config_hash: str) -> exr.Snapshot:
+    """The combined reference; its header sums the two renders' samples and time."""
+    w = weights(a, b)[..., None]
+    rgb = w * a.rgb + (1 - w) * b.rgb
+    variance = w * w * a.variance + (1 - w) * (1 - w) * b.variance
+    header = replace(
+        a.header,
+        render_time_s=a.header.render_time_s + b.header.render_time_s,
+        spp=a.header.spp + b.header.spp,
+        strategy=strategy_label,
+        config_hash=config_hash,
+        rays=a.header.rays + b.header.rays,
+        nonfinite_samples=a.header.nonfinite_samples + b.header.nonfinite_samples,
+    )
+    return exr.Snapshot(path=a.path, header=header, rgb=rgb, variance=variance, regions=a.regions)

@@ -1,0 +1,90 @@
+"""The regions every metric is computed on, as boolean pixel masks.
+
+- `image`: every pixel;
+- `lit`: pixels whose reference value (mean over channels) is above a small
+  threshold and whose primary hits are not mostly on an emitter (the band
+  where the camera sees the lamp through the opening is the same for every
+  light strategy, and would otherwise dominate the error);
+- each inset of the experiment (a rectangle);
+- each antishadow region class of the renderer's region AOV
+  (`region.<class>` channels, exr.REGION_CLASSES): the pixels where that
+  class holds the majority (more than half) of the pixel's samples. Pixels
+  with no majority (on a boundary) belong to no class. A class with fewer
+  than CLASS_MIN_PIXELS pixels is left out: its mean says little.
+
+The class map comes from the reference (the renderer's own classifier, not a
+re-implementation). A reference without the AOV gives no classes, and `lit`
+then cannot leave out the emitter.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from portal_harness.exr import REGION_CLASSES, Snapshot
+from portal_harness.metrics import WHOLE_IMAGE, Region
+
+LIT = "lit"
+EMITTER = "emitter"
+CLASS_MIN_PIXELS = 16
+MAJORITY = 0.5
+# Radiance (mean over R, G, B) above which a reference pixel counts as lit.
+DEFAULT_LIT_THRESHOLD = 1e-3
+
+KIND_IMAGE, KIND_LIT, KIND_INSET, KIND_CLASS = "image", "lit", "inset", "class"
+
+
+@dataclass(frozen=True, eq=False)
+class NamedRegion:
+    name: str
+    kind: str           # KIND_IMAGE | KIND_LIT | KIND_INSET | KIND_CLASS
+    mask: np.ndarray    # bool, (height, width)
+
+    @property
+    def pixels(self) -> int:
+        return int(self.mask.sum())
+
+
+def class_map(regions: np.ndarray) -> np.ndarray:
+    """Per pixel, the index into REGION_CLASSES of the class holding the
+    majority of its samples, or -1 where none does."""
+    best = np.argmax(regions, axis=-1)
+    share = np.take_along_axis(regions, best[..., None], axis=-1)[..., 0]
+    return np.where(share > MAJORITY, best, -1)
+
+
+def inset_mask(region: Region, height: int, width: int) -> np.ndarray:
+    mask = np.zeros((height, width), dtype=bool)
+    mask[region.y:region.y + region.height, region.x:region.x + region.width] = True
+    return mask
+
+
+def regions_of(reference: Snapshot, insets: tuple[Region, ...],
+               lit_threshold: float = DEFAULT_LIT_THRESHOLD) -> list[NamedRegion]:
+    """Every region of the experiment, in report order: image, lit, insets, classes."""
+    height, width = reference.rgb.shape[:2]
+    out = [NamedRegion(WHOLE_IMAGE, KIND_IMAGE, np.ones((height, width), dtype=bool))]
+    lit = reference.rgb.mean(axis=-1) > lit_threshold
+    classes = class_map(reference.regions) if reference.regions is not None else None
+    if classes is not None:
+        lit &= classes != REGION_CLASSES.index(EMITTER)
+    out.append(NamedRegion(LIT, KIND_LIT, lit))
+    out += [NamedRegion(r.name, KIND_INSET, inset_mask(r, height, width)) for r in insets]
+    if classes is not None:
+        for i, name in enumerate(REGION_CLASSES):
+            mask = classes == i
+            if mask.sum() >= CLASS_MIN_PIXELS:
+                out.append(NamedRegion(name, KIND_CLASS, mask))
+    return out
+
+
+def fingerprint(regions: list[NamedRegion]) -> str:
+    """Identifies the masks, so that metrics computed on other masks are redone."""
+    h = hashlib.sha256()
+    for r in regions:
+        h.update(f"{r.name}:{r.kind}:".encode())
+        h.update(np.packbits(r.mask).tobytes())
+    return h.hexdigest()[:16]
