@@ -43,8 +43,12 @@ static const char *const light_keys[] = { "name", "vertices", "radiance", "two_s
 static const char *const portal_keys[] = { "name", "light", "vertices" };
 static const char *const render_keys[] = { "integrator", "strategy", "mis",       "portal_weight", "defensive",
                                            "max_depth",  "rr_depth", "spp",       "time",          "snapshots",
-                                           "seed",       "threads",  "output" };
+                                           "seed",       "threads",  "output",    "aov" };
 static const char *const snapshot_keys[] = { "every", "doubling", "times", "every_spp", "spp" };
+static const char *const aov_keys[] = { "region" };
+/* Optional mappings that --set creates when they are missing, so that
+   `--set render.aov.region=true` works on a config without `aov:`. */
+static const char *const override_mapping_paths[] = { "render.snapshots", "render.aov" };
 
 /* Geometric tolerances, relative to the size (diameter) of each polygon so
    that a scene in millimetres validates like one in metres. */
@@ -958,6 +962,14 @@ static bool load_snapshots(struct loader *L, const yaml_node_t *map, struct snap
     return true;
 }
 
+static bool load_aov(struct loader *L, const yaml_node_t *map, struct render_desc *r)
+{
+    yaml_node_t *n;
+    if (!check_keys(L, map, "render.aov", aov_keys, COUNT(aov_keys))) return false;
+    if ((n = map_get(L, map, "region")) && !get_bool(L, n, &r->aov_region)) return false;
+    return true;
+}
+
 /* The seed is read from its text when it is a literal: a double would lose
    the low bits of seeds above 2^53. */
 static bool get_seed(struct loader *L, const yaml_node_t *n, uint64_t *out)
@@ -1014,6 +1026,7 @@ static bool load_render(struct loader *L, const yaml_node_t *root, struct config
     r->rr_depth = 3;
     r->seed = 1;
     r->threads = 0;
+    r->aov_region = false;
     snprintf(r->output, sizeof r->output, "results/renders/out");
     if (!map || !expect_type(L, map, YAML_MAPPING_NODE, "a mapping") ||
         !check_keys(L, map, "render", render_keys, COUNT(render_keys)))
@@ -1043,6 +1056,7 @@ static bool load_render(struct loader *L, const yaml_node_t *root, struct config
         return false;
     if ((n = map_get(L, map, "seed")) && !get_seed(L, n, &r->seed)) return false;
     if ((n = map_get(L, map, "threads")) && !get_threads(L, n, &r->threads)) return false;
+    if (!get_optional(L, map, "aov", YAML_MAPPING_NODE, &n) || (n && !load_aov(L, n, r))) return false;
     if ((n = map_get(L, map, "output")) && !get_string(L, n, r->output, sizeof r->output)) return false;
     c->output_override = n ? override_of(L, n) : -1;
     if (c->output_override < 0) c->output_loc = loc_of(L, n ? n : map);
@@ -1072,6 +1086,25 @@ static bool mark_override(struct loader *L, int node, int k)
     return true;
 }
 
+/* For override k, whose first `len` characters name the missing key `comp`
+   of mapping `parent`: when that prefix is one of override_mapping_paths,
+   adds comp as an empty mapping and sets *made to its node id (else 0). */
+static bool add_override_mapping(struct loader *L, int k, int parent, const char *comp, size_t len, int *made)
+{
+    const char *path = L->overrides[k].path;
+    *made = 0;
+    for (int i = 0; i < COUNT(override_mapping_paths); ++i)
+        if (strlen(override_mapping_paths[i]) == len && !strncmp(path, override_mapping_paths[i], len)) {
+            int key = yaml_document_add_scalar(&L->doc, NULL, (yaml_char_t *)comp, -1, YAML_PLAIN_SCALAR_STYLE);
+            int map = key ? yaml_document_add_mapping(&L->doc, NULL, YAML_FLOW_MAPPING_STYLE) : 0;
+            if (!key || !map || !yaml_document_append_mapping_pair(&L->doc, parent, key, map))
+                return error_set(L->err, "--set %s: out of memory", path);
+            *made = map;
+            return mark_override(L, key, k) && mark_override(L, map, k);
+        }
+    return true;
+}
+
 /* Walks the dot-separated path from the root and replaces (or, for a missing
    last key of a mapping, adds) the scalar it names. Nodes are re-fetched by
    id after each addition because adding may move the node array. */
@@ -1098,7 +1131,15 @@ static bool apply_override(struct loader *L, int k)
                 if (key->type == YAML_SCALAR_NODE && strcmp(text_of(key), comp) == 0)
                     slot = &node->data.mapping.pairs.start[i].value;
             }
-            if (!slot && !last) return error_set(L->err, "--set %s: no key \"%s\" in %s", o->path, comp, where);
+            if (!slot && !last) {
+                int made = 0;
+                if (!add_override_mapping(L, k, cur, comp, (size_t)(dot - path), &made)) return false;
+                if (!made) return error_set(L->err, "--set %s: no key \"%s\" in %s", o->path, comp, where);
+                cur = made;
+                snprintf(where, sizeof where, "%.*s", (int)(dot - path), o->path);
+                comp = dot + 1;
+                continue;
+            }
             if (!slot) {
                 int key = yaml_document_add_scalar(&L->doc, NULL, (yaml_char_t *)comp, -1, YAML_PLAIN_SCALAR_STYLE);
                 int value = key ? yaml_document_add_scalar(&L->doc, NULL, (yaml_char_t *)o->value, -1,
@@ -1388,7 +1429,7 @@ static void emit_render(struct text *t, const struct render_desc *r)
         text_printf(t, "%d", r->threads);
     text_printf(t, "\n  output: ");
     emit_string(t, r->output);
-    text_printf(t, "\n");
+    text_printf(t, "\n  aov: {region: %s}\n", r->aov_region ? "true" : "false");
 }
 
 /* FNV-1a, 64-bit. */
@@ -1893,8 +1934,9 @@ static bool load_text(const char *text, size_t length, const char *name, const s
     L.n_sources = 1;
     bool ok = true;
     if (L.n_overrides) {
-        /* Each override marks at most a key and a value node. */
-        L.marks = calloc((size_t)L.n_overrides * 2, sizeof *L.marks);
+        /* Each override marks at most a key and a value node, plus a key
+           and a mapping it creates (add_override_mapping). */
+        L.marks = calloc((size_t)L.n_overrides * 4, sizeof *L.marks);
         ok = L.marks != NULL || error_set(err, "%s: out of memory", L.file);
     }
     ok = ok && load_document(&L, text, length);

@@ -120,6 +120,7 @@ struct render_desc {
     uint64_t seed;
     int threads;                  /* 0: auto (number of online CPUs) */
     char output[CONFIG_PATH_MAX];
+    bool aov_region;              /* render.aov.region: per-pixel antishadow region classes (aov.h) */
 };
 
 struct config {

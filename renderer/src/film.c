@@ -36,6 +36,39 @@ static const char *const channel_names[6] = {
     "R", "G", "B", "variance.R", "variance.G", "variance.B",
 };
 
+/* The region AOV's channels are "region." + aov_region_names[k]. */
+#define REGION_PREFIX "region."
+#define REGION_PREFIX_LEN 7
+
+/* Where channel `name` lives in img: its first float, with *per_pixel
+   floats from one pixel to the next; NULL for a channel img does not hold. */
+static float *channel_data(const struct film_image *img, const char *name, size_t len, int *per_pixel)
+{
+    for (int k = 0; k < 6; ++k)
+        if (len == strlen(channel_names[k]) && !memcmp(name, channel_names[k], len)) {
+            *per_pixel = 3;
+            return k < 3 ? img->rgb + k : img->variance + (k - 3);
+        }
+    if (!img->region || len <= REGION_PREFIX_LEN || memcmp(name, REGION_PREFIX, REGION_PREFIX_LEN)) return NULL;
+    for (int k = 0; k < AOV_REGION_COUNT; ++k)
+        if (len - REGION_PREFIX_LEN == strlen(aov_region_names[k]) &&
+            !memcmp(name + REGION_PREFIX_LEN, aov_region_names[k], len - REGION_PREFIX_LEN)) {
+            *per_pixel = AOV_REGION_COUNT;
+            return img->region + k;
+        }
+    return NULL;
+}
+
+/* The aov_region_classes attribute: the class names in order. */
+static void region_classes(char *buf, size_t size)
+{
+    size_t used = 0;
+    buf[0] = '\0';
+    for (int k = 0; k < AOV_REGION_COUNT && used < size; ++k)
+        used += (size_t)snprintf(buf + used, size - used, "%s%s", k ? " " : "", aov_region_names[k]);
+}
+#define REGION_CLASSES_MAX 128
+
 static bool check_size(int width, int height, const char *what, struct error *err)
 {
     if (width <= 0 || height <= 0)
@@ -87,11 +120,23 @@ void film_add_row(struct film *f, int y, const struct rgb *c, int n)
     }
 }
 
+bool film_enable_regions(struct film *f, struct error *err)
+{
+    size_t n = (size_t)AOV_REGION_COUNT * (size_t)f->width * (size_t)f->height;
+    free(f->region_count);
+    f->region_count = calloc(n, sizeof *f->region_count);
+    if (!f->region_count)
+        return error_set(err, "film %dx%d: cannot allocate %zu MiB for the region AOV", f->width, f->height,
+                         (n * sizeof(uint32_t)) >> 20);
+    return true;
+}
+
 void film_free(struct film *f)
 {
     free(f->mean);
     free(f->m2);
     free(f->count);
+    free(f->region_count);
     memset(f, 0, sizeof *f);
 }
 
@@ -112,10 +157,22 @@ bool film_image_alloc(struct film_image *img, int width, int height, struct erro
     return true;
 }
 
+bool film_image_enable_regions(struct film_image *img, struct error *err)
+{
+    size_t n = (size_t)AOV_REGION_COUNT * (size_t)img->width * (size_t)img->height;
+    free(img->region);
+    img->region = malloc(n * sizeof *img->region);
+    if (!img->region)
+        return error_set(err, "image %dx%d: cannot allocate %zu MiB for the region AOV", img->width, img->height,
+                         (n * sizeof(float)) >> 20);
+    return true;
+}
+
 void film_image_free(struct film_image *img)
 {
     free(img->rgb);
     free(img->variance);
+    free(img->region);
     memset(img, 0, sizeof *img);
 }
 
@@ -152,6 +209,14 @@ void film_snapshot(const struct film *f, struct film_image *img)
             img->rgb[k] = narrow_mean(f->mean[k]);
             img->variance[k] = n >= 2.0 ? narrow_variance(f->m2[k] * scale) : 0.0f;
         }
+    }
+    if (!img->region) return;
+    assert(f->region_count);
+    for (size_t p = 0; p < pixels; ++p) {
+        /* The counts sum to count[p]: dropped samples are in neither. */
+        double inv = f->count[p] > 0 ? 1.0 / (double)f->count[p] : 0.0;
+        for (size_t k = AOV_REGION_COUNT * p; k < AOV_REGION_COUNT * (p + 1); ++k)
+            img->region[k] = (float)((double)f->region_count[k] * inv);
     }
 }
 
@@ -284,6 +349,19 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
         if ((rc = exr_add_channel(ctx, part, channel_names[k], EXR_PIXEL_FLOAT,
                                   EXR_PERCEPTUALLY_LINEAR, 1, 1)))
             return exr_fail(err, path, "exr_add_channel", rc, s);
+    char classes[REGION_CLASSES_MAX];
+    for (int k = 0; img->region && k < AOV_REGION_COUNT; ++k) {
+        char name[REGION_PREFIX_LEN + 32];
+        snprintf(name, sizeof name, REGION_PREFIX "%s", aov_region_names[k]);
+        /* Fractions: linear, not perceptual, as far as a viewer cares. */
+        if ((rc = exr_add_channel(ctx, part, name, EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1, 1)))
+            return exr_fail(err, path, "exr_add_channel", rc, s);
+    }
+    if (img->region) {
+        region_classes(classes, sizeof classes);
+        if ((rc = exr_attr_set_string(ctx, part, "aov_region_classes", classes)))
+            return exr_fail(err, path, "exr_attr_set", rc, s);
+    }
 
     char seed[24], hash[24];
     snprintf(seed, sizeof seed, "%" PRIu64, info->seed);
@@ -309,7 +387,6 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
     struct compress_hook hook = { NULL };
     bool ok = true;
-    size_t row = 3 * (size_t)img->width;
     for (int y = 0; ok && y < img->height; y += lines) {
         exr_chunk_info_t chunk;
         const char *call = "exr_write_scanline_chunk_info";
@@ -324,12 +401,12 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
                point each at its interleaved component of rows y onward. */
             for (int c = 0; c < enc.channel_count; ++c) {
                 exr_coding_channel_info_t *ch = &enc.channels[c];
-                int k = 0;
-                while (k < 6 && strcmp(ch->channel_name, channel_names[k])) ++k;
-                assert(k < 6);
-                const float *base = k < 3 ? img->rgb + k : img->variance + (k - 3);
+                int per_pixel = 0;
+                const float *base = channel_data(img, ch->channel_name, strlen(ch->channel_name), &per_pixel);
+                assert(base);
+                size_t row = (size_t)per_pixel * (size_t)img->width;
                 ch->encode_from_ptr = (const uint8_t *)(base + (size_t)chunk.start_y * row);
-                ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
+                ch->user_pixel_stride = per_pixel * (int32_t)sizeof(float);
                 ch->user_line_stride = (int32_t)(row * sizeof(float));
                 ch->user_bytes_per_element = (int16_t)sizeof(float);
                 ch->user_data_type = EXR_PIXEL_FLOAT;
@@ -480,22 +557,47 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
 
     const exr_attr_chlist_t *chlist;
     if ((rc = exr_get_channels(ctx, 0, &chlist))) return exr_fail(err, path, "exr_get_channels", rc, s);
-    for (int k = 0; k < 6; ++k) {
+    /* The six radiance channels, then the region AOV's: all or none. */
+    char wanted[6 + AOV_REGION_COUNT][REGION_PREFIX_LEN + 32];
+    bool have[6 + AOV_REGION_COUNT];
+    int n_regions = 0;
+    for (int k = 0; k < 6 + AOV_REGION_COUNT; ++k) {
+        if (k < 6) snprintf(wanted[k], sizeof wanted[k], "%s", channel_names[k]);
+        else snprintf(wanted[k], sizeof wanted[k], REGION_PREFIX "%s", aov_region_names[k - 6]);
         const exr_attr_chlist_entry_t *e = NULL;
         for (int c = 0; c < chlist->num_channels && !e; ++c) {
             const exr_attr_string_t *nm = &chlist->entries[c].name;
-            if ((size_t)nm->length == strlen(channel_names[k]) &&
-                !memcmp(nm->str, channel_names[k], (size_t)nm->length))
+            if ((size_t)nm->length == strlen(wanted[k]) && !memcmp(nm->str, wanted[k], (size_t)nm->length))
                 e = &chlist->entries[c];
         }
-        if (!e) return error_set(err, "%s: missing channel %s", path, channel_names[k]);
-        if (e->pixel_type != EXR_PIXEL_FLOAT || e->x_sampling != 1 || e->y_sampling != 1)
+        have[k] = e != NULL;
+        if (!e && k < 6) return error_set(err, "%s: missing channel %s", path, wanted[k]);
+        if (e && (e->pixel_type != EXR_PIXEL_FLOAT || e->x_sampling != 1 || e->y_sampling != 1))
             return error_set(err, "%s: channel %s is not a full-resolution 32-bit float channel",
-                             path, channel_names[k]);
+                             path, wanted[k]);
+        n_regions += k >= 6 && e;
     }
-    if (!film_image_alloc(img, (int)width, (int)height, err)) {
+    for (int k = 6; n_regions > 0 && k < 6 + AOV_REGION_COUNT; ++k)
+        if (!have[k]) return error_set(err, "%s: missing channel %s (the file has other region channels)", path,
+                                       wanted[k]);
+    if (n_regions > 0) {
+        /* The channels are found by name; the attribute must still agree,
+           or the file was written with other classes. */
+        char classes[REGION_CLASSES_MAX];
+        const char *str;
+        int32_t len;
+        region_classes(classes, sizeof classes);
+        if ((rc = exr_attr_get_string(ctx, 0, "aov_region_classes", &len, &str)))
+            return error_set(err, "%s: attribute aov_region_classes: %s", path, exr_get_default_error_message(rc));
+        if ((size_t)len != strlen(classes) || memcmp(str, classes, (size_t)len))
+            return error_set(err, "%s: attribute aov_region_classes is \"%.*s\" (expected \"%s\")", path,
+                             len > 200 ? 200 : (int)len, str, classes);
+    }
+    if (!film_image_alloc(img, (int)width, (int)height, err) ||
+        (n_regions > 0 && !film_image_enable_regions(img, err))) {
         char inner[ERROR_MESSAGE_MAX];
         snprintf(inner, sizeof inner, "%s", err ? err->message : "");
+        film_image_free(img);
         return error_set(err, "%s: %s", path, inner);
     }
 
@@ -504,7 +606,6 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
         return exr_fail(err, path, "exr_get_scanlines_per_chunk", rc, s);
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     bool ok = true;
-    size_t row = 3 * (size_t)width;
     for (int64_t y = dw.min.y; ok && y <= dw.max.y; y += lines) {
         exr_chunk_info_t chunk;
         const char *call = "exr_read_scanline_chunk_info";
@@ -518,16 +619,16 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
         if (!rc) {
             for (int c = 0; c < dec.channel_count; ++c) {
                 exr_coding_channel_info_t *ch = &dec.channels[c];
-                int k = 0;
-                while (k < 6 && strcmp(ch->channel_name, channel_names[k])) ++k;
-                if (k == 6) {
+                int per_pixel = 0;
+                float *base = channel_data(img, ch->channel_name, strlen(ch->channel_name), &per_pixel);
+                if (!base) {
                     ch->decode_to_ptr = NULL; /* a channel we do not use: skipped */
                     continue;
                 }
-                float *base = k < 3 ? img->rgb + k : img->variance + (k - 3);
+                size_t row = (size_t)per_pixel * (size_t)width;
                 ch->decode_to_ptr =
                     (uint8_t *)(base + (size_t)(chunk.start_y - dw.min.y) * row);
-                ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
+                ch->user_pixel_stride = per_pixel * (int32_t)sizeof(float);
                 ch->user_line_stride = (int32_t)(row * sizeof(float));
                 ch->user_bytes_per_element = (int16_t)sizeof(float);
                 ch->user_data_type = EXR_PIXEL_FLOAT;

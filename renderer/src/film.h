@@ -1,12 +1,14 @@
 /* film.h: per-pixel accumulation of radiance samples (running mean and
    second moment, Welford) and the OpenEXR snapshot format: R, G, B of the
-   mean and variance.R/G/B of the mean, written atomically. */
+   mean and variance.R/G/B of the mean, plus the optional region AOV
+   (aov.h) as per-class fractions, written atomically. */
 #ifndef FILM_H
 #define FILM_H
 
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "aov.h"
 #include "error.h"
 #include "vec.h"
 
@@ -20,6 +22,9 @@ struct film {
     uint32_t *count;   /* 1 per pixel: samples accumulated (a non-finite
                           sample is dropped, so a pixel may lag `passes`) */
     int64_t passes;    /* completed passes */
+    uint32_t *region_count; /* AOV_REGION_COUNT per pixel (film_enable_regions),
+                          NULL when the region AOV is off: the pixel's accepted
+                          samples per primary-hit class, so they sum to count */
 };
 
 /* Largest accepted image: each side at most FILM_MAX_SIDE pixels and at most
@@ -32,6 +37,14 @@ struct film {
    sizes and on allocation failure. */
 bool film_init(struct film *f, int width, int height, struct error *err);
 void film_free(struct film *f);
+/* Allocates the zeroed region AOV counts of an initialised film. */
+bool film_enable_regions(struct film *f, struct error *err);
+/* Counts one accepted sample of pixel (x, y) in class cls (enum
+   aov_region); the film must have region counts. */
+static inline void film_add_region(struct film *f, int x, int y, int cls)
+{
+    ++f->region_count[((int64_t)y * f->width + x) * AOV_REGION_COUNT + cls];
+}
 /* Welford's update of one pixel's mean m and second moment s with sample
    c, inv = 1 / (its count after this sample). */
 static inline void film_welford(double *m, double *s, struct rgb c, double inv)
@@ -63,17 +76,24 @@ struct film_image {
     int width, height;
     float *rgb;        /* 3 per pixel: running mean */
     float *variance;   /* 3 per pixel: variance of the mean (sigma^2 / n) */
+    float *region;     /* AOV_REGION_COUNT per pixel: the fraction of the pixel's
+                          samples in each class (0 for a pixel without samples),
+                          or NULL when the image has no region AOV */
 };
 
 /* Same size rules as film_init; film_image_free is safe on a zeroed or freed image. */
 bool film_image_alloc(struct film_image *img, int width, int height, struct error *err);
 void film_image_free(struct film_image *img);
+/* Adds the region AOV layer to an allocated image. */
+bool film_image_enable_regions(struct film_image *img, struct error *err);
 /* Copies the film's state after n = `f->passes` passes into img (same size).
    variance = m2 / (n (n - 1)), the unbiased sample variance over n; for
    n < 2 it is unknown and written as 0 (never NaN or Inf): readers must look
    at spp before trusting it. Doubles beyond the float range are clamped to
    +-FLT_MAX; a NaN that overflowing accumulation could produce becomes 0 in
-   the mean and FLT_MAX in the variance, so no NaN is ever written. */
+   the mean and FLT_MAX in the variance, so no NaN is ever written. When img
+   has a region layer (then f has region counts), region = count of the
+   class / count of the pixel. */
 void film_snapshot(const struct film *f, struct film_image *img);
 
 /* Header attributes of a snapshot. */
@@ -102,12 +122,17 @@ struct snapshot_info {
    Header attributes: render_time_s (double), spp (int, saturated),
    strategy, integrator, seed (string, decimal), config_hash (string,
    16 hex digits), renderer_version (string), rays (double),
-   nonfinite_samples (double). NULL strings are written as "". */
+   nonfinite_samples (double). NULL strings are written as "". An image
+   with a region layer adds the float channels region.<name> for every name
+   of aov_region_names and the string attribute aov_region_classes (those
+   names in order, space-separated). */
 bool film_write_exr(const char *path, const struct film_image *img, const struct snapshot_info *info,
                     struct error *err);
 
 /* Reads back what film_write_exr wrote (for tests and tools): channels are
-   found by name, img is allocated here (free with film_image_free). Strings
+   found by name, img is allocated here (free with film_image_free), with a
+   region layer when the file has the region channels (all of them and
+   aov_region_classes as written, else an error). Strings
    in `info` point into `storage`, which the caller frees with free(). On
    failure (missing file, not an EXR, missing channel or attribute, damaged
    data) img and meta are left zeroed and err names the path. */

@@ -25,6 +25,7 @@ static const char usage[] =
     "options (each overrides the config's value):\n"
     "  --set KEY.PATH=VALUE  override any scalar of the config, e.g.\n"
     "                        --set params.s_L=0.15  --set camera.position.1=2.5\n"
+    "                        --set render.aov.region=true (region.* AOV channels)\n"
     "  --out DIR             output folder (render.output); created if missing\n"
     "  --spp N               stop after N samples per pixel (render.spp; 0 = no limit)\n"
     "  --time SECONDS        stop after this render time (render.time; 0 = no limit)\n"

@@ -11,6 +11,7 @@
 #include <pmmintrin.h>
 #include <xmmintrin.h>
 
+#include "aov.h"
 #include "camera.h"
 #include "film.h"
 #include "rng.h"
@@ -77,6 +78,10 @@ struct worker {
     bool *row_found;
     struct rgb *row_color;
     struct integrator_row *row;
+    /* The region AOV (NULL when off): its classifier, and the row's classes. */
+    const struct aov_classifier *aov;
+    struct aov_scratch aov_scratch;
+    unsigned char *row_class;
 };
 
 static bool worker_alloc_row(struct worker *w, int width, struct error *err)
@@ -90,7 +95,11 @@ static bool worker_alloc_row(struct worker *w, int width, struct error *err)
     if (!w->row_rng || !w->row_dir || !w->row_hit || !w->row_found || !w->row_color)
         return error_set(err, "out of memory for a film row of %d pixels", width);
     w->row = integrator_row_create(width, err);
-    return w->row != NULL;
+    if (!w->row) return false;
+    if (!w->aov) return true;
+    w->row_class = malloc(n * sizeof *w->row_class);
+    if (!w->row_class) return error_set(err, "out of memory for a film row of %d pixels", width);
+    return aov_scratch_init(w->aov, &w->aov_scratch, err);
 }
 
 static void worker_free(struct worker *w)
@@ -103,6 +112,9 @@ static void worker_free(struct worker *w)
     free(w->row_color);
     integrator_row_destroy(w->row);
     w->row = NULL;
+    free(w->row_class);
+    w->row_class = NULL;
+    aov_scratch_free(&w->aov_scratch);
 }
 
 static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
@@ -147,6 +159,15 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
             rng_mix64(w->row_rng[x].state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
             c->g = NAN;
         dropped += !rgb_is_finite(*c);
+    }
+    if (w->aov) {
+        /* From the camera hits alone: no random numbers, no film state, so
+           the radiance channels are the same bits with the AOV on or off.
+           A dropped sample is dropped here too, so that the classes of a
+           pixel sum to its sample count. */
+        aov_classify_row(w->aov, &w->aov_scratch, w->row_dir, w->row_hit, w->row_found, cfg->width, w->row_class);
+        for (int x = 0; x < cfg->width; ++x)
+            if (rgb_is_finite(w->row_color[x])) film_add_region(w->film, x, y, w->row_class[x]);
     }
     /* A NaN/Inf sample would poison the pixel forever: it is dropped (the
        pixel keeps its own sample count) and counted, and the count is
@@ -367,11 +388,18 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         strategy_free(&strategy);
         return false;
     }
+    struct aov_classifier aov;
+    bool have_aov = false;
 
     struct writer wr;
     memset(&wr, 0, sizeof wr);
     wr.json = json;
     bool ok = film_image_alloc(&wr.image, cfg->width, cfg->height, err);
+    if (ok && rd->aov_region) {
+        ok = aov_classifier_init(&aov, scene, err);
+        have_aov = ok;
+        ok = ok && film_enable_regions(&film, err) && film_image_enable_regions(&wr.image, err);
+    }
 
     int n_threads = thread_count(rd);
     struct pass_control pc;
@@ -396,6 +424,7 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         w->camera = &camera;
         w->integrator = &integrator;
         w->film = &film;
+        w->aov = have_aov ? &aov : NULL;
         if (!strategy_scratch_init(&strategy, &w->scratch, err) || !worker_alloc_row(w, cfg->width, err)) {
             worker_free(w);
             ok = false;
@@ -523,6 +552,7 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     pthread_cond_destroy(&wr.cond);
     film_image_free(&wr.image);
     film_free(&film);
+    if (have_aov) aov_classifier_free(&aov);
     strategy_free(&strategy);
     return ok;
 }

@@ -3,12 +3,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Beyond the antishadow's four regions: p lies on the light's side of every
-   portal plane of its light (inside the shade, say), where the light is
-   reached directly, not through a portal. The antishadow strategies sample
-   the light itself there; the first pair of the light carries it. */
-#define PAIR_LIGHT_SIDE (REGION_ANTI_ANTUMBRA + 1)
-
 /* The antishadow strategies classify; `portal` and `projection` are the
    plain techniques of the paper and must not benefit from classification. */
 static bool classifies(enum strategy_kind k)
@@ -221,7 +215,7 @@ enum technique strategy_technique(const struct strategy *s, const struct strateg
     case STRATEGY_ANTISHADOW_EXACT: {
         if (pair->portal < 0) return TECHNIQUE_LIGHT_SOLID;
         bool exact = s->kind == STRATEGY_ANTISHADOW_EXACT;
-        if (region == PAIR_LIGHT_SIDE) return TECHNIQUE_LIGHT_SOLID;
+        if (region == STRATEGY_REGION_INSIDE) return TECHNIQUE_LIGHT_SOLID;
         switch ((enum region)region) {
         case REGION_OUTSIDE:
             return TECHNIQUE_NONE;
@@ -327,7 +321,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
             /* Only the light's first pair samples it there, and only if some
                of the light is above the receiver's horizon: the outside of
                the shade and the underside of its opening face away. */
-            *region = PAIR_LIGHT_SIDE;
+            *region = STRATEGY_REGION_INSIDE;
             if (pair->portal != l->first_portal || !above_horizon(&l->target.polygon, p, n)) return 0.0;
             return s->n_pairs == 1 ? 1.0 : light_weight(l, heuristic, p, n);
         }
@@ -361,6 +355,38 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     return 0.0;
 }
 
+double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, int *region)
+{
+    const struct scene *sc = s->scene;
+    const struct strategy_pair *pair = &s->pairs[i];
+    const struct light *l = &sc->lights[pair->light];
+    if (pair->portal < 0) {
+        *region = REGION_ANTI_UMBRA; /* nothing stands between p and the light's own polygon */
+        return light_weight(l, PORTAL_WEIGHT_IRRADIANCE, p, n);
+    }
+    /* The same cases as pair_weight's, in the same order, minus its lone-pair
+       shortcut (weight 1): a caller comparing pairs needs the irradiance. */
+    if (on_light_side(s, l, p)) {
+        *region = STRATEGY_REGION_INSIDE;
+        if (pair->portal != l->first_portal || !above_horizon(&l->target.polygon, p, n)) return 0.0;
+        return light_weight(l, PORTAL_WEIGHT_IRRADIANCE, p, n);
+    }
+    const struct antishadow *a = &sc->portals[pair->portal].antishadow;
+    enum region r = antishadow_classify(a, p);
+    *region = (int)r;
+    if (r == REGION_OUTSIDE) return 0.0;
+    struct polygon vis;
+    if (antishadow_visible_polygon_in(a, p, r, &vis) < 3) return 0.0;
+    return rgb_luminance(l->radiance) * irradiance_factor(&vis, p, n);
+}
+
+int strategy_candidates(const struct strategy *s, struct vec3 p, int *out)
+{
+    if (s->use_bvh) return pair_bvh_query(&s->bvh, p, out);
+    for (int i = 0; i < s->n_pairs; ++i) out[i] = i;
+    return s->n_pairs;
+}
+
 void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
 {
     struct strategy_scratch *scratch = pt->scratch;
@@ -370,12 +396,7 @@ void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
         scratch->cand_pos[scratch->cand[k]] = -1;
         scratch->vis_state[scratch->cand[k]] = VIS_UNKNOWN;
     }
-    if (s->use_bvh) {
-        scratch->n_cand = pair_bvh_query(&s->bvh, p, scratch->cand);
-    } else {
-        scratch->n_cand = s->n_pairs;
-        for (int i = 0; i < s->n_pairs; ++i) scratch->cand[i] = i;
-    }
+    scratch->n_cand = strategy_candidates(s, p, scratch->cand);
     double acc = 0.0;
     for (int k = 0; k < scratch->n_cand; ++k) {
         int i = scratch->cand[k];

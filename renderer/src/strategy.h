@@ -30,6 +30,13 @@ enum technique {
     TECHNIQUE_VISIBLE_SOLID   /* uniform solid angle of that clipped projection */
 };
 
+/* Beyond the antishadow's four regions (enum region): p lies on the light's
+   side of every portal plane of its light, within its shade box (inside the
+   shade, say), where the light is reached directly, not through a portal.
+   The antishadow strategies sample the light itself there; the first pair
+   of the light carries it. */
+#define STRATEGY_REGION_INSIDE (REGION_ANTI_ANTUMBRA + 1)
+
 struct strategy_pair {
     int light;
     int portal;               /* -1: the light alone */
@@ -104,6 +111,24 @@ static inline bool strategy_batches(const struct strategy *s)
 /* The portal strategies' part of strategy_prepare: the candidate pairs of
    pt->p and their weights, into pt->scratch. */
 void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt);
+
+/* The pairs that may light p, into out (room for s->n_pairs): those the
+   pair BVH finds for the antishadow strategies, all pairs otherwise.
+   Returns how many. */
+int strategy_candidates(const struct strategy *s, struct vec3 p, int *out);
+
+/* The `irradiance` heuristic's weight of pair i at p (receiving normal n,
+   unit, or zero for a point that receives from every side), with the
+   antishadow strategies' classification and without their lone-pair
+   shortcut: the luminance of the light's radiance times the projected solid
+   angle (unoccluded irradiance per unit radiance) of what p sees of the
+   light through the pair's portal; of the whole light for a light without
+   portals, and for the first pair of a light whose shade contains p. Zero
+   when the pair cannot light p. *region gets the pair's region: enum region
+   or STRATEGY_REGION_INSIDE (REGION_ANTI_UMBRA for a light without
+   portals, which p sees whole). Needs a strategy whose pairs include the
+   portals (strategy_kind_uses_portals); s->weight is not read. */
+double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, int *region);
 
 /* Inline: a film row prepares every shading point, and for the light-only
    strategies this is all there is to it. */

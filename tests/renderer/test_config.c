@@ -233,6 +233,28 @@ static void test_overrides_apply(void)
     config_free(&c);
 }
 
+/* render.aov: off by default and in the effective YAML either way; --set
+   creates the mapping when the file has none. */
+static void test_aov_key(void)
+{
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load(LAMPSHADE, NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK(!c.render.aov_region);
+    CHECK(strstr(c.effective_yaml, "\n  aov: {region: false}\n") != NULL);
+    config_free(&c);
+    const struct config_override on[] = { { "render.aov.region", "true" } };
+    ok = config_load(LAMPSHADE, on, 1, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK(c.render.aov_region);
+    CHECK(strstr(c.effective_yaml, "\n  aov: {region: true}\n") != NULL);
+    check_round_trip(&c, "aov");
+    config_free(&c);
+}
+
 static void test_override_errors(void)
 {
     static const struct {
@@ -249,6 +271,11 @@ static void test_override_errors(void)
         { "render.spp", "abc", "--set render.spp=abc: expected a non-negative integer, got \"abc\"" },
         { "render.spp", "-3", "--set render.spp=-3: expected a non-negative integer, got -3" },
         { "render.tme", "5", "--set render.tme=5: unknown key \"tme\" in render (expected integrator," },
+        /* render.aov is created when missing, then checked like the file's. */
+        { "render.aov.regon", "true", "--set render.aov.regon=true: unknown key \"regon\" in render.aov (expected region)" },
+        { "render.aov.region", "3", "--set render.aov.region=3: expected true or false, got \"3\"" },
+        { "render.aov", "true", "--set render.aov=true: expected a mapping, got \"true\"" },
+        { "render.aovs.region", "true", "--set render.aovs.region: no key \"aovs\" in render" },
         { "render.strategy", "prtal", "--set render.strategy=prtal: unknown strategy \"prtal\" (expected one of: light_area, light, portal, projection, antishadow, antishadow_exact)" },
         { "lights.0.two_sided", "yes", "--set lights.0.two_sided=yes: expected true or false, got \"yes\"" },
         { "params.s_L", "=s_Q", "--set params.s_L==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: pi)" },
@@ -432,6 +459,8 @@ static void test_good_values(void)
         CHECK(r->snapshots.n_spps == 3 && r->snapshots.spps[2] == 64);
         CHECK(r->seed == UINT64_MAX && r->threads == 4);
         CHECK(strcmp(r->output, "results/renders/all fields \"quoted\"") == 0);
+        CHECK(r->aov_region);
+        CHECK(strstr(c.effective_yaml, "\n  aov: {region: true}\n") != NULL);
         CHECK(c.n_shapes == 0 && c.n_materials == 0 && c.shapes == NULL);
         config_free(&c);
     }
@@ -832,6 +861,7 @@ static const struct test_case config_tests[] = {
     { "override_errors", test_override_errors },
     { "effective_round_trip_and_hash", test_effective_round_trip_and_hash },
     { "bad_catalogue", test_bad_catalogue },
+    { "aov_key", test_aov_key },
     { "good_catalogue", test_good_catalogue },
     { "good_values", test_good_values },
     { "tolerances_are_relative", test_tolerances_are_relative },

@@ -743,7 +743,91 @@ static void test_add_row_matches_add(void)
     film_free(&b);
 }
 
+/* The region AOV's layer: fractions of each pixel's samples per class
+   (0 without samples), through the EXR and back bit for bit with its
+   attribute; a file without the layer still reads, without it. */
+static void test_exr_region_round_trip(void)
+{
+    char dir[64], path[128];
+    scratch_make(dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/regions.exr", dir);
+    struct film f;
+    struct film_image img, back;
+    struct snapshot_read meta;
+    struct error err;
+    const int w = 5, h = 19; /* odd sizes: one chunk of 16 lines and a short one */
+    CHECK(film_init(&f, w, h, &err) && film_enable_regions(&f, &err));
+    CHECK(film_image_alloc(&img, w, h, &err) && film_image_enable_regions(&img, &err));
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            int samples = (x + y) % 4; /* pixel (0, 0) keeps 0 samples */
+            for (int i = 0; i < samples; ++i) {
+                film_add(&f, x, y, rgb_make(x, y, i));
+                film_add_region(&f, x, y, (x * 3 + y + i * (y % 3)) % AOV_REGION_COUNT);
+            }
+        }
+    film_snapshot(&f, &img);
+    for (int p = 0; p < w * h; ++p) {
+        double sum = 0.0;
+        for (int k = 0; k < AOV_REGION_COUNT; ++k) {
+            float want = f.count[p] ? (float)((double)f.region_count[AOV_REGION_COUNT * p + k] / f.count[p]) : 0.0f;
+            CHECK(img.region[AOV_REGION_COUNT * p + k] == want);
+            sum += img.region[AOV_REGION_COUNT * p + k];
+        }
+        CHECK_MSG(f.count[p] ? fabs(sum - 1.0) < 1e-6 : sum == 0.0, "pixel %d: fractions sum to %g", p, sum);
+    }
+    /* Pixel (1, 0): one sample, class 3. */
+    CHECK(img.region[AOV_REGION_COUNT * 1 + 3] == 1.0f);
+    for (int c = 0; c < 2; ++c) {
+        struct snapshot_info info = test_info;
+        info.compress = c == 0;
+        bool wrote = film_write_exr(path, &img, &info, &err);
+        CHECK_MSG(wrote, "%s", err.message);
+        bool read = wrote && film_read_exr(path, &back, &meta, &err);
+        CHECK_MSG(read, "%s", err.message);
+        if (!read) continue;
+        CHECK(images_equal_bits(&img, &back));
+        CHECK(back.region && !memcmp(back.region, img.region, sizeof(float) * AOV_REGION_COUNT * w * h));
+        check_info_equal(&meta.info, &info);
+        film_image_free(&back);
+        free(meta.storage);
+    }
+    /* The channel names and the attribute, as bytes in the header. */
+    size_t size = 0;
+    unsigned char *bytes = file_slurp(path, &size);
+    const char *want[] = { "region.outside", "region.anti_umbra", "region.anti_penumbra", "region.anti_antumbra",
+                           "region.inside", "region.emitter", "region.miss", "aov_region_classes",
+                           "outside anti_umbra anti_penumbra anti_antumbra inside emitter miss" };
+    for (size_t i = 0; bytes && i < sizeof want / sizeof want[0]; ++i) {
+        bool found = false;
+        for (size_t o = 0; !found && o + strlen(want[i]) <= size; ++o)
+            found = !memcmp(bytes + o, want[i], strlen(want[i]));
+        CHECK_MSG(found, "no \"%s\" in the file", want[i]);
+    }
+    free(bytes);
+    /* Without the layer: no region channels written, none read. */
+    film_image_free(&img);
+    CHECK(film_image_alloc(&img, w, h, &err));
+    film_snapshot(&f, &img);
+    CHECK(film_write_exr(path, &img, &test_info, &err));
+    if (film_read_exr(path, &back, &meta, &err)) {
+        CHECK(back.region == NULL);
+        CHECK(images_equal_bits(&img, &back));
+        film_image_free(&back);
+        free(meta.storage);
+    } else {
+        CHECK_MSG(false, "%s", err.message);
+    }
+    bytes = file_slurp(path, &size);
+    for (size_t o = 0; bytes && o + 7 <= size; ++o) CHECK(memcmp(bytes + o, "region.", 7) != 0);
+    free(bytes);
+    film_image_free(&img);
+    film_free(&f);
+    scratch_remove(dir);
+}
+
 static const struct test_case film_tests[] = {
+    { "exr_region_round_trip", test_exr_region_round_trip },
     { "add_row_matches_add", test_add_row_matches_add },
     { "per_pixel_count", test_per_pixel_count },
     { "sizes_are_checked", test_sizes_are_checked },
