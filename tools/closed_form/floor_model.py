@@ -85,6 +85,12 @@ class Camera:
         return Camera(origin=position, top_left=top_left, dx=right * (2.0 * half_w / width),
                       dy=true_up * (-2.0 * half_h / height), width=width, height=height)
 
+    def film_position(self, point: np.ndarray) -> tuple[float, float]:
+        """The film position (px, py) whose ray passes through `point` (in front)."""
+        m = np.stack([self.dx, self.dy, -(np.asarray(point, dtype=np.float64) - self.origin)], axis=1)
+        px, py, _ = np.linalg.solve(m, -self.top_left)
+        return float(px), float(py)
+
     def directions(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Unit directions, shape px.shape + (3,)."""
         d = self.top_left + px[..., None] * self.dx + py[..., None] * self.dy
