@@ -180,15 +180,24 @@ class Row:
     ratio_vs_light: float = math.nan
 
 
-def evaluate(runs: list[Path], n: int, insets: list[Inset], snapshots: bool) -> tuple[list[Row], dict[str, ClosedForm]]:
-    """Every run's final.exr (and its snapshots, if asked) against the closed form."""
+def evaluate(runs: list[Path], n: int, insets: list[Inset], snapshots: bool,
+             skipped: list[str] | None = None) -> tuple[list[Row], dict[str, ClosedForm]]:
+    """Every run's final.exr (and its snapshots, if asked) against the closed
+    form. Runs the model does not describe (another scene, the path
+    integrator) raise ModelMismatch, or are listed in `skipped` if given."""
     forms: dict[str, ClosedForm] = {}
     rows: list[Row] = []
     for run in runs:
-        cfg = load_config(run)
-        key = scene_key(cfg)
-        if key not in forms:
-            forms[key] = closed_form_for(cfg, n)
+        try:
+            cfg = load_config(run)
+            key = scene_key(cfg)
+            if key not in forms:
+                forms[key] = closed_form_for(cfg, n)
+        except ModelMismatch as e:
+            if skipped is None:
+                raise
+            skipped.append(f"{run}: {e}")
+            continue
         form = forms[key]
         sets = form.pixel_sets(insets)
         images = sorted(run.glob("snapshot_*.exr")) if snapshots else []

@@ -49,10 +49,16 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.n < 1:
         ap.error("--n must be at least 1")
+    skipped: list[str] = []
     try:
-        rows, forms = evaluate(find_runs(args.runs), args.n, args.inset, args.snapshots)
+        rows, forms = evaluate(find_runs(args.runs), args.n, args.inset, args.snapshots, skipped)
     except (ModelMismatch, FileNotFoundError, ValueError) as e:
         print(f"lampshade_floor: {e}", file=sys.stderr)
+        return 2
+    for s in skipped:
+        print(f"lampshade_floor: skipped {s}", file=sys.stderr)
+    if not rows:
+        print("lampshade_floor: no run of the lampshade with the direct integrator", file=sys.stderr)
         return 2
     info = sys.stdout if args.json != "-" else sys.stderr
     for key, form in forms.items():
@@ -70,9 +76,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.json != "-":
         print_table(rows)
     if args.json:
-        doc = [{**{k: v for k, v in dataclasses.asdict(r).items() if k != "comparison"},
-                **dataclasses.asdict(r.comparison)} for r in rows]
-        text = json.dumps(doc, indent=1, allow_nan=True)
+        doc = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)  # strict JSON: NaN -> null
+                 for k, v in {**dataclasses.asdict(r), **dataclasses.asdict(r.comparison)}.items()
+                 if k != "comparison"} for r in rows]
+        text = json.dumps(doc, indent=1, allow_nan=False)
         if args.json == "-":
             print(text)
         else:
