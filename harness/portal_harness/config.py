@@ -28,9 +28,14 @@ from portal_harness.spec import (
 )
 
 CURVE_METRICS = ("rel_mse", "mse")
-# Every reference render carries the region AOV (the region masks come from
-# it) and keeps its film state (so it can be extended with render --resume).
-REFERENCE_RENDER_OVERRIDES: Overrides = (("render.aov.region", "true"), ("render.resumable", "true"))
+# Every reference render keeps its film state (so it can be extended with
+# render --resume).
+REFERENCE_RENDER_OVERRIDES: Overrides = (("render.resumable", "true"),)
+# The region map of a point: a render with the region AOV, whose class
+# fractions do not depend on the strategy; the AOV costs about as much as a
+# sample, so it gets its own short render instead of riding on the references.
+REGION_MAP_SPP = 64
+AOV_OVERRIDES: Overrides = (("render.aov.region", "true"),)
 # Region names the harness gives itself (regions.py); insets may not take them.
 RESERVED_REGION_NAMES = frozenset({WHOLE_IMAGE, "lit", *REGION_CLASSES})
 
@@ -200,8 +205,7 @@ class Experiment:
 
     def reference_spec(self, point: Point, strategy: str, part: int = 0) -> RunSpec:
         """Reference render `part` (0 or 1) of a point with `strategy`: its
-        own seed, the region AOV on, and resumable, so that it can be
-        extended (references.py)."""
+        own seed, and resumable, so that it can be extended (references.py)."""
         r = self.reference
         return RunSpec(
             scene=str(self.scene),
@@ -231,9 +235,26 @@ class Experiment:
             time_s=r.pilot_time_s,
             seed=r.seed + 1000,
             threads=r.threads,
-            overrides=self._overrides(point) + (("render.aov.region", "true"),),
+            overrides=self._overrides(point),
             snapshots=NO_SNAPSHOTS,
             labels=self._labels(point) + (("pilot", 1.0),),
+        )
+
+    def region_map_spec(self, point: Point) -> RunSpec:
+        """The render whose region AOV gives the point's region classes."""
+        r = self.reference
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=self.scene_sha256,
+            strategy="light",
+            integrator=self.integrator,
+            spp=REGION_MAP_SPP,
+            time_s=0.0,
+            seed=r.seed + 2000,
+            threads=r.threads,
+            overrides=self._overrides(point) + AOV_OVERRIDES,
+            snapshots=NO_SNAPSHOTS,
+            labels=self._labels(point) + (("region_map", 1.0),),
         )
 
 

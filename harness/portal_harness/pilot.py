@@ -34,13 +34,12 @@ class PilotResult:
     cost: float          # time x expected relMSE over the scored pixels; lower is better
 
 
-def scored_mask(pilots: list[exr.Snapshot], lit_threshold: float) -> np.ndarray:
+def scored_mask(pilots: list[exr.Snapshot], lit_threshold: float, fractions: np.ndarray | None) -> np.ndarray:
     """Pixels lit in some pilot, except those whose primary hits are mostly
-    an emitter or nothing (the region AOV is the same for every strategy)."""
+    an emitter or nothing (`fractions`: the point's region AOV, if any)."""
     lit = np.max(np.stack([p.rgb.mean(axis=-1) for p in pilots]), axis=0) > lit_threshold
-    with_aov = next((p for p in pilots if p.regions is not None), None)
-    if with_aov is not None:
-        classes = class_map(with_aov.regions)  # type: ignore[arg-type]
+    if fractions is not None:
+        classes = class_map(fractions)
         lit &= (classes != exr.REGION_CLASSES.index(EMITTER)) & (classes != exr.REGION_CLASSES.index("miss"))
     return lit
 
@@ -53,9 +52,10 @@ def cost_of(pilot: exr.Snapshot, mask: np.ndarray) -> float:
     return float(pilot.header.render_time_s * np.mean(rel))
 
 
-def score(pilots: dict[str, exr.Snapshot], lit_threshold: float) -> list[PilotResult]:
+def score(pilots: dict[str, exr.Snapshot], lit_threshold: float,
+          fractions: np.ndarray | None = None) -> list[PilotResult]:
     """Candidates from the cheapest to the dearest."""
-    mask = scored_mask(list(pilots.values()), lit_threshold)
+    mask = scored_mask(list(pilots.values()), lit_threshold, fractions)
     results = [PilotResult(s, p.header.render_time_s, cost_of(p, mask)) for s, p in pilots.items()]
     return sorted(results, key=lambda r: (r.cost, r.strategy))
 

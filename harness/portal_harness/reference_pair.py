@@ -66,17 +66,17 @@ def failures(found: list[RegionDisagreement], z_max: float) -> list[RegionDisagr
     return [d for d in found if abs(d.z) > z_max]
 
 
-def _groups(a: exr.Snapshot) -> np.ndarray:
+def _groups(a: exr.Snapshot, fractions: np.ndarray | None) -> np.ndarray:
     """Per pixel, the group its weights come from: its AOV class (-1 when no
     class has the majority), or 0 everywhere without the AOV."""
-    if a.regions is None:
+    if fractions is None:
         return np.zeros(a.rgb.shape[:2], dtype=np.int64)
-    return class_map(a.regions)
+    return class_map(fractions)
 
 
-def weights(a: exr.Snapshot, b: exr.Snapshot) -> np.ndarray:
+def weights(a: exr.Snapshot, b: exr.Snapshot, fractions: np.ndarray | None) -> np.ndarray:
     """Per pixel, the weight of A (B gets 1 - it)."""
-    groups = _groups(a)
+    groups = _groups(a, fractions)
     m = 0.5 * (a.rgb + b.rgb)
     denom = m * m + REL_EPSILON
     w = np.full(groups.shape, 0.5)
@@ -89,9 +89,11 @@ def weights(a: exr.Snapshot, b: exr.Snapshot) -> np.ndarray:
     return w
 
 
-def combine(a: exr.Snapshot, b: exr.Snapshot, strategy_label: str, config_hash: str) -> exr.Snapshot:
-    """The combined reference; its header sums the two renders' samples and time."""
-    w = weights(a, b)[..., None]
+def combine(a: exr.Snapshot, b: exr.Snapshot, strategy_label: str, config_hash: str,
+            fractions: np.ndarray | None) -> exr.Snapshot:
+    """The combined reference (carrying the region AOV `fractions`, if any);
+    its header sums the two renders' samples and time."""
+    w = weights(a, b, fractions)[..., None]
     rgb = w * a.rgb + (1 - w) * b.rgb
     variance = w * w * a.variance + (1 - w) * (1 - w) * b.variance
     header = replace(
@@ -103,4 +105,4 @@ def combine(a: exr.Snapshot, b: exr.Snapshot, strategy_label: str, config_hash: 
         rays=a.header.rays + b.header.rays,
         nonfinite_samples=a.header.nonfinite_samples + b.header.nonfinite_samples,
     )
-    return exr.Snapshot(path=a.path, header=header, rgb=rgb, variance=variance, regions=a.regions)
+    return exr.Snapshot(path=a.path, header=header, rgb=rgb, variance=variance, regions=fractions)

@@ -22,6 +22,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from portal_harness import exr, store
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError
@@ -52,6 +54,8 @@ class PointReference:
     disagreements: list[RegionDisagreement] = field(default_factory=list)
     error: str | None = None
     capped: bool = False                   # an extension was cut at reference.max_time_s
+    fractions: np.ndarray | None = None    # the point's region AOV (config.region_map_spec)
+    region_map_key: str | None = None      # of the render it comes from
 
     @property
     def strategies(self) -> tuple[str, ...]:
@@ -66,9 +70,10 @@ def plan(experiment: Experiment, point: Point, strategies: tuple[str, ...], rend
     return PointReference(point, tuple(parts))
 
 
-def combined_key(parts: tuple[Part, ...], spps: list[int]) -> str:
+def combined_key(parts: tuple[Part, ...], spps: list[int], region_map_key: str | None) -> str:
+    """Changes with the parts' sample counts and with the region map (the weights' groups)."""
     return short_hash({"kind": "combined_reference", "scheme": COMBINATION_SCHEME,
-                       "parts": [[p.key, n] for p, n in zip(parts, spps)]})
+                       "parts": [[p.key, n] for p, n in zip(parts, spps)], "region_map": region_map_key})
 
 
 def _combined_manifest(ref: PointReference, key: str, snapshot: exr.Snapshot, renderer_version: str,
@@ -110,30 +115,30 @@ def build(ref: PointReference, experiment: Experiment, layout: ResultsLayout, re
     ref.part_snapshots = snaps
     if len(snaps) == 1:
         ref.key, ref.snapshot = ref.parts[0].key, snaps[0]
-        ref.regions = regions_of(snaps[0], experiment.insets, experiment.lit_threshold)
+        ref.regions = regions_of(snaps[0], experiment.insets, experiment.lit_threshold, ref.fractions)
         ref.disagreements = []
         return
     a, b = snaps
-    key = combined_key(ref.parts, [s.header.spp for s in snaps])
-    ref.regions = regions_of(a, experiment.insets, experiment.lit_threshold)
+    key = combined_key(ref.parts, [s.header.spp for s in snaps], ref.region_map_key)
+    ref.regions = regions_of(a, experiment.insets, experiment.lit_threshold, ref.fractions)
     ref.disagreements = disagreement(a, b, ref.regions)
     target = layout.run(key, True)
     if store.is_done(target):
         try:
             ref.key, ref.snapshot = key, exr.read_snapshot(target.final)
-            ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold)
+            ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold, ref.fractions)
             manifests[key] = {**(store.read_manifest(target) or {}), "cached": True}
             return
         except CorruptExrError:
             pass  # made again below
     label = "+".join(p.spec.strategy for p in ref.parts)
-    combined = combine(a, b, label, short_hash([s.header.config_hash for s in snaps]))
+    combined = combine(a, b, label, short_hash([s.header.config_hash for s in snaps]), ref.fractions)
     attempt = store.new_attempt(layout, key, True)
     exr.write_snapshot(attempt.final, combined)
     store.write_json_atomic(attempt.manifest, _combined_manifest(ref, key, combined, renderer_version, manifests))
     store.install(layout, key, True, attempt)
     ref.key, ref.snapshot = key, exr.read_snapshot(target.final)
-    ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold)
+    ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold, ref.fractions)
     # The folder's manifest is indexed by the caller, like a rendered run's.
     manifests[key] = store.read_manifest(target) or {}
 

@@ -12,9 +12,10 @@
   with no majority (on a boundary) belong to no class. A class with fewer
   than CLASS_MIN_PIXELS pixels is left out: its mean says little.
 
-The class map comes from the reference (the renderer's own classifier, not a
-re-implementation). A reference without the AOV gives no classes, and `lit`
-then cannot leave out the emitter.
+The class map comes from a render with the region AOV (the renderer's own
+classifier, not a re-implementation; the sweep makes one per point, see
+config.region_map_spec). Without one there are no classes, and `lit` then
+cannot leave out the emitter.
 """
 
 from __future__ import annotations
@@ -62,13 +63,18 @@ def inset_mask(region: Region, height: int, width: int) -> np.ndarray:
     return mask
 
 
-def regions_of(reference: Snapshot, insets: tuple[Region, ...],
-               lit_threshold: float = DEFAULT_LIT_THRESHOLD) -> list[NamedRegion]:
-    """Every region of the experiment, in report order: image, lit, insets, classes."""
+def regions_of(reference: Snapshot, insets: tuple[Region, ...], lit_threshold: float = DEFAULT_LIT_THRESHOLD,
+               fractions: np.ndarray | None = None) -> list[NamedRegion]:
+    """Every region of the experiment, in report order: image, lit, insets,
+    classes. `fractions` is a region AOV (the reference's own if None)."""
     height, width = reference.rgb.shape[:2]
     out = [NamedRegion(WHOLE_IMAGE, KIND_IMAGE, np.ones((height, width), dtype=bool))]
     lit = reference.rgb.mean(axis=-1) > lit_threshold
-    classes = class_map(reference.regions) if reference.regions is not None else None
+    if fractions is None:
+        fractions = reference.regions
+    if fractions is not None and fractions.shape[:2] != (height, width):
+        raise ValueError(f"region map of {fractions.shape[1]}x{fractions.shape[0]} for a {width}x{height} image")
+    classes = class_map(fractions) if fractions is not None else None
     if classes is not None:
         lit &= classes != REGION_CLASSES.index(EMITTER)
     out.append(NamedRegion(LIT, KIND_LIT, lit))

@@ -38,7 +38,7 @@ from portal_harness import exr, extend, index, measure, noise_check, pilot, refe
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError
 from portal_harness.execute import Target, plan_jobs, run_dask, run_local
-from portal_harness.index import ROLE_PILOT, ROLE_REFERENCE, ROLE_REFERENCE_PART, ROLE_RUN
+from portal_harness.index import ROLE_PILOT, ROLE_REFERENCE, ROLE_REFERENCE_PART, ROLE_REGION_MAP, ROLE_RUN
 from portal_harness.metrics import WHOLE_IMAGE, rel_variance_floor
 from portal_harness.paths import ResultsLayout
 from portal_harness.references import PointReference
@@ -79,6 +79,8 @@ def record_plan(conn: sqlite3.Connection, experiment: Experiment, runs: list[Pla
         rows += [(point_id, p.spec.strategy, ROLE_REFERENCE_PART, i, p.key, None, axis)
                  for i, p in enumerate(ref.parts)]
         rows += [(point_id, s, ROLE_PILOT, 0, key, None, axis) for s, key in pilots.get(point_id, {}).items()]
+        if ref.region_map_key is not None:
+            rows.append((point_id, "light", ROLE_REGION_MAP, 0, ref.region_map_key, None, axis))
     rows += [(r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.point.id].key, r.point.axis_value)
              for r in runs]
     index.record_membership(conn, experiment.name, rows)
@@ -358,9 +360,27 @@ def _last_line(text: str | None) -> str:
     return f"(stderr: {lines[-1][:160]})" if lines else ""
 
 
+def region_maps(experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection,
+                manifests: dict[str, dict[str, Any]]) -> dict[str, tuple[str, Any]]:
+    """Per point, (key, fractions) of its region-map render (fractions None if it failed)."""
+    specs = {p.id: experiment.region_map_spec(p) for p in experiment.points()}
+    manifests.update(execute_specs(list(specs.values()), options, conn, desc="region maps"))
+    out: dict[str, tuple[str, Any]] = {}
+    for pid, spec in specs.items():
+        key = spec.key(options.renderer_version)
+        fractions = None
+        if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
+            try:
+                fractions = exr.read_snapshot(options.layout.run(key).final).regions
+            except CorruptExrError:
+                pass
+        out[pid] = (key, fractions)
+    return out
+
+
 def choose_reference_strategies(experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection,
-                                manifests: dict[str, dict[str, Any]]) -> tuple[dict[str, tuple[str, ...]],
-                                                                               dict[str, dict[str, str]]]:
+                                manifests: dict[str, dict[str, Any]], maps: dict[str, tuple[str, Any]]
+                                ) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, str]]]:
     """Per point, the reference strategies (given, or by pilot) and the pilots' keys by strategy."""
     points = experiment.points()
     given = experiment.reference.strategies
@@ -380,7 +400,8 @@ def choose_reference_strategies(experiment: Experiment, options: SweepOptions, c
                     snaps[s] = exr.read_snapshot(options.layout.run(key).final)
                 except CorruptExrError:
                     pass
-        chosen[p.id] = pilot.choose(pilot.score(snaps, experiment.lit_threshold)) if snaps else (pilot.BASELINE,)
+        ranked = pilot.score(snaps, experiment.lit_threshold, maps[p.id][1]) if snaps else []
+        chosen[p.id] = pilot.choose(ranked)
     return chosen, keys
 
 
@@ -394,9 +415,12 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
     conn = index.connect(layout.index_path)
     manifests: dict[str, dict[str, Any]] = {}
     try:
-        chosen, pilot_keys = choose_reference_strategies(experiment, options, conn, manifests)
+        maps = region_maps(experiment, options, conn, manifests)
+        chosen, pilot_keys = choose_reference_strategies(experiment, options, conn, manifests, maps)
         refs = {p.id: references.plan(experiment, p, chosen[p.id], options.renderer_version)
                 for p in experiment.points()}
+        for pid, ref in refs.items():
+            ref.region_map_key, ref.fractions = maps[pid]
         record_plan(conn, experiment, runs, refs, pilot_keys)
         part_specs = [part.spec for ref in refs.values() for part in ref.parts]
         manifests.update(execute_specs(part_specs, options, conn, desc="references"))

@@ -28,7 +28,7 @@ def test_01_two_point_sweep_on_a_local_cluster(cli: CliRunner, write_experiment:
     image = [r for r in summary["rows"] if r["region"] == "image"]
     done = [r for r in image if r["status"] == "done"]
     assert len(done) == 4 and all(r["rel_mse"] > 0 for r in done)
-    assert len(render_log()) == 2 + 6
+    assert len(render_log()) == 2 + 2 + 6  # region maps, references, runs
     # the files came back over the wire into this results folder; nothing left on the workers' side here
     conn = sqlite3.connect(results / "index.sqlite")
     members = conn.execute("SELECT e.key, e.strategy, r.status FROM experiment_runs e JOIN runs r ON r.key = e.key "
@@ -42,7 +42,7 @@ def test_01_two_point_sweep_on_a_local_cluster(cli: CliRunner, write_experiment:
         else:
             assert strategy == "projection"
             assert "simulated crash" in (run / "stderr.txt").read_text()
-    assert conn.execute("SELECT count(*) FROM runs WHERE kind = 'run'").fetchone()[0] == 6
+    assert conn.execute("SELECT count(*) FROM runs WHERE kind = 'run'").fetchone()[0] == 6 + 2
     conn.close()
     # resuming locally renders only what failed
     monkeypatch.delenv("FAKE_RENDER_CRASH")

@@ -29,9 +29,9 @@ def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experim
     exp = write_experiment()
     status, out, err = cli("sweep", str(exp), "--no-progress")
     assert status == 0, out + err
-    # two references (no extension needed at 2000 spp), two points x two strategies
-    assert len(render_log()) == 2 + 4, out
-    assert "6 rendered now" in out
+    # two region maps, two references (no extension needed at 2000 spp), two points x two strategies
+    assert len(render_log()) == 2 + 2 + 4, out
+    assert "8 rendered now" in out
 
     summary = json.loads((results / "experiments" / "tiny" / "summary.json").read_text())
     # tidy: one row per (point, strategy, region); regions: image, lit, the two insets and the
@@ -54,10 +54,10 @@ def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experim
     assert len(csv_text.strip().splitlines()) == 1 + len(summary["rows"])
 
     conn = sqlite3.connect(results / "index.sqlite")
-    assert conn.execute("SELECT count(*) FROM runs WHERE status = 'done'").fetchone()[0] == 6
+    assert conn.execute("SELECT count(*) FROM runs WHERE status = 'done'").fetchone()[0] == 8
     assert conn.execute("SELECT count(*) FROM runs WHERE kind = 'reference'").fetchone()[0] == 2
-    # runs, reference parts and the reference the metrics use (here the only part)
-    assert conn.execute("SELECT count(*) FROM experiment_runs WHERE experiment = 'tiny'").fetchone()[0] == 4 + 2 + 2
+    # runs, region maps, reference parts and the reference the metrics use (here the only part)
+    assert conn.execute("SELECT count(*) FROM experiment_runs WHERE experiment = 'tiny'").fetchone()[0] == 4 + 2 + 2 + 2
     n_metrics = conn.execute("SELECT count(*) FROM metrics WHERE region = 'image'").fetchone()[0]
     assert n_metrics >= 4 * 4  # several snapshots per run
     conn.close()
@@ -136,14 +136,14 @@ def test_03_killed_sweep_resumes_without_redoing_finished_runs(write_experiment:
     assert len(started) >= 4
     finished = {p.name for p in (results / "runs").iterdir() if (p / "manifest.json").exists()}
     finished |= {p.name for p in (results / "references").iterdir() if (p / "manifest.json").exists()}
-    assert 2 <= len(finished) < 8
+    assert 2 <= len(finished) < 10
     time.sleep(0.5)  # the orphaned render got SIGTERM from the kernel and is gone
 
     status = subprocess.run(cmd, env={**os.environ}, capture_output=True, text=True, timeout=120)
     assert status.returncode == 0, status.stdout + status.stderr
     again = _keys_rendered(render_log())[len(started):]
     assert not set(again) & finished, status.stdout  # nothing finished was redone
-    assert len(again) == 8 - len(finished)
+    assert len(again) == 10 - len(finished)  # 2 region maps, 2 references, 6 runs
     assert "cached" in status.stdout
     assert not any((results / "runs" / ".attempts").iterdir())
 
