@@ -1,0 +1,244 @@
+/* Resuming a render: the state file (round trip, damage, truncation,
+   missing arrays), the image hash of configs, and `render --resume` end to
+   end: a render continued from its state, once or twice, on other thread
+   counts, equals the uninterrupted render bit for bit; every refusal exits
+   2 and leaves the folder as it was. */
+#include <dirent.h>
+
+#include "cli_util.h"
+#include "config.h"
+#include "film.h"
+#include "film_state.h"
+#include "testlib.h"
+
+/* ---- the state file --------------------------------------------------- */
+
+static void fill_state(struct film_state *s, int w, int h)
+{
+    memset(s, 0, sizeof *s);
+    struct error err;
+    CHECK(film_init(&s->film, w, h, &err));
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            film_add(&s->film, x, y, rgb_make(0.1 * x + 1e-17 * y, 1.0 / (3.0 + y), -0.5 * x * y));
+    s->film.count[1] = 7; /* a pixel whose count lags or leads: kept as it is */
+    s->film.passes = 5;
+    s->render_time_s = 1.0 / 3.0;
+    s->render_cpu_s = 0.7;
+    s->snapshot_cpu_s = 0.01;
+    s->snapshot_pause_s = 0.002;
+    s->stats.rays = 123456789012ull;
+    s->stats.shadow_rays = 11;
+    s->stats.shadow_blocked = 12;
+    s->stats.light_samples = 13;
+    s->stats.light_missed = 14;
+    s->nonfinite_samples = 3;
+    s->snapshots = 4;
+    s->seed = 18446744073709551615ull;
+    s->image_hash = 0x0123456789abcdefull;
+}
+
+static bool same_memory(const void *a, const void *b, size_t n)
+{
+    return memcmp(a, b, n) == 0;
+}
+
+static long file_size(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 ? (long)st.st_size : -1;
+}
+
+static void write_bytes(const char *path, const unsigned char *data, long n)
+{
+    FILE *f = fopen(path, "wb");
+    CHECK(f && fwrite(data, 1, (size_t)n, f) == (size_t)n);
+    if (f) fclose(f);
+}
+
+static unsigned char *read_bytes(const char *path, long *n)
+{
+    *n = file_size(path);
+    unsigned char *data = malloc(*n > 0 ? (size_t)*n : 1);
+    FILE *f = fopen(path, "rb");
+    if (!f || !data || fread(data, 1, (size_t)*n, f) != (size_t)*n) *n = -1;
+    if (f) fclose(f);
+    return data;
+}
+
+static void test_state_round_trip(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", path[64];
+    make_tmpdir(dir);
+    snprintf(path, sizeof path, "%s/final.state", dir);
+    struct film_state a, b;
+    struct error err;
+    fill_state(&a, 5, 3);
+    CHECK_MSG(film_state_write(path, &a, &err), "%s", err.message);
+    CHECK_MSG(film_state_read(path, &b, &err), "%s", err.message);
+    size_t px = 15;
+    CHECK(b.film.width == 5 && b.film.height == 3 && b.film.passes == 5);
+    CHECK(same_memory(a.film.mean, b.film.mean, 3 * px * sizeof(double)));
+    CHECK(same_memory(a.film.m2, b.film.m2, 3 * px * sizeof(double)));
+    CHECK(same_memory(a.film.count, b.film.count, px * sizeof(uint32_t)));
+    CHECK(same_bits(a.render_time_s, b.render_time_s) && same_bits(a.render_cpu_s, b.render_cpu_s));
+    CHECK(same_bits(a.snapshot_cpu_s, b.snapshot_cpu_s) && same_bits(a.snapshot_pause_s, b.snapshot_pause_s));
+    CHECK(same_memory(&a.stats, &b.stats, sizeof a.stats));
+    CHECK(b.nonfinite_samples == 3 && b.snapshots == 4 && b.seed == a.seed && b.image_hash == a.image_hash);
+    /* magic, version, header, three arrays, checksum */
+    long expect = 16 + 120 + (4 + 4 + 4 + 8 + 8 + 3 * 15 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 15 * 8) +
+                  (4 + 5 + 4 + 8 + 8 + 15 * 4) + 8;
+    CHECK_MSG(file_size(path) == expect, "size %ld, expected %ld", file_size(path), expect);
+    /* Nothing left at a temporary name. */
+    DIR *d = opendir(dir);
+    int entries = 0;
+    for (struct dirent *e; d && (e = readdir(d));) entries += e->d_name[0] != '.';
+    if (d) closedir(d);
+    CHECK(entries == 1);
+    film_state_free(&a);
+    film_state_free(&b);
+    film_state_free(&b); /* safe twice */
+    remove_tree(dir);
+}
+
+/* Every flipped byte, every truncation: refused, with a message, and the
+   state left empty. */
+static void test_state_damage_detected(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", path[64];
+    make_tmpdir(dir);
+    snprintf(path, sizeof path, "%s/final.state", dir);
+    struct film_state a, b;
+    struct error err;
+    fill_state(&a, 3, 2);
+    CHECK(film_state_write(path, &a, &err));
+    long n;
+    unsigned char *good = read_bytes(path, &n);
+    CHECK(n > 0);
+    int accepted = 0, checksum_msgs = 0;
+    for (long i = 0; i < n; ++i) {
+        good[i] ^= 0x10;
+        write_bytes(path, good, n);
+        good[i] ^= 0x10;
+        err.message[0] = '\0';
+        if (film_state_read(path, &b, &err)) ++accepted;
+        checksum_msgs += strstr(err.message, "checksum mismatch") != NULL;
+        CHECK(b.film.mean == NULL && b.film.passes == 0);
+        CHECK(strncmp(err.message, path, strlen(path)) == 0);
+    }
+    CHECK_MSG(accepted == 0, "%d damaged files accepted", accepted);
+    CHECK_MSG(checksum_msgs > n / 2, "only %d of %ld flips reported as checksum mismatches", checksum_msgs, n);
+    int truncated_ok = 0;
+    for (long k = 0; k < n; ++k) {
+        write_bytes(path, good, k);
+        if (film_state_read(path, &b, &err)) ++truncated_ok;
+        CHECK_MSG(strstr(err.message, "truncated") || strstr(err.message, "bad magic"), "length %ld: %s", k,
+                  err.message);
+    }
+    CHECK_MSG(truncated_ok == 0, "%d truncated files accepted", truncated_ok);
+    /* Bytes after the checksum. */
+    unsigned char *longer = malloc((size_t)n + 1);
+    memcpy(longer, good, (size_t)n);
+    longer[n] = 0;
+    write_bytes(path, longer, n + 1);
+    CHECK(!film_state_read(path, &b, &err) && strstr(err.message, "after the checksum"));
+    free(longer);
+    /* A file that is not a state; a missing one. */
+    write_bytes(path, (const unsigned char *)"v/1\001 not a state file at all", 30);
+    CHECK(!film_state_read(path, &b, &err) && strstr(err.message, "not a render state file"));
+    unlink(path);
+    CHECK(!film_state_read(path, &b, &err) && strstr(err.message, "cannot open"));
+    free(good);
+    film_state_free(&a);
+    remove_tree(dir);
+}
+
+/* FNV-1a 64 as the format defines it, to forge files with a valid checksum. */
+static uint64_t fnv(const unsigned char *p, size_t n)
+{
+    uint64_t h = 14695981039346656037ull;
+    for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
+    return h;
+}
+
+/* A well-formed state without the "count" array (renamed), and one with
+   an array the film does not know: the first is refused by name, the
+   second read. */
+static void test_state_named_arrays(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", path[64];
+    make_tmpdir(dir);
+    snprintf(path, sizeof path, "%s/final.state", dir);
+    struct film_state a, b;
+    struct error err;
+    fill_state(&a, 2, 2);
+    CHECK(film_state_write(path, &a, &err));
+    long n;
+    unsigned char *bytes = read_bytes(path, &n);
+    /* The last array is "count": its name sits after the two f64 arrays. */
+    long at = 16 + 120 + (4 + 4 + 4 + 8 + 8 + 3 * 4 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 4 * 8);
+    CHECK(n > at + 9 && memcmp(bytes + at, "\005\000\000\000count", 9) == 0);
+    memcpy(bytes + at + 4, "cuont", 5);
+    uint64_t sum = fnv(bytes, (size_t)n - 8);
+    memcpy(bytes + n - 8, &sum, 8);
+    write_bytes(path, bytes, n);
+    CHECK(!film_state_read(path, &b, &err));
+    CHECK_MSG(strstr(err.message, "no array \"count\""), "%s", err.message);
+    /* Add one: array count 4, "cuont" kept as an unknown, "count" appended. */
+    size_t extra = 4 + 5 + 4 + 8 + 8 + 4 * 4;
+    unsigned char *more = malloc((size_t)n + extra);
+    memcpy(more, bytes, (size_t)n - 8);
+    unsigned char *p = more + n - 8;
+    uint32_t len = 5, type = 2, four = 4;
+    uint64_t count = 4, nbytes = 16;
+    memcpy(p, &len, 4), p += 4;
+    memcpy(p, "count", 5), p += 5;
+    memcpy(p, &type, 4), p += 4;
+    memcpy(p, &count, 8), p += 8;
+    memcpy(p, &nbytes, 8), p += 8;
+    memcpy(p, a.film.count, 16), p += 16;
+    memcpy(more + 16 + 100, &four, 4); /* the array count, after `snapshots` */
+    sum = fnv(more, (size_t)(p - more));
+    memcpy(p, &sum, 8);
+    write_bytes(path, more, (long)(p - more) + 8);
+    CHECK_MSG(film_state_read(path, &b, &err), "%s", err.message);
+    CHECK(b.film.count && same_memory(b.film.count, a.film.count, 16));
+    film_state_free(&b);
+    free(more);
+    free(bytes);
+    film_state_free(&a);
+    remove_tree(dir);
+}
+
+/* The image hash ignores how long, how often, where and on how many
+   threads; it follows everything else. */
+static void test_image_hash(void)
+{
+    const char *scene = "configs/scenes/lampshade.yaml";
+    struct config base, other;
+    struct error err;
+    CHECK_MSG(config_load(scene, NULL, 0, &base, &err), "%s", err.message);
+    struct config_override same[] = { { "render.spp", "99" },        { "render.time", "3" },
+                                      { "render.threads", "3" },     { "render.output", "/tmp/elsewhere" },
+                                      { "render.resumable", "true" }, { "render.snapshots.every_spp", "2" } };
+    CHECK(config_load(scene, same, 6, &other, &err));
+    CHECK(other.image_hash == base.image_hash && other.hash != base.hash && other.render.resumable);
+    config_free(&other);
+    const char *const changes[][2] = { { "render.seed", "2" }, { "film.width", "17" }, { "render.strategy", "portal" },
+                                       { "params.s_L", "1.2" } };
+    for (int i = 0; i < 4; ++i) {
+        struct config_override o = { changes[i][0], changes[i][1] };
+        CHECK(config_load(scene, &o, 1, &other, &err));
+        CHECK_MSG(other.image_hash != base.image_hash, "%s does not change the image hash", changes[i][0]);
+        config_free(&other);
+    }
+    config_free(&base);
+}
+
+static const struct test_case tests[] = {
+    { "state_round_trip", test_state_round_trip },
+    { "state_damage_detected", test_state_damage_detected },
+    { "state_named_arrays", test_state_named_arrays },
+    { "image_hash", test_image_hash },
+};
+TEST_MAIN(tests)
