@@ -235,10 +235,181 @@ static void test_image_hash(void)
     config_free(&base);
 }
 
+/* ---- render --resume ------------------------------------------------- */
+
+#define SCENE "configs/scenes/lampshade.yaml"
+
+/* Runs the renderer with the NULL-terminated words of `args` (at most 40). */
+static void run_words(const char *const *args, struct run *r)
+{
+    char *argv[48];
+    int n = 1;
+    for (; args[n - 1] && n < 47; ++n) argv[n] = (char *)args[n - 1];
+    argv[n] = NULL;
+    run_render(argv, 0, 0, r);
+}
+
+/* A fresh render of the 32x32 lampshade into dir with `extra` words. */
+static bool render_fresh(const char *dir, const char *spp, const char *threads, const char *const *extra,
+                         struct run *r)
+{
+    const char *args[40] = { SCENE, "--out", dir, "--spp", spp, "--threads", threads, "--set", "film.width=32",
+                             "--set", "film.height=32", "--quiet" };
+    int n = 12;
+    for (int i = 0; extra && extra[i] && n < 39; ++i) args[n++] = extra[i];
+    args[n] = NULL;
+    run_words(args, r);
+    CHECK_MSG(r->status == 0, "fresh render into %s: status %d: %s", dir, r->status, r->err);
+    return r->status == 0;
+}
+
+static bool resume(const char *dir, const char *spp, const char *threads, struct run *r)
+{
+    const char *args[] = { "--resume", dir, "--spp", spp, "--threads", threads, "--quiet", NULL };
+    run_words(args, r);
+    CHECK_MSG(r->status == 0, "resume of %s to %s spp: status %d: %s", dir, spp, r->status, r->err);
+    return r->status == 0;
+}
+
+struct final {
+    struct film_image img;
+    struct snapshot_read meta;
+};
+
+static bool read_final(const char *dir, const char *name, struct final *f)
+{
+    char path[512];
+    struct error err;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    bool ok = film_read_exr(path, &f->img, &f->meta, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    return ok;
+}
+
+static void final_free(struct final *f)
+{
+    film_image_free(&f->img);
+    free(f->meta.storage);
+}
+
+/* Every float of R, G, B, variance.* and the spp header. */
+static bool same_image(const struct final *a, const struct final *b)
+{
+    size_t n = 3 * (size_t)a->img.width * (size_t)a->img.height;
+    return a->img.width == b->img.width && a->img.height == b->img.height && a->meta.info.spp == b->meta.info.spp &&
+           same_memory(a->img.rgb, b->img.rgb, n * sizeof(float)) &&
+           same_memory(a->img.variance, b->img.variance, n * sizeof(float));
+}
+
+/* The `final` JSON line's value of "key" (a number), or -1. */
+static double json_final(const char *out, const char *key)
+{
+    const char *fin = strstr(out, "\"event\":\"final\"");
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *v = fin ? strstr(fin, pat) : NULL;
+    return v ? strtod(v + strlen(pat), NULL) : -1.0;
+}
+
+/* Compares dir/final.exr with a fresh render of `spp` passes with `extra`
+   words (3 threads) in its own folder. */
+static void check_equals_fresh(const char *dir, const char *spp, const char *const *extra, const struct run *resumed)
+{
+    char ref[] = "/tmp/portal-resume-XXXXXX";
+    make_tmpdir(ref);
+    struct run r;
+    struct final a, b;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    if (render_fresh(ref, spp, "3", extra, &r) && read_final(dir, "final.exr", &a) && read_final(ref, "final.exr", &b)) {
+        CHECK_MSG(same_image(&a, &b), "%s: resumed image differs from a fresh render of %s spp (spp %lld vs %lld)",
+                  dir, spp, (long long)a.meta.info.spp, (long long)b.meta.info.spp);
+        CHECK(a.meta.info.spp == atoll(spp));
+        CHECK(a.meta.info.rays == b.meta.info.rays && a.meta.info.nonfinite_samples == b.meta.info.nonfinite_samples);
+        if (resumed) {
+            CHECK(json_final(resumed->out, "rays") == json_final(r.out, "rays"));
+            CHECK(json_final(resumed->out, "shadow_rays") == json_final(r.out, "shadow_rays"));
+            CHECK(json_final(resumed->out, "nonfinite") == json_final(r.out, "nonfinite"));
+        }
+    }
+    final_free(&a);
+    final_free(&b);
+    remove_tree(ref);
+}
+
+/* (a) 8 passes on one thread, resumed to 20 on two: the bits of an
+   uninterrupted 20-pass render (on three); config.yaml says 20 now. */
+static void test_resume_bit_identical(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX";
+    make_tmpdir(dir);
+    const char *extra[] = { "--resumable", NULL };
+    struct run r;
+    if (render_fresh(dir, "8", "1", extra, &r)) {
+        CHECK(strstr(r.out, "\"resumed_from_spp\":0}"));
+        if (resume(dir, "20", "2", &r)) {
+            CHECK_MSG(strstr(r.out, "\"resumed_from_spp\":8}"), "%s", r.out);
+            CHECK(json_final(r.out, "spp") == 20);
+            check_equals_fresh(dir, "20", NULL, &r);
+            char path[600];
+            snprintf(path, sizeof path, "%s/config.yaml", dir);
+            long n;
+            unsigned char *text = read_bytes(path, &n);
+            CHECK(n > 0 && strstr((char *)text, "\n  spp: 20\n") && strstr((char *)text, "\n  resumable: true\n"));
+            free(text);
+        }
+    }
+    remove_tree(dir);
+}
+
+/* (b) 5 -> 11 -> 20 passes on 1, 2, 3 threads. */
+static void test_resume_twice(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX";
+    make_tmpdir(dir);
+    const char *extra[] = { "--resumable", NULL };
+    struct run r;
+    if (render_fresh(dir, "5", "1", extra, &r) && resume(dir, "11", "2", &r)) {
+        CHECK(strstr(r.out, "\"resumed_from_spp\":5}"));
+        if (resume(dir, "20", "3", &r)) {
+            CHECK(strstr(r.out, "\"resumed_from_spp\":11}"));
+            check_equals_fresh(dir, "20", NULL, &r);
+        }
+    }
+    remove_tree(dir);
+}
+
+/* (c) the path integrator and the antishadow_exact strategy; (d) a render
+   with non-finite samples dropped (per-pixel counts that lag). */
+static void test_resume_integrators_and_faults(void)
+{
+    const char *path[] = { "--integrator", "path", NULL };
+    const char *exact[] = { "--strategy", "antishadow_exact", NULL };
+    const char *plain[] = { NULL };
+    const char *const *variants[] = { path, exact, plain };
+    for (int v = 0; v < 3; ++v) {
+        if (v == 2) setenv("PORTAL_LIGHTS_FAULT_NONFINITE", "7", 1);
+        char dir[] = "/tmp/portal-resume-XXXXXX";
+        make_tmpdir(dir);
+        const char *extra[6] = { "--resumable" };
+        for (int i = 0; variants[v][i]; ++i) extra[i + 1] = variants[v][i];
+        struct run r;
+        if (render_fresh(dir, "7", "1", extra, &r) && resume(dir, "16", "2", &r)) {
+            if (v == 2) CHECK_MSG(json_final(r.out, "nonfinite") > 100, "nonfinite %g", json_final(r.out, "nonfinite"));
+            check_equals_fresh(dir, "16", variants[v], &r);
+        }
+        remove_tree(dir);
+        unsetenv("PORTAL_LIGHTS_FAULT_NONFINITE");
+    }
+}
+
 static const struct test_case tests[] = {
     { "state_round_trip", test_state_round_trip },
     { "state_damage_detected", test_state_damage_detected },
     { "state_named_arrays", test_state_named_arrays },
     { "image_hash", test_image_hash },
+    { "resume_bit_identical", test_resume_bit_identical },
+    { "resume_twice", test_resume_twice },
+    { "resume_integrators_and_faults", test_resume_integrators_and_faults },
 };
 TEST_MAIN(tests)
