@@ -403,6 +403,276 @@ static void test_resume_integrators_and_faults(void)
     }
 }
 
+/* Every file of a folder, to prove that a refusal changed nothing. */
+struct folder {
+    int n;
+    char names[16][256];
+    unsigned char *bytes[16];
+    long sizes[16];
+};
+
+static void folder_read(const char *dir, struct folder *f)
+{
+    memset(f, 0, sizeof *f);
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d)) && f->n < 16;) {
+        if (e->d_name[0] == '.') continue;
+        char path[600];
+        snprintf(f->names[f->n], sizeof f->names[0], "%s", e->d_name);
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        f->bytes[f->n] = read_bytes(path, &f->sizes[f->n]);
+        ++f->n;
+    }
+    if (d) closedir(d);
+}
+
+static void folder_free(struct folder *f)
+{
+    for (int i = 0; i < f->n; ++i) free(f->bytes[i]);
+    f->n = 0;
+}
+
+static bool folder_same(const struct folder *a, const struct folder *b)
+{
+    if (a->n != b->n) return false;
+    for (int i = 0; i < a->n; ++i) {
+        int j = 0;
+        while (j < b->n && strcmp(a->names[i], b->names[j])) ++j;
+        if (j == b->n || a->sizes[i] != b->sizes[j] || !same_memory(a->bytes[i], b->bytes[j], (size_t)a->sizes[i]))
+            return false;
+    }
+    return true;
+}
+
+/* Runs the words, which must be refused: exit 2, `message` on stderr,
+   nothing on stdout, dir unchanged. */
+static void check_refused(const char *dir, const char *const *args, const char *message)
+{
+    struct folder before, after;
+    folder_read(dir, &before);
+    struct run r;
+    run_words(args, &r);
+    folder_read(dir, &after);
+    CHECK_MSG(r.status == 2 && strstr(r.err, message), "%s %s ...: status %d, expected \"%s\" in: %s", args[0],
+              args[1] ? args[1] : "", r.status, message, r.err);
+    CHECK_MSG(r.out[0] == '\0', "stdout: %s", r.out);
+    CHECK_MSG(folder_same(&before, &after), "%s changed", dir);
+    folder_free(&before);
+    folder_free(&after);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    write_bytes(path, (const unsigned char *)text, (long)strlen(text));
+}
+
+/* Replaces the first `from` in dir/config.yaml by `to`. */
+static void edit_config(const char *dir, const char *from, const char *to)
+{
+    char path[600], *text;
+    long n;
+    snprintf(path, sizeof path, "%s/config.yaml", dir);
+    text = (char *)read_bytes(path, &n);
+    char *at = n > 0 ? strstr(text, from) : NULL;
+    CHECK_MSG(at != NULL, "no \"%s\" in %s", from, path);
+    if (at) {
+        char *edited = malloc((size_t)n + strlen(to) + 1);
+        size_t head = (size_t)(at - text);
+        memcpy(edited, text, head);
+        snprintf(edited + head, (size_t)n + strlen(to) + 1 - head, "%s%s", to, at + strlen(from));
+        write_text(path, edited);
+        free(edited);
+    }
+    free(text);
+}
+
+/* (e) every refusal: exit 2, a message that says what is wrong, DIR as it
+   was. */
+static void test_resume_refusals(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", plain[] = "/tmp/portal-resume-XXXXXX";
+    make_tmpdir(dir);
+    make_tmpdir(plain);
+    const char *extra[] = { "--resumable", NULL };
+    struct run r;
+    if (!render_fresh(dir, "8", "1", extra, &r) || !render_fresh(plain, "8", "1", NULL, &r)) goto out;
+    char state[600], saved[600], missing[600];
+    snprintf(state, sizeof state, "%s/final.state", dir);
+    snprintf(saved, sizeof saved, "%s.saved", plain);
+    snprintf(missing, sizeof missing, "%s/nothing-here", dir);
+
+    const char *with_config[] = { SCENE, "--resume", dir, "--spp", "20", NULL };
+    check_refused(dir, with_config, "takes no CONFIG");
+    const char *seed[] = { "--resume", dir, "--spp", "20", "--seed", "3", NULL };
+    check_refused(dir, seed, "--seed (render.seed) cannot be changed when resuming");
+    const char *out[] = { "--resume", dir, "--out", plain, NULL };
+    check_refused(dir, out, "--out (render.output) cannot be changed");
+    const char *film[] = { "--resume", dir, "--set", "film.width=16", NULL };
+    check_refused(dir, film, "--set film.width cannot be changed when resuming (only render.spp, render.time");
+    const char *strategy[] = { "--resume", dir, "--set", "render.strategy=portal", NULL };
+    check_refused(dir, strategy, "render.strategy cannot be changed");
+    const char *nodir[] = { "--resume", missing, "--spp", "20", NULL };
+    check_refused(dir, nodir, "No such file or directory");
+    const char *noarg[] = { "--resume", NULL };
+    check_refused(dir, noarg, "--resume needs a folder");
+
+    /* A folder without config.yaml: the state alone is not enough. */
+    char lone[] = "/tmp/portal-resume-XXXXXX", lone_state[600];
+    make_tmpdir(lone);
+    snprintf(lone_state, sizeof lone_state, "%s/final.state", lone);
+    long n;
+    unsigned char *good = read_bytes(state, &n);
+    write_bytes(lone_state, good, n);
+    const char *noconfig[] = { "--resume", lone, "--spp", "20", NULL };
+    check_refused(lone, noconfig, "config.yaml: No such file or directory (expected the output folder of a render)");
+    remove_tree(lone);
+
+    /* A render made without --resumable. */
+    const char *nostate[] = { "--resume", plain, "--spp", "20", NULL };
+    check_refused(plain, nostate, "final.state is missing: only a render made with render.resumable: true "
+                                  "(--resumable) can be resumed");
+
+    /* Limits that leave nothing to render (they are totals). */
+    const char *same_spp[] = { "--resume", dir, "--spp", "8", NULL };
+    check_refused(dir, same_spp, "render.spp 8 is not above the 8 passes already done");
+    const char *less_spp[] = { "--resume", dir, "--spp", "5", NULL };
+    check_refused(dir, less_spp, "render.spp 5 is not above the 8 passes already done");
+    const char *no_spp[] = { "--resume", dir, NULL };
+    check_refused(dir, no_spp, "render.spp 8 is not above the 8 passes already done");
+    const char *tiny_time[] = { "--resume", dir, "--spp", "0", "--time", "0.0000001", NULL };
+    check_refused(dir, tiny_time, "render.time 1e-07 s is not above the");
+
+    /* A malformed fault hook, a bad override value. */
+    setenv("PORTAL_LIGHTS_FAULT_BIAS", "light", 1);
+    const char *biased[] = { "--resume", dir, "--spp", "20", NULL };
+    check_refused(dir, biased, "PORTAL_LIGHTS_FAULT_BIAS=light: expected STRATEGY:FACTOR");
+    unsetenv("PORTAL_LIGHTS_FAULT_BIAS");
+    const char *bad_spp[] = { "--resume", dir, "--spp", "lots", NULL };
+    check_refused(dir, bad_spp, "render.spp=lots: expected a non-negative integer");
+
+    /* Damaged states: truncated, one byte flipped. */
+    write_bytes(state, good, n / 2);
+    const char *go[] = { "--resume", dir, "--spp", "20", NULL };
+    check_refused(dir, go, "truncated");
+    good[n / 2] ^= 1;
+    write_bytes(state, good, n);
+    check_refused(dir, go, "checksum mismatch: the state is damaged");
+    good[n / 2] ^= 1;
+    write_bytes(state, good, n);
+
+    /* config.yaml edited: another size, another seed, another strategy. */
+    char config[600];
+    snprintf(config, sizeof config, "%s/config.yaml", dir);
+    long config_n;
+    unsigned char *config_text = read_bytes(config, &config_n);
+    edit_config(dir, "width: 32", "width: 16");
+    check_refused(dir, go, "the state is 32x32 but");
+    write_bytes(config, config_text, config_n);
+    edit_config(dir, "seed: 1\n", "seed: 2\n");
+    check_refused(dir, go, "the state has seed 1 but");
+    write_bytes(config, config_text, config_n);
+    edit_config(dir, "strategy: light\n", "strategy: portal\n");
+    check_refused(dir, go, "the state was rendered with another image configuration than");
+    write_bytes(config, config_text, config_n);
+    free(config_text);
+
+    /* After all that, the folder still resumes. */
+    if (resume(dir, "12", "2", &r)) check_equals_fresh(dir, "12", NULL, &r);
+    free(good);
+out:
+    remove_tree(dir);
+    remove_tree(plain);
+}
+
+/* A render without render.resumable into a folder that holds a state
+   removes it: a final.exr is never newer than the state beside it. */
+static void test_stale_state_removed(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", state[600];
+    make_tmpdir(dir);
+    snprintf(state, sizeof state, "%s/final.state", dir);
+    const char *extra[] = { "--resumable", NULL };
+    struct run r;
+    if (render_fresh(dir, "4", "1", extra, &r)) {
+        CHECK(exists(state));
+        render_fresh(dir, "6", "2", NULL, &r);
+        CHECK(!exists(state));
+        const char *go[] = { "--resume", dir, "--spp", "20", NULL };
+        check_refused(dir, go, "final.state is missing");
+    }
+    remove_tree(dir);
+}
+
+/* (g) Snapshots of the resumed part continue the numbering and the
+   schedule (every 2 passes: 2, 4, 6, then 8, 10), with cumulative spp and
+   time in headers and JSON. */
+static void test_resume_snapshots(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX";
+    make_tmpdir(dir);
+    const char *extra[] = { "--resumable", "--set", "render.snapshots.every_spp=2", NULL };
+    struct run r;
+    if (render_fresh(dir, "6", "1", extra, &r)) {
+        double first_time = json_final(r.out, "time_s");
+        CHECK(strstr(r.out, "\"index\":3,") && !strstr(r.out, "\"index\":4,"));
+        if (resume(dir, "10", "2", &r)) {
+            CHECK_MSG(strstr(r.out, "{\"event\":\"snapshot\",\"index\":4,") &&
+                          strstr(r.out, "{\"event\":\"snapshot\",\"index\":5,") && !strstr(r.out, "\"index\":6,") &&
+                          !strstr(r.out, "\"index\":1,"),
+                      "%s", r.out);
+            CHECK(json_final(r.out, "time_s") > first_time);
+            struct final a, b;
+            memset(&a, 0, sizeof a);
+            memset(&b, 0, sizeof b);
+            if (read_final(dir, "snapshot_0004.exr", &a) && read_final(dir, "snapshot_0005.exr", &b)) {
+                CHECK_MSG(a.meta.info.spp == 8 && b.meta.info.spp == 10, "spp %lld, %lld", (long long)a.meta.info.spp,
+                          (long long)b.meta.info.spp);
+                CHECK(a.meta.info.render_time_s >= first_time && b.meta.info.render_time_s >= a.meta.info.render_time_s);
+            }
+            final_free(&a);
+            final_free(&b);
+            char path[600];
+            snprintf(path, sizeof path, "%s/snapshot_0006.exr", dir);
+            CHECK(!exists(path));
+        }
+    }
+    remove_tree(dir);
+}
+
+/* A resumed render stopped by SIGTERM leaves a final.exr and final.state
+   that resume again, to the bits of an uninterrupted render. */
+static void test_resume_interrupted(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", state[600];
+    make_tmpdir(dir);
+    snprintf(state, sizeof state, "%s/final.state", dir);
+    const char *extra[] = { "--resumable", NULL };
+    struct run r;
+    if (render_fresh(dir, "3", "1", extra, &r)) {
+        char *argv[] = { NULL, "--resume", dir, "--spp", "0", "--time", "60", "--threads", "2", "--quiet", NULL };
+        run_render(argv, 0.8, SIGTERM, &r);
+        CHECK_MSG(r.status == 3, "status %d: %s", r.status, r.err);
+        CHECK(strstr(r.out, "\"interrupted\":true"));
+        struct film_state st;
+        struct error err;
+        CHECK_MSG(film_state_read(state, &st, &err), "%s", err.message);
+        long long passes = st.film.passes;
+        film_state_free(&st);
+        struct final fin;
+        memset(&fin, 0, sizeof fin);
+        if (read_final(dir, "final.exr", &fin)) CHECK(fin.meta.info.spp == passes);
+        final_free(&fin);
+        CHECK_MSG(passes > 3, "%lld passes", passes);
+        char total[32];
+        snprintf(total, sizeof total, "%lld", passes + 2);
+        const char *args[] = { "--resume", dir, "--spp", total, "--time", "0", "--quiet", NULL };
+        run_words(args, &r);
+        CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
+        if (r.status == 0) check_equals_fresh(dir, total, NULL, &r);
+    }
+    remove_tree(dir);
+}
+
 static const struct test_case tests[] = {
     { "state_round_trip", test_state_round_trip },
     { "state_damage_detected", test_state_damage_detected },
@@ -411,5 +681,9 @@ static const struct test_case tests[] = {
     { "resume_bit_identical", test_resume_bit_identical },
     { "resume_twice", test_resume_twice },
     { "resume_integrators_and_faults", test_resume_integrators_and_faults },
+    { "resume_refusals", test_resume_refusals },
+    { "stale_state_removed", test_stale_state_removed },
+    { "resume_snapshots", test_resume_snapshots },
+    { "resume_interrupted", test_resume_interrupted },
 };
 TEST_MAIN(tests)
