@@ -56,10 +56,11 @@ static void write_bytes(const char *path, const unsigned char *data, long n)
     if (f) fclose(f);
 }
 
+/* The file's bytes plus a terminating NUL (so text can be searched). */
 static unsigned char *read_bytes(const char *path, long *n)
 {
     *n = file_size(path);
-    unsigned char *data = malloc(*n > 0 ? (size_t)*n : 1);
+    unsigned char *data = calloc(*n > 0 ? (size_t)*n + 1 : 1, 1);
     FILE *f = fopen(path, "rb");
     if (!f || !data || fread(data, 1, (size_t)*n, f) != (size_t)*n) *n = -1;
     if (f) fclose(f);
@@ -144,7 +145,8 @@ static void test_state_damage_detected(void)
     CHECK(!film_state_read(path, &b, &err) && strstr(err.message, "after the checksum"));
     free(longer);
     /* A file that is not a state; a missing one. */
-    write_bytes(path, (const unsigned char *)"v/1\001 not a state file at all", 30);
+    const char *other = "v/1\001 not a state file at all";
+    write_bytes(path, (const unsigned char *)other, (long)strlen(other));
     CHECK(!film_state_read(path, &b, &err) && strstr(err.message, "not a render state file"));
     unlink(path);
     CHECK(!film_state_read(path, &b, &err) && strstr(err.message, "cannot open"));
