@@ -145,12 +145,11 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
                              w->row_found);
     integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
                             w->row_found, cfg->width, w->row_rng, w->row_color, stats);
+    if (w->pc->fault_biased)
+        for (int x = 0; x < cfg->width; ++x) w->row_color[x] = rgb_scale(w->row_color[x], w->pc->fault_bias);
     int dropped = 0;
-    bool biased = w->pc->fault_biased;
-    double bias = w->pc->fault_bias;
     for (int x = 0; x < cfg->width; ++x) {
         struct rgb *c = &w->row_color[x];
-        if (biased) *c = rgb_scale(*c, bias);
         if (w->pc->fault_nonfinite_every > 0 &&
             rng_mix64(w->row_rng[x].state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
             c->g = NAN;
