@@ -43,7 +43,8 @@ static const char *const light_keys[] = { "name", "vertices", "radiance", "two_s
 static const char *const portal_keys[] = { "name", "light", "vertices" };
 static const char *const render_keys[] = { "integrator", "strategy", "mis",       "portal_weight", "defensive",
                                            "max_depth",  "rr_depth", "spp",       "time",          "snapshots",
-                                           "seed",       "threads",  "output",    "aov" };
+                                           "seed",       "threads",  "output",    "aov",
+                                           "resumable" };
 static const char *const snapshot_keys[] = { "every", "doubling", "times", "every_spp", "spp" };
 static const char *const aov_keys[] = { "region" };
 /* Optional mappings that --set creates when they are missing, so that
@@ -1057,6 +1058,7 @@ static bool load_render(struct loader *L, const yaml_node_t *root, struct config
     if ((n = map_get(L, map, "seed")) && !get_seed(L, n, &r->seed)) return false;
     if ((n = map_get(L, map, "threads")) && !get_threads(L, n, &r->threads)) return false;
     if (!get_optional(L, map, "aov", YAML_MAPPING_NODE, &n) || (n && !load_aov(L, n, r))) return false;
+    if ((n = map_get(L, map, "resumable")) && !get_bool(L, n, &r->resumable)) return false;
     if ((n = map_get(L, map, "output")) && !get_string(L, n, r->output, sizeof r->output)) return false;
     c->output_override = n ? override_of(L, n) : -1;
     if (c->output_override < 0) c->output_loc = loc_of(L, n ? n : map);
@@ -1383,16 +1385,9 @@ static void emit_lights_portals(struct text *t, const struct config *c)
     }
 }
 
-static void emit_render(struct text *t, const struct render_desc *r)
+static void emit_snapshots(struct text *t, const struct snapshot_schedule *s)
 {
-    const struct snapshot_schedule *s = &r->snapshots;
     const char *sep = "";
-    text_printf(t, "render:\n  integrator: %s\n  strategy: %s\n  mis: %s\n  portal_weight: %s\n  defensive: ",
-                integrator_names[r->integrator], strategy_names[r->strategy], mis_names[r->mis],
-                portal_weight_names[r->portal_weight]);
-    emit_number(t, r->defensive);
-    text_printf(t, "\n  max_depth: %d\n  rr_depth: %d\n  spp: %d\n  time: ", r->max_depth, r->rr_depth, r->spp);
-    emit_number(t, r->time_s);
     text_printf(t, "\n  snapshots: {");
     if (s->every_s > 0.0) {
         text_printf(t, "every: ");
@@ -1422,13 +1417,36 @@ static void emit_render(struct text *t, const struct render_desc *r)
         for (int i = 0; i < s->n_spps; ++i) text_printf(t, "%s%d", i ? ", " : "", s->spps[i]);
         text_printf(t, "]");
     }
-    text_printf(t, "}\n  seed: %" PRIu64 "\n  threads: ", r->seed);
-    if (r->threads == 0)
-        text_printf(t, "auto");
-    else
-        text_printf(t, "%d", r->threads);
-    text_printf(t, "\n  output: ");
-    emit_string(t, r->output);
+    text_printf(t, "}");
+}
+
+/* With `image_only`, the keys that only say how long, how often, on how
+   many threads and where a render runs are left out: what remains decides
+   the image of every pass. */
+static void emit_render(struct text *t, const struct render_desc *r, bool image_only)
+{
+    text_printf(t, "render:\n  integrator: %s\n  strategy: %s\n  mis: %s\n  portal_weight: %s\n  defensive: ",
+                integrator_names[r->integrator], strategy_names[r->strategy], mis_names[r->mis],
+                portal_weight_names[r->portal_weight]);
+    emit_number(t, r->defensive);
+    text_printf(t, "\n  max_depth: %d\n  rr_depth: %d", r->max_depth, r->rr_depth);
+    if (!image_only) {
+        text_printf(t, "\n  spp: %d\n  time: ", r->spp);
+        emit_number(t, r->time_s);
+        emit_snapshots(t, &r->snapshots);
+    }
+    text_printf(t, "\n  seed: %" PRIu64, r->seed);
+    if (!image_only) {
+        text_printf(t, "\n  threads: ");
+        if (r->threads == 0)
+            text_printf(t, "auto");
+        else
+            text_printf(t, "%d", r->threads);
+        text_printf(t, "\n  output: ");
+        emit_string(t, r->output);
+        text_printf(t, "\n  resumable: %s", r->resumable ? "true" : "false");
+    }
+    /* The AOV is part of the image: its channels and the film state's counts. */
     text_printf(t, "\n  aov: {region: %s}\n", r->aov_region ? "true" : "false");
 }
 
@@ -1443,21 +1461,30 @@ static uint64_t fnv1a64(const char *s, size_t n)
     return h;
 }
 
+static void emit_yaml(struct text *t, struct loader *L, const struct config *c, bool image_only)
+{
+    text_printf(t, "# effective configuration (params substituted, overrides applied, defaults filled)\n");
+    emit_camera_film(t, c);
+    emit_materials(t, c);
+    emit_shapes(t, c, L->shape_names);
+    emit_lights_portals(t, c);
+    emit_render(t, &c->render, image_only);
+}
+
 static bool emit_effective(struct loader *L, struct config *c)
 {
-    struct text t = { NULL, 0, 0, false };
-    text_printf(&t, "# effective configuration (params substituted, overrides applied, defaults filled)\n");
-    emit_camera_film(&t, c);
-    emit_materials(&t, c);
-    emit_shapes(&t, c, L->shape_names);
-    emit_lights_portals(&t, c);
-    emit_render(&t, &c->render);
-    if (t.failed) {
+    struct text t = { NULL, 0, 0, false }, image = { NULL, 0, 0, false };
+    emit_yaml(&t, L, c, false);
+    emit_yaml(&image, L, c, true);
+    if (t.failed || image.failed) {
         free(t.s);
+        free(image.s);
         return error_set(L->err, "%s: out of memory", L->file);
     }
     c->effective_yaml = t.s;
     c->hash = fnv1a64(t.s, t.len);
+    c->image_hash = fnv1a64(image.s, image.len);
+    free(image.s);
     return true;
 }
 

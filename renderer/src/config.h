@@ -121,6 +121,7 @@ struct render_desc {
     int threads;                  /* 0: auto (number of online CPUs) */
     char output[CONFIG_PATH_MAX];
     bool aov_region;              /* render.aov.region: per-pixel antishadow region classes (aov.h) */
+    bool resumable;               /* also write output/final.state (film_state.h) */
 };
 
 struct config {
@@ -142,6 +143,10 @@ struct config {
        overrides applied, defaults filled); loads back to the same config. */
     char *effective_yaml;
     uint64_t hash;                /* FNV-1a 64 of effective_yaml */
+    /* FNV-1a 64 of the effective YAML without the keys that do not change
+       the image of a pass (render.spp, time, snapshots, threads, output,
+       resumable): a resumed render must match the state's. */
+    uint64_t image_hash;
     /* Where render.output was set, for messages about the folder: the value
        in a file (output_override < 0; the render mapping when the default
        applies), or the index of the --set override that set it. */

@@ -10,6 +10,7 @@
 
 #include "config.h"
 #include "render.h"
+#include "resume.h"
 #include "scene.h"
 #include "version.h"
 
@@ -17,10 +18,14 @@ enum exit_code { EXIT_DONE = 0, EXIT_RUNTIME = 1, EXIT_USAGE = 2, EXIT_INTERRUPT
 
 static const char usage[] =
     "usage: render CONFIG [options]\n"
+    "       render --resume DIR [--spp N] [--time S] [--threads N|auto] [--quiet]\n"
     "\n"
     "Renders the scene described by the YAML file CONFIG progressively, writing\n"
     "timed OpenEXR snapshots and DIR/final.exr, and one JSON line per snapshot on\n"
-    "stdout.\n"
+    "stdout. --resume continues the render in DIR (made with --resumable) with the\n"
+    "passes it did not draw, to the same bits as one uninterrupted render; --spp\n"
+    "and --time are then totals, and only render.spp, render.time, render.threads,\n"
+    "render.snapshots.* and render.resumable may be overridden.\n"
     "\n"
     "options (each overrides the config's value):\n"
     "  --set KEY.PATH=VALUE  override any scalar of the config, e.g.\n"
@@ -34,12 +39,17 @@ static const char usage[] =
     "  --strategy NAME       light_area | light | portal | projection | antishadow |\n"
     "                        antishadow_exact (render.strategy)\n"
     "  --integrator NAME     direct | path (render.integrator)\n"
+    "  --resumable           also write DIR/final.state, so that --resume can\n"
+    "                        continue the render (render.resumable=true)\n"
+    "  --resume DIR          continue the render in DIR (no CONFIG)\n"
     "  --quiet               no progress messages on stderr\n"
     "  --help, --version\n"
     "\n"
     "exit status: 0 done, 1 runtime error, 2 usage or config error, including an\n"
-    "output folder that cannot be created or written (nothing is written), 3\n"
-    "interrupted by SIGINT/SIGTERM (final.exr holds the passes done).\n";
+    "output folder that cannot be created or written, a malformed fault hook, and\n"
+    "a --resume that cannot continue (nothing is written or changed), 3\n"
+    "interrupted by SIGINT/SIGTERM (final.exr, and final.state if resumable, hold\n"
+    "the passes done).\n";
 
 /* The folders make_dirs created, deepest last, so that a failure can
    remove them again. */
@@ -130,9 +140,40 @@ static bool prepare_output(const struct config *cfg, const struct config_overrid
                     "output folder \"%s\" %s (%s)", out, why.message, expected);
 }
 
+/* Renders into the prepared output folder and reports; returns the exit
+   status. `start`: the state to continue, NULL for a fresh render. */
+static int render_and_report(const struct config *cfg, const struct scene *scene, struct film_state *start,
+                             bool quiet)
+{
+    struct error err = { { 0 } };
+    struct render_result res;
+    render_catch_signals();
+    if (!quiet && start)
+        fprintf(stderr, "render: resuming %s at %lld spp, %dx%d, %s/%s\n", cfg->render.output,
+                (long long)start->film.passes, cfg->width, cfg->height, integrator_names[cfg->render.integrator],
+                strategy_names[cfg->render.strategy]);
+    else if (!quiet)
+        fprintf(stderr, "render: %s, %dx%d, %s/%s, output %s\n", cfg->path, cfg->width, cfg->height,
+                integrator_names[cfg->render.integrator], strategy_names[cfg->render.strategy], cfg->render.output);
+    if (!render_run(cfg, scene, start, stdout, &res, &err)) {
+        fprintf(stderr, "render: %s\n", err.message);
+        return EXIT_RUNTIME;
+    }
+    if (!quiet) {
+        double secs = res.time_s > 0.0 ? res.time_s : 1e-9;
+        fprintf(stderr, "render: %lld spp in %.3f s: %.3g samples/s, %.3g rays/s%s\n", (long long)res.spp, res.time_s,
+                (double)res.spp * cfg->width * cfg->height / secs, (double)res.stats.rays / secs,
+                res.interrupted ? " (interrupted)" : "");
+    }
+    if (res.nonfinite_samples)
+        fprintf(stderr, "render: warning: %llu non-finite samples dropped\n",
+                (unsigned long long)res.nonfinite_samples);
+    return res.interrupted ? EXIT_INTERRUPTED : EXIT_DONE;
+}
+
 int main(int argc, char **argv)
 {
-    const char *config_path = NULL;
+    const char *config_path = NULL, *resume_dir = NULL;
     bool quiet = false;
     struct config_override *ov = calloc((size_t)argc, sizeof *ov);
     const char **ov_flag = calloc((size_t)argc, sizeof *ov_flag); /* the shorthand that set it, or NULL */
@@ -164,6 +205,25 @@ int main(int argc, char **argv)
         }
         if (!strcmp(a, "--quiet")) {
             quiet = true;
+            continue;
+        }
+        if (!strcmp(a, "--resumable")) {
+            ov[n_ov].path = "render.resumable";
+            ov[n_ov].value = "true";
+            ov_flag[n_ov] = a;
+            ++n_ov;
+            continue;
+        }
+        if (!strcmp(a, "--resume")) {
+            if (i + 1 >= argc) {
+                fprintf(stderr, "render: --resume needs a folder\n%s", usage);
+                goto done;
+            }
+            if (resume_dir) {
+                fprintf(stderr, "render: more than one --resume (%s and %s)\n%s", resume_dir, argv[i + 1], usage);
+                goto done;
+            }
+            resume_dir = argv[++i];
             continue;
         }
         if (!strcmp(a, "--set")) {
@@ -204,48 +264,56 @@ int main(int argc, char **argv)
         }
         config_path = a;
     }
-    if (!config_path) {
+    if (resume_dir && config_path) {
+        fprintf(stderr, "render: --resume %s takes no CONFIG (it continues %s/config.yaml), got %s\n%s", resume_dir,
+                resume_dir, config_path, usage);
+        goto done;
+    }
+    if (!resume_dir && !config_path) {
         fputs(usage, stderr);
+        goto done;
+    }
+    for (int k = 0; resume_dir && k < n_ov; ++k) {
+        if (resume_override_allowed(ov[k].path)) continue;
+        if (ov_flag[k])
+            fprintf(stderr, "render: --resume: %s (%s) cannot be changed when resuming (only %s can)\n", ov_flag[k],
+                    ov[k].path, RESUME_ALLOWED_KEYS);
+        else
+            fprintf(stderr, "render: --resume: --set %s cannot be changed when resuming (only %s can)\n", ov[k].path,
+                    RESUME_ALLOWED_KEYS);
         goto done;
     }
 
     struct error err = { { 0 } };
+    struct render_faults faults;
     struct config cfg;
-    if (!config_load(config_path, ov, n_ov, &cfg, &err)) {
-        fprintf(stderr, "%s\n", err.message);
+    struct film_state start;
+    if (!render_faults_from_env(&faults, &err)) {
+        fprintf(stderr, "render: %s\n", err.message);
+        goto done;
+    }
+    bool loaded = resume_dir ? resume_load(resume_dir, ov, n_ov, &cfg, &start, &err)
+                             : config_load(config_path, ov, n_ov, &cfg, &err);
+    if (!loaded) {
+        fprintf(stderr, "%s%s\n", resume_dir ? "render: " : "", err.message);
         goto done;
     }
     struct scene scene;
     if (!scene_create(&cfg, &scene, &err)) {
         fprintf(stderr, "%s\n", err.message);
-        config_free(&cfg);
-        goto done;
-    }
-    if (!prepare_output(&cfg, ov, ov_flag, &err)) {
-        fprintf(stderr, "%s\n", err.message);
     } else {
-        status = EXIT_RUNTIME;
-        struct render_result res;
-        render_catch_signals();
-        if (!quiet)
-            fprintf(stderr, "render: %s, %dx%d, %s/%s, output %s\n", config_path, cfg.width, cfg.height,
-                    integrator_names[cfg.render.integrator], strategy_names[cfg.render.strategy], cfg.render.output);
-        if (render_run(&cfg, &scene, stdout, &res, &err)) {
-            status = res.interrupted ? EXIT_INTERRUPTED : EXIT_DONE;
-            if (!quiet) {
-                double secs = res.time_s > 0.0 ? res.time_s : 1e-9;
-                fprintf(stderr, "render: %lld spp in %.3f s: %.3g samples/s, %.3g rays/s%s\n", (long long)res.spp,
-                        res.time_s, (double)res.spp * cfg.width * cfg.height / secs, (double)res.stats.rays / secs,
-                        res.interrupted ? " (interrupted)" : "");
-            }
-            if (res.nonfinite_samples)
-                fprintf(stderr, "render: warning: %llu non-finite samples dropped\n",
-                        (unsigned long long)res.nonfinite_samples);
-        } else {
-            fprintf(stderr, "render: %s\n", err.message);
-        }
+        /* A resume rewrites config.yaml with the new totals only now that
+           everything has been checked. */
+        bool ready = resume_dir ? write_effective_config(&cfg, &err) : prepare_output(&cfg, ov, ov_flag, &err);
+        if (!ready && resume_dir)
+            fprintf(stderr, "render: --resume %s: output folder %s\n", resume_dir, err.message);
+        else if (!ready)
+            fprintf(stderr, "%s\n", err.message);
+        else
+            status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, quiet);
+        scene_destroy(&scene);
     }
-    scene_destroy(&scene);
+    if (resume_dir) film_state_free(&start);
     config_free(&cfg);
     goto done;
 oom:

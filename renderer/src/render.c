@@ -2,8 +2,11 @@
 
 #include "fastmath.h"
 
+#include <errno.h>
+#include <math.h>
 #include <pthread.h>
 #include <signal.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -57,6 +60,8 @@ struct pass_control {
     bool quit;
     int64_t pass;             /* index of the pass being rendered */
     int64_t fault_nonfinite_every; /* test hook: poison ~1 sample in N (0: off) */
+    bool fault_biased;        /* test hook: every sample times fault_bias */
+    double fault_bias;
     uint64_t nonfinite;
     struct integrator_stats stats;
     double cpu_s;             /* CPU time the workers spent rendering passes */
@@ -152,6 +157,8 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
                              w->row_found);
     integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
                             w->row_found, cfg->width, w->row_rng, w->row_color, stats);
+    if (w->pc->fault_biased)
+        for (int x = 0; x < cfg->width; ++x) w->row_color[x] = rgb_scale(w->row_color[x], w->pc->fault_bias);
     int dropped = 0;
     for (int x = 0; x < cfg->width; ++x) {
         struct rgb *c = &w->row_color[x];
@@ -348,6 +355,36 @@ static void writer_wait_idle(struct writer *w)
     pthread_mutex_unlock(&w->lock);
 }
 
+/* ---- test hooks ------------------------------------------------------------ */
+
+bool render_faults_from_env(struct render_faults *out, struct error *err)
+{
+    memset(out, 0, sizeof *out);
+    out->bias_factor = 1.0;
+    const char *nonfinite = getenv("PORTAL_LIGHTS_FAULT_NONFINITE");
+    if (nonfinite) out->nonfinite_every = atoll(nonfinite);
+    const char *bias = getenv("PORTAL_LIGHTS_FAULT_BIAS");
+    if (!bias) return true;
+    const char *colon = strchr(bias, ':');
+    int k = 0;
+    while (colon && k < STRATEGY_COUNT &&
+           (strlen(strategy_names[k]) != (size_t)(colon - bias) ||
+            strncmp(strategy_names[k], bias, (size_t)(colon - bias))))
+        ++k;
+    char *end = NULL;
+    errno = 0;
+    double factor = colon ? strtod(colon + 1, &end) : 0.0;
+    if (!colon || k == STRATEGY_COUNT || end == colon + 1 || *end || errno || !isfinite(factor) || factor < 0.0)
+        return error_set(err,
+                         "PORTAL_LIGHTS_FAULT_BIAS=%s: expected STRATEGY:FACTOR (a strategy name such as light, and "
+                         "a finite number >= 0)",
+                         bias);
+    out->bias = true;
+    out->bias_strategy = (enum strategy_kind)k;
+    out->bias_factor = factor;
+    return true;
+}
+
 /* ---- the loop -------------------------------------------------------------- */
 
 static int thread_count(const struct render_desc *rd)
@@ -372,11 +409,95 @@ static void fill_info(struct snapshot_info *info, const struct config *cfg, doub
     info->compress = false;
 }
 
-bool render_run(const struct config *cfg, const struct scene *scene, FILE *json, struct render_result *result,
-                struct error *err)
+/* What the render has done so far, beyond the film and the workers'
+   counters: restored from a state when resuming, saved in it at the end. */
+struct progress {
+    int64_t pass;              /* passes done */
+    double elapsed;            /* render clock */
+    double last_pass;          /* duration of the latest pass (0 before one) */
+    int snapshots;             /* timed snapshots written */
+    /* What the snapshot schedule costs the main thread: wall time with the
+       render threads paused, and CPU time (the writer's is wr.cpu_s). */
+    double pause_s, pause_cpu_s;
+    bool interrupted;
+};
+
+/* `film` has been moved out of st already. */
+static void progress_restore(struct progress *pr, struct pass_control *pc, const struct film_state *st,
+                             const struct film *film)
+{
+    pr->pass = film->passes;
+    pr->elapsed = st->render_time_s;
+    pr->snapshots = st->snapshots;
+    pr->pause_s = st->snapshot_pause_s;
+    pr->pause_cpu_s = st->snapshot_cpu_s;
+    pc->stats = st->stats;
+    pc->nonfinite = st->nonfinite_samples;
+    pc->cpu_s = st->render_cpu_s;
+}
+
+/* DIR/final.state when the render is resumable, written before final.exr
+   is renamed into place (so a final.exr is never newer than its state);
+   otherwise a state an earlier render left is removed, for the same
+   reason. */
+static bool write_final_state(const struct config *cfg, const struct film *film, const struct pass_control *pc,
+                              const struct writer *wr, const struct progress *pr, struct error *err)
+{
+    char path[CONFIG_PATH_MAX + 64];
+    snprintf(path, sizeof path, "%s/final.state", cfg->render.output);
+    if (!cfg->render.resumable) {
+        if (unlink(path) != 0 && errno != ENOENT)
+            return error_set(err, "%s: cannot remove the state of an earlier render: %s", path, strerror(errno));
+        return true;
+    }
+    struct film_state st;
+    memset(&st, 0, sizeof st);
+    st.film = *film;
+    st.render_time_s = pr->elapsed;
+    st.render_cpu_s = pc->cpu_s;
+    st.snapshot_cpu_s = wr->cpu_s + pr->pause_cpu_s;
+    st.snapshot_pause_s = pr->pause_s;
+    st.stats = pc->stats;
+    st.nonfinite_samples = pc->nonfinite;
+    st.snapshots = pr->snapshots;
+    st.seed = cfg->render.seed;
+    st.image_hash = cfg->image_hash;
+    return film_state_write(path, &st, err);
+}
+
+/* The final snapshot (and state), always, from the main thread, and the
+   `final` JSON line. */
+static bool write_final(const struct config *cfg, const struct film *film, const struct pass_control *pc,
+                        struct writer *wr, const struct progress *pr, FILE *json, struct error *err)
+{
+    struct snapshot_info info;
+    char path[CONFIG_PATH_MAX + 64];
+    film_snapshot(film, &wr->image);
+    fill_info(&info, cfg, pr->elapsed, pr->pass, pc);
+    info.compress = true;
+    snprintf(path, sizeof path, "%s/final.exr", cfg->render.output);
+    if (!write_final_state(cfg, film, pc, wr, pr, err) || !film_write_exr(path, &wr->image, &info, err)) return false;
+    json_snapshot(json, "final", 0, path, &info);
+    fprintf(json, ",\"interrupted\":%s,\"shadow_rays\":%llu,\"shadow_blocked\":%llu,"
+                  "\"light_samples\":%llu,\"light_missed\":%llu,\"render_cpu_s\":%.6f,"
+                  "\"snapshot_cpu_s\":%.6f,\"snapshot_pause_s\":%.6f}\n",
+            pr->interrupted ? "true" : "false", (unsigned long long)pc->stats.shadow_rays,
+            (unsigned long long)pc->stats.shadow_blocked, (unsigned long long)pc->stats.light_samples,
+            (unsigned long long)pc->stats.light_missed, pc->cpu_s, wr->cpu_s + pr->pause_cpu_s, pr->pause_s);
+    fflush(json);
+    return true;
+}
+
+bool render_run(const struct config *cfg, const struct scene *scene, struct film_state *start, FILE *json,
+                struct render_result *result, struct error *err)
 {
     const struct render_desc *rd = &cfg->render;
     memset(result, 0, sizeof *result);
+    struct render_faults faults;
+    if (!render_faults_from_env(&faults, err)) return false;
+    if (start && (start->film.width != cfg->width || start->film.height != cfg->height || !start->film.mean))
+        return error_set(err, "the state to resume is %dx%d, the config %dx%d", start->film.width,
+                         start->film.height, cfg->width, cfg->height);
     struct strategy strategy;
     if (!strategy_init(&strategy, scene, rd, err)) return false;
     struct integrator integrator;
@@ -384,7 +505,10 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     struct camera camera;
     camera_init(&camera, &cfg->camera, cfg->width, cfg->height);
     struct film film;
-    if (!film_init(&film, cfg->width, cfg->height, err)) {
+    if (start) {
+        film = start->film;
+        memset(&start->film, 0, sizeof start->film);
+    } else if (!film_init(&film, cfg->width, cfg->height, err)) {
         strategy_free(&strategy);
         return false;
     }
@@ -398,16 +522,24 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
     if (ok && rd->aov_region) {
         ok = aov_classifier_init(&aov, scene, err);
         have_aov = ok;
-        ok = ok && film_enable_regions(&film, err) && film_image_enable_regions(&wr.image, err);
+        /* A resumed film brings its counts along (film_state.c). */
+        ok = ok && (film.region_count || film_enable_regions(&film, err)) &&
+             film_image_enable_regions(&wr.image, err);
+    } else if (ok && film.region_count) {
+        ok = error_set(err, "the resumed state has region AOV counts, but render.aov.region is off");
     }
 
     int n_threads = thread_count(rd);
     struct pass_control pc;
     memset(&pc, 0, sizeof pc);
-    /* Fault injection for tests: PORTAL_LIGHTS_FAULT_NONFINITE=N makes about
-       one sample in N a NaN, to prove such samples never reach an image. */
-    const char *fault = getenv("PORTAL_LIGHTS_FAULT_NONFINITE");
-    if (fault) pc.fault_nonfinite_every = atoll(fault);
+    /* Fault injection for tests: non-finite samples, to prove they never
+       reach an image; a biased strategy, to prove the harness notices. */
+    pc.fault_nonfinite_every = faults.nonfinite_every;
+    pc.fault_biased = faults.bias && faults.bias_strategy == rd->strategy;
+    pc.fault_bias = faults.bias_factor;
+    struct progress pr;
+    memset(&pr, 0, sizeof pr);
+    if (start) progress_restore(&pr, &pc, start, &film);
     pthread_mutex_init(&pc.lock, NULL);
     pthread_cond_init(&pc.start, NULL);
     pthread_cond_init(&pc.done, NULL);
@@ -443,42 +575,40 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         json_string(json, rd->output);
         fprintf(json, ",\"width\":%d,\"height\":%d,\"strategy\":\"%s\",\"integrator\":\"%s\",\"seed\":%llu,"
                       "\"config_hash\":\"%016llx\",\"renderer_version\":\"%s\",\"threads\":%d,"
-                      "\"spp_target\":%d,\"time_target_s\":%g}\n",
+                      "\"spp_target\":%d,\"time_target_s\":%g,\"resumed_from_spp\":%lld}\n",
                 cfg->width, cfg->height, strategy_names[rd->strategy], integrator_names[rd->integrator],
                 (unsigned long long)rd->seed, (unsigned long long)cfg->hash, RENDERER_VERSION, n_threads, rd->spp,
-                rd->time_s);
+                rd->time_s, (long long)pr.pass);
         fflush(json);
     }
 
     struct schedule_state sched;
     schedule_init(&sched, &rd->snapshots);
-    double elapsed = 0.0, last_pass = 0.0;
-    /* What the snapshot schedule costs the main thread: wall time with the
-       render threads paused, and CPU time (the writer's is wr.cpu_s). */
-    double pause_s = 0.0, pause_cpu_s = 0.0;
-    int64_t pass = 0;
+    /* The schedule is cumulative: what fell due before the state was saved
+       was taken (or skipped) then. */
+    if (start) schedule_due(&sched, pr.elapsed, pr.pass);
     while (ok) {
-        if (rd->spp > 0 && pass >= rd->spp) break;
+        if (rd->spp > 0 && pr.pass >= rd->spp) break;
         /* Stop when another pass would end nearer past the limit than before it. */
-        if (rd->time_s > 0.0 && elapsed + 0.5 * last_pass >= rd->time_s) break;
+        if (rd->time_s > 0.0 && pr.elapsed + 0.5 * pr.last_pass >= rd->time_s) break;
         if (interrupt_requested) {
-            result->interrupted = true;
+            pr.interrupted = true;
             break;
         }
         double t0 = now_s();
         pthread_mutex_lock(&pc.lock);
-        pc.pass = pass;
+        pc.pass = pr.pass;
         pc.next_row = 0;
         pc.active = started;
         ++pc.generation;
         pthread_cond_broadcast(&pc.start);
         while (pc.active > 0) pthread_cond_wait(&pc.done, &pc.lock);
         pthread_mutex_unlock(&pc.lock);
-        last_pass = now_s() - t0;
-        elapsed += last_pass;
-        film.passes = ++pass;
+        pr.last_pass = now_s() - t0;
+        pr.elapsed += pr.last_pass;
+        film.passes = ++pr.pass;
 
-        if (schedule_due(&sched, elapsed, pass)) {
+        if (schedule_due(&sched, pr.elapsed, pr.pass)) {
             /* Waiting for the writer and copying the film happen between
                passes, outside the render clock. */
             double w0 = now_s(), c0 = thread_cpu_s();
@@ -489,14 +619,14 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
                 break;
             }
             film_snapshot(&film, &wr.image);
-            fill_info(&wr.info, cfg, elapsed, pass, &pc);
-            wr.index = ++result->snapshots;
+            fill_info(&wr.info, cfg, pr.elapsed, pr.pass, &pc);
+            wr.index = ++pr.snapshots;
             snprintf(wr.path, sizeof wr.path, "%s/snapshot_%04d.exr", rd->output, wr.index);
             wr.busy = true;
             pthread_cond_broadcast(&wr.cond);
             pthread_mutex_unlock(&wr.lock);
-            pause_s += now_s() - w0;
-            pause_cpu_s += thread_cpu_s() - c0;
+            pr.pause_s += now_s() - w0;
+            pr.pause_cpu_s += thread_cpu_s() - c0;
         }
     }
 
@@ -519,29 +649,12 @@ bool render_run(const struct config *cfg, const struct scene *scene, FILE *json,
         if (wr.failed) ok = error_set(err, "%s", wr.err.message);
     }
 
-    if (ok) {
-        /* The final snapshot, always, from the main thread. */
-        struct snapshot_info info;
-        char path[CONFIG_PATH_MAX + 64];
-        film_snapshot(&film, &wr.image);
-        fill_info(&info, cfg, elapsed, pass, &pc);
-        info.compress = true;
-        snprintf(path, sizeof path, "%s/final.exr", rd->output);
-        ok = film_write_exr(path, &wr.image, &info, err);
-        if (ok) {
-            json_snapshot(json, "final", 0, path, &info);
-            fprintf(json, ",\"interrupted\":%s,\"shadow_rays\":%llu,\"shadow_blocked\":%llu,"
-                          "\"light_samples\":%llu,\"light_missed\":%llu,\"render_cpu_s\":%.6f,"
-                          "\"snapshot_cpu_s\":%.6f,\"snapshot_pause_s\":%.6f}\n",
-                    result->interrupted ? "true" : "false", (unsigned long long)pc.stats.shadow_rays,
-                    (unsigned long long)pc.stats.shadow_blocked, (unsigned long long)pc.stats.light_samples,
-                    (unsigned long long)pc.stats.light_missed, pc.cpu_s, wr.cpu_s + pause_cpu_s, pause_s);
-            fflush(json);
-        }
-    }
+    if (ok) ok = write_final(cfg, &film, &pc, &wr, &pr, json, err);
 
-    result->spp = pass;
-    result->time_s = elapsed;
+    result->spp = pr.pass;
+    result->time_s = pr.elapsed;
+    result->snapshots = pr.snapshots;
+    result->interrupted = pr.interrupted;
     result->nonfinite_samples = pc.nonfinite;
     result->stats = pc.stats;
     free(workers);

@@ -10,9 +10,12 @@
 
 #include "config.h"
 #include "error.h"
+#include "film_state.h"
 #include "integrator.h"
 #include "scene.h"
 
+/* Results are cumulative: a resumed render counts the passes, time,
+   snapshots and rays of the runs before it. */
 struct render_result {
     int64_t spp;                 /* completed passes */
     double time_s;               /* render time, snapshot I/O excluded */
@@ -26,10 +29,33 @@ struct render_result {
    its current pass and write its final snapshot. */
 void render_catch_signals(void);
 
+/* Test hooks, from the environment: PORTAL_LIGHTS_FAULT_NONFINITE=N turns
+   about one sample in N into a NaN; PORTAL_LIGHTS_FAULT_BIAS=STRATEGY:FACTOR
+   multiplies every sample's radiance by FACTOR when the render's strategy
+   is STRATEGY (a deliberately biased estimator). */
+struct render_faults {
+    int64_t nonfinite_every;       /* 0: off */
+    bool bias;                     /* PORTAL_LIGHTS_FAULT_BIAS is set */
+    enum strategy_kind bias_strategy;
+    double bias_factor;            /* finite, >= 0 */
+};
+
+/* Reads both hooks; fails with a message naming the variable when
+   PORTAL_LIGHTS_FAULT_BIAS is malformed (an unknown strategy, a factor
+   that is not a finite number >= 0). */
+bool render_faults_from_env(struct render_faults *out, struct error *err);
+
 /* Renders cfg (scene already built) into cfg->render.output, which must
-   exist. JSON progress lines go to `json` (one object per line). False on a
-   runtime failure (e.g. a snapshot could not be written). */
-bool render_run(const struct config *cfg, const struct scene *scene, FILE *json, struct render_result *result,
-                struct error *err);
+   exist. JSON progress lines go to `json` (one object per line). With
+   `start` (NULL for a fresh render), the render continues from that state:
+   its film moves into the render (start->film is left empty; the caller
+   still frees start), passes go on from start->film.passes, and time,
+   counters and snapshot numbering continue from it; its size must be
+   cfg's. With cfg->render.resumable, final.state is written (atomically,
+   before final.exr is renamed into place); without it a final.state left
+   by an earlier render is removed. False on a runtime failure (e.g. a
+   snapshot could not be written, a malformed fault hook). */
+bool render_run(const struct config *cfg, const struct scene *scene, struct film_state *start, FILE *json,
+                struct render_result *result, struct error *err);
 
 #endif

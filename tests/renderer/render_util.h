@@ -38,7 +38,7 @@ static inline bool render_to_image(const char *path, const struct config_overrid
         if (ok) {
             FILE *json = fopen("/dev/null", "w");
             struct render_result local;
-            ok = json && render_run(&cfg, &scene, json, res ? res : &local, &err);
+            ok = json && render_run(&cfg, &scene, NULL, json, res ? res : &local, &err);
             if (json) fclose(json);
             scene_destroy(&scene);
         }

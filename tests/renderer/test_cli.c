@@ -14,6 +14,7 @@ static void test_help_and_version(void)
     run_render(a1, 0, 0, &r);
     CHECK(r.status == 0);
     CHECK(strstr(r.out, "usage: render CONFIG") && strstr(r.out, "--strategy"));
+    CHECK(strstr(r.out, "render --resume DIR") && strstr(r.out, "--resumable"));
     char *a2[] = { NULL, "--version", NULL };
     run_render(a2, 0, 0, &r);
     CHECK(r.status == 0 && strstr(r.out, "render "));
@@ -299,8 +300,73 @@ static void test_nonfinite_dropped(void)
     remove_tree(dir);
 }
 
+/* A 16x16 lampshade of 4 passes with PORTAL_LIGHTS_FAULT_BIAS=bias (unset
+   when NULL); img holds final.exr. */
+static bool render_biased(const char *bias, struct film_image *img)
+{
+    char dir[] = "/tmp/portal-cli-XXXXXX", path[600];
+    make_tmpdir(dir);
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "4", "--set", "film.width=16",
+                  "--set", "film.height=16", "--quiet", NULL };
+    if (bias) setenv("PORTAL_LIGHTS_FAULT_BIAS", bias, 1);
+    run_render(a, 0, 0, &r);
+    unsetenv("PORTAL_LIGHTS_FAULT_BIAS");
+    CHECK_MSG(r.status == 0, "bias %s: status %d: %s", bias ? bias : "(none)", r.status, r.err);
+    struct snapshot_read meta = { { 0 }, NULL };
+    struct error err;
+    snprintf(path, sizeof path, "%s/final.exr", dir);
+    bool ok = r.status == 0 && film_read_exr(path, img, &meta, &err);
+    free(meta.storage);
+    remove_tree(dir);
+    return ok;
+}
+
+/* PORTAL_LIGHTS_FAULT_BIAS=STRATEGY:FACTOR: every sample of that strategy
+   times FACTOR (here 2: the mean doubles, the variance of the mean
+   quadruples, pixel by pixel); another strategy's render is untouched, bit
+   for bit; a malformed value is exit 2 with nothing written. */
+static void test_fault_bias(void)
+{
+    struct film_image plain = { 0 }, doubled = { 0 }, other = { 0 };
+    if (render_biased(NULL, &plain) && render_biased("light:2", &doubled) && render_biased("portal:2", &other)) {
+        size_t n = 3 * (size_t)plain.width * (size_t)plain.height;
+        int off = 0, nonzero = 0;
+        for (size_t i = 0; i < n; ++i) {
+            double want = 2.0 * plain.rgb[i], var = 4.0 * plain.variance[i];
+            off += fabs(doubled.rgb[i] - want) > 1e-6 * fabs(want) + 1e-30;
+            off += fabs(doubled.variance[i] - var) > 1e-6 * var + 1e-30;
+            nonzero += plain.rgb[i] > 0.0f;
+        }
+        CHECK_MSG(off == 0, "%d of %zu values are not twice (mean) or four times (variance) the unbiased ones", off, n);
+        CHECK_MSG(nonzero > (int)n / 32, "only %d of %zu values lit", nonzero, n);
+        CHECK(memcmp(plain.rgb, other.rgb, n * sizeof(float)) == 0);
+        CHECK(memcmp(plain.variance, other.variance, n * sizeof(float)) == 0);
+    }
+    film_image_free(&plain);
+    film_image_free(&doubled);
+    film_image_free(&other);
+
+    const char *bad[] = { "light", "light:", "light:abc", "prtal:2", ":2", "light:-1", "light:inf", "light:2x" };
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        char dir[] = "/tmp/portal-cli-XXXXXX", out[600];
+        make_tmpdir(dir);
+        snprintf(out, sizeof out, "%s/never", dir);
+        struct run r;
+        char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", out, "--spp", "1", "--quiet", NULL };
+        setenv("PORTAL_LIGHTS_FAULT_BIAS", bad[k], 1);
+        run_render(a, 0, 0, &r);
+        unsetenv("PORTAL_LIGHTS_FAULT_BIAS");
+        CHECK_MSG(r.status == 2 && strstr(r.err, "PORTAL_LIGHTS_FAULT_BIAS=") && strstr(r.err, "expected STRATEGY:FACTOR"),
+                  "%s: status %d: %s", bad[k], r.status, r.err);
+        CHECK_MSG(!exists(out) && r.out[0] == '\0', "%s: something was written", bad[k]);
+        remove_tree(dir);
+    }
+}
+
 static const struct test_case tests[] = {
     { "nonfinite_dropped", test_nonfinite_dropped },
+    { "fault_bias", test_fault_bias },
     { "help_and_version", test_help_and_version },
     { "usage_errors", test_usage_errors },
     { "config_error_writes_nothing", test_config_error_writes_nothing },
