@@ -52,7 +52,8 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
     started = _now()
     result = render(command, attempt.events, attempt.stderr,
                     timeout_s=default_timeout(spec) if spec.time_s > 0 else None)
-    entry: dict[str, Any] = {"from_spp": before, "to_spp": total_spp, "started": started, "finished": _now(),
+    entry: dict[str, Any] = {"from_spp": before, "to_spp": total_spp,
+                             "from_time_s": float(old["final"]["time_s"]), "started": started, "finished": _now(),
                              "wall_s": round(result.wall_s, 3), "exit_status": result.exit_status,
                              "command": resume_command(renderer, str(target.dir), total_spp, threads)}
     error = None

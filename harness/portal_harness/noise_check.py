@@ -28,6 +28,11 @@ from portal_harness.metrics import REL_EPSILON
 from portal_harness.regions import NamedRegion
 
 EXTENSION_MARGIN = 1.25
+# One round multiplies a part's samples by at most this much; the next
+# round looks again with the better estimates (MAX_EXTENSION_ROUNDS in sweep.py).
+MAX_FACTOR_PER_ROUND = 16.0
+# Without reference.max_time_s, a part may grow to this many times its first render time.
+DEFAULT_CAP_FACTOR = 20.0
 
 
 @dataclass(frozen=True)
@@ -93,4 +98,4 @@ def plan_extension(failed: list[RegionCheck], parts: list[exr.Snapshot], mean: n
     if not needs:
         return None
     part = max(needs, key=lambda k: needs[k])
-    return Extension(part, max(needs[part], 1.05), tuple(names[part]))
+    return Extension(part, min(max(needs[part], 1.05), MAX_FACTOR_PER_ROUND), tuple(names[part]))

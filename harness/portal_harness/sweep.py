@@ -202,7 +202,6 @@ def extend_references(experiment: Experiment, refs: dict[str, PointReference],
                       checks: dict[str, list[noise_check.RegionCheck]], options: SweepOptions,
                       manifests: dict[str, dict[str, Any]], out: TextIO) -> list[str]:
     """One round of extensions; returns the points extended."""
-    cap = experiment.reference.max_time_s
     extended = []
     for pid, found in checks.items():
         ref = refs[pid]
@@ -216,7 +215,10 @@ def extend_references(experiment: Experiment, refs: dict[str, PointReference],
         part = ref.parts[plan.part]
         snap = ref.part_snapshots[plan.part]
         factor = plan.factor
-        if cap > 0 and snap.header.render_time_s * factor > cap:
+        history = (manifests.get(part.key) or {}).get("extensions") or []
+        first_time = float(history[0].get("from_time_s", 0.0)) if history else snap.header.render_time_s
+        cap = experiment.reference.max_time_s or noise_check.DEFAULT_CAP_FACTOR * first_time
+        if snap.header.render_time_s * factor > cap:
             factor = cap / max(snap.header.render_time_s, 1e-9)
             ref.capped = True
             if factor < 1.05:

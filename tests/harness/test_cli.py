@@ -75,6 +75,6 @@ def test_07_reindex_rebuilds_the_index(cli: CliRunner, write_experiment: Callabl
     for extra in ("index.sqlite-wal", "index.sqlite-shm"):
         (results / extra).unlink(missing_ok=True)
     status, out, _ = cli("reindex")
-    assert status == 0 and "indexed 2 run folders" in out
+    assert status == 0 and "indexed 3 run folders" in out  # region map, reference, run
     status, out, _ = cli("query", "--strategy", "light", "--param", "params.s_L=0.3")
     assert status == 0 and len(out.strip().splitlines()) > 2

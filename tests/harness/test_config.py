@@ -27,8 +27,10 @@ def test_01_expands_the_cross_product(write_experiment: Callable[..., Path]) -> 
     assert spec.time_s == 0.2 and spec.strategy == "portal" and spec.threads == 1
     ref = exp.reference_spec(points[0], "light")
     assert ref.reference and ref.strategy == "light" and ref.spp == 2000
-    # every reference render carries the region AOV and its film state (to be extended)
-    assert ("render.aov.region", "true") in ref.overrides and ("render.resumable", "true") in ref.overrides
+    # every reference render keeps its film state (to be extended); the region map render has the AOV
+    assert ("render.resumable", "true") in ref.overrides and ("render.aov.region", "true") not in ref.overrides
+    region_map = exp.region_map_spec(points[0])
+    assert ("render.aov.region", "true") in region_map.overrides and region_map.spp > 0
     # the second, independent part of a reference has its own seed
     assert exp.reference_spec(points[0], "portal", part=1).seed != ref.seed
     # replicates: every (strategy, replicate) its own seed
