@@ -8,9 +8,12 @@
 - each inset of the experiment (a rectangle);
 - each antishadow region class of the renderer's region AOV
   (`region.<class>` channels, exr.REGION_CLASSES): the pixels where that
-  class holds the majority (more than half) of the pixel's samples. Pixels
-  with no majority (on a boundary) belong to no class. A class with fewer
-  than CLASS_MIN_PIXELS pixels is left out: its mean says little.
+  class holds at least PURE (95%) of the pixel's samples, so that a class's
+  error is that class's. Pixels on a boundary belong to no class (they are
+  in image, lit and the insets). A class with fewer than CLASS_MIN_PIXELS
+  pixels is left out (its mean says little), and so is a dark one, whose
+  reference is below the lit threshold on average: no light reaches it, so
+  there is no error to measure (e.g. `outside` with direct lighting).
 
 The class map comes from a render with the region AOV (the renderer's own
 classifier, not a re-implementation; the sweep makes one per point, see
@@ -32,6 +35,7 @@ LIT = "lit"
 EMITTER = "emitter"
 CLASS_MIN_PIXELS = 16
 MAJORITY = 0.5
+PURE = 0.95
 # Radiance (mean over R, G, B) above which a reference pixel counts as lit.
 DEFAULT_LIT_THRESHOLD = 1e-3
 
@@ -49,12 +53,13 @@ class NamedRegion:
         return int(self.mask.sum())
 
 
-def class_map(regions: np.ndarray) -> np.ndarray:
-    """Per pixel, the index into REGION_CLASSES of the class holding the
-    majority of its samples, or -1 where none does."""
+def class_map(regions: np.ndarray, share_min: float = MAJORITY) -> np.ndarray:
+    """Per pixel, the index into REGION_CLASSES of the class holding more
+    than `share_min` of its samples (at least, for share_min >= 0.5: two
+    classes cannot both), or -1 where none does."""
     best = np.argmax(regions, axis=-1)
     share = np.take_along_axis(regions, best[..., None], axis=-1)[..., 0]
-    return np.where(share > MAJORITY, best, -1)
+    return np.where(share > share_min if share_min == MAJORITY else share >= share_min, best, -1)
 
 
 def inset_mask(region: Region, height: int, width: int) -> np.ndarray:
@@ -74,15 +79,16 @@ def regions_of(reference: Snapshot, insets: tuple[Region, ...], lit_threshold: f
         fractions = reference.regions
     if fractions is not None and fractions.shape[:2] != (height, width):
         raise ValueError(f"region map of {fractions.shape[1]}x{fractions.shape[0]} for a {width}x{height} image")
-    classes = class_map(fractions) if fractions is not None else None
-    if classes is not None:
-        lit &= classes != REGION_CLASSES.index(EMITTER)
+    if fractions is not None:
+        lit &= class_map(fractions) != REGION_CLASSES.index(EMITTER)
     out.append(NamedRegion(LIT, KIND_LIT, lit))
     out += [NamedRegion(r.name, KIND_INSET, inset_mask(r, height, width)) for r in insets]
-    if classes is not None:
+    if fractions is not None:
+        pure = class_map(fractions, PURE)
+        brightness = reference.rgb.mean(axis=-1)
         for i, name in enumerate(REGION_CLASSES):
-            mask = classes == i
-            if mask.sum() >= CLASS_MIN_PIXELS:
+            mask = pure == i
+            if mask.sum() >= CLASS_MIN_PIXELS and brightness[mask].mean() > lit_threshold:
                 out.append(NamedRegion(name, KIND_CLASS, mask))
     return out
 

@@ -97,3 +97,35 @@ def test_03_renderer_config_error_is_a_failed_run_with_its_message(real_renderer
                            renderer=real_renderer)
     assert status == 1 and ": failed" in out
     assert "exited with status 2" in err and "film.width" in err
+
+
+def test_04_real_references_extended_tested_and_a_biased_strategy_caught(
+        real_renderer: Path, tmp_path: Path, results: Path, cli: Callable[..., tuple[int, str, str]],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    doc = yaml.safe_load(_experiment(tmp_path, ["light", "antishadow_exact"]).read_text())
+    doc["sweep"] = {"params.s_L": [1.2]}
+    doc["reference"] = {"strategies": ["antishadow_exact", "light"], "spp": 64, "seed": 7, "max_time_s": 10}
+    path = tmp_path / "real_tiny.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    status, out, err = cli("sweep", str(path), "--no-progress", renderer=real_renderer)
+    assert status == 0, out + err
+    summary = json.loads((results / "experiments" / "real_tiny" / "summary.json").read_text())
+    (ref,) = summary["references"]
+    # render --resume grew the better part until every region was resolved
+    assert "extending reference" in out and ref["parts"][0]["spp"] > 64
+    # (at this size a few heavy-tailed pixels near the opening's rim keep the whole image's ratio
+    # near its limit; the floor, where the strategies differ, is resolved)
+    noise = {c["region"]: c for c in ref["noise"]}
+    assert noise["floor"]["ok"] and noise["floor"]["ratio"] <= 0.1, out
+    assert abs(ref["bias_max_abs_z"]) < 4
+    regions = {r["region"] for r in summary["rows"]}
+    assert {"image", "lit", "floor", "anti_antumbra"} <= regions
+    floor = next(r for r in summary["rows"] if r["region"] == "floor" and r["strategy"] == "antishadow_exact")
+    assert floor["efficiency_vs_light"] > 10 and floor["bound"] == "", out
+    # the renderer's bias hook makes antishadow_exact 10% too bright: the two references disagree
+    monkeypatch.setenv("PORTAL_LIGHTS_FAULT_BIAS", "antishadow_exact:1.1")
+    doc["reference"]["seed"] = 8  # new references (the unbiased ones are cached)
+    path.write_text(yaml.safe_dump(doc))
+    status, out, err = cli("sweep", str(path), "--no-progress", renderer=real_renderer)
+    assert status == 1, out + err
+    assert "references antishadow_exact and light disagree in region" in out and "stopped" in out

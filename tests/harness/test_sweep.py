@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -183,3 +184,77 @@ def test_05_metrics_command(cli: CliRunner, fake_scene: Path, results: Path,
     assert rows and {r["region"] for r in rows} == {"image", "lit"}
     status, out, err = cli("metrics", key, "--inset", "huge=0,0,99,99")
     assert status == 2 and "does not fit" in err
+
+
+def _summary(results: Path, name: str = "tiny") -> dict:  # type: ignore[type-arg]
+    return json.loads((results / "experiments" / name / "summary.json").read_text())
+
+
+def test_06_a_biased_strategy_stops_the_sweep_before_any_run(cli: CliRunner, write_experiment: Callable[..., Path],
+                                                              results: Path, render_log: Callable[[], list[str]],
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    # the renderer's fault hook: portal's samples 5% too bright
+    monkeypatch.setenv("PORTAL_LIGHTS_FAULT_BIAS", "portal:1.05")
+    exp = write_experiment(reference={"strategies": ["light", "portal"], "spp": 2000, "seed": 99})
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 1
+    assert "references light and portal disagree in region" in out and "one of the two strategies is biased" in out
+    assert "stopped" in out
+    # region maps and references only: nothing was measured against them
+    assert len(render_log()) == 2 + 4
+    # without the fault (and its cached references) the same sweep goes through, its bias statistic small
+    monkeypatch.delenv("PORTAL_LIGHTS_FAULT_BIAS")
+    shutil.rmtree(results / "references")
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0, out
+    for ref in _summary(results)["references"]:
+        assert ref["bias_max_abs_z"] < 4 and [p["strategy"] for p in ref["parts"]] == ["light", "portal"]
+
+
+def test_07_a_short_reference_is_extended_until_it_resolves_every_region(
+        cli: CliRunner, write_experiment: Callable[..., Path], results: Path,
+        render_log: Callable[[], list[str]]) -> None:
+    exp = write_experiment(reference={"strategy": "light", "spp": 60, "seed": 99})
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0, out
+    assert "extending reference" in out
+    summary = _summary(results)
+    for ref in summary["references"]:
+        assert ref["parts"][0]["spp"] > 60 and not ref["capped"]
+        assert all(c["ok"] for c in ref["noise"]), ref["noise"]
+        manifest = json.loads((results / "references" / ref["key"] / "manifest.json").read_text())
+        assert manifest["extensions"][0]["from_spp"] == 60
+        assert manifest["final"]["spp"] == ref["parts"][0]["spp"]
+    assert all(r["reference_noise_ratio"] <= 0.1 and r["bound"] == "" for r in summary["rows"])
+    # the extended references are reused by the next sweep, and nothing is extended again
+    before = len(render_log())
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0 and len(render_log()) == before and "extending" not in out
+
+
+def test_08_replicates_auto_references_and_figures(cli: CliRunner, write_experiment: Callable[..., Path],
+                                                   results: Path) -> None:
+    exp = write_experiment(budget={"time_s": 0.2, "threads": 1, "seed": 1, "replicates": 3,
+                                   "snapshots": {"every": 0.05}},
+                           reference={"strategies": "auto", "spp": 1500, "seed": 99, "pilot_time_s": 0.2})
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0, out
+    summary = _summary(results)
+    # the pilot picks the fake's less noisy portal; light is the second, independent part
+    for ref in summary["references"]:
+        assert [p["strategy"] for p in ref["parts"]] == ["portal", "light"]
+        assert abs(ref["bias_max_abs_z"]) < 4
+    rows = [r for r in summary["rows"] if r["region"] == "lit"]
+    assert rows and all(r["replicates"] == 3 for r in rows)
+    portal = [r for r in rows if r["strategy"] == "portal"]
+    # the fake's efficiency ratio: (1.2^2 x 0.01) / (0.7^2 x 0.011) = 2.67, within 5 standard errors
+    for r in portal:
+        assert 0 < r["efficiency_vs_light_stderr"] < 1
+        assert abs(r["efficiency_vs_light"] - 2.67) < 5 * r["efficiency_vs_light_stderr"] + 0.1
+    conn = sqlite3.connect(results / "index.sqlite")
+    roles = dict(conn.execute("SELECT role, count(*) FROM experiment_runs GROUP BY role").fetchall())
+    conn.close()
+    assert roles == {"run": 2 * 2 * 3, "reference": 2, "reference_part": 4, "pilot": 4, "region_map": 2}
+    status, out, err = cli("figures", str(exp))
+    assert status == 0, err
+    assert (results / "figures" / "tiny_efficiency.png").stat().st_size > 5000
