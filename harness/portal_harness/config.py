@@ -160,103 +160,60 @@ class Experiment:
         assert self.budget is not None
         return self.budget.seed + replicate * len(STRATEGIES) + STRATEGIES.index(strategy)
 
+    def _spec(self, point: Point, strategy: str, spp: int, time_s: float, seed: int, threads: int,
+              snapshots: Overrides = NO_SNAPSHOTS, extra: Overrides = (), reference: bool = False,
+              label: str | None = None) -> RunSpec:
+        """A render of this experiment's scene at `point`; `label` tags an
+        auxiliary render (pilot, region map) in the index."""
+        labels = self._labels(point) + (((label, 1.0),) if label else ())
+        return RunSpec(scene=str(self.scene), scene_sha256=self.scene_sha256, strategy=strategy,
+                       integrator=self.integrator, spp=spp, time_s=time_s, seed=seed, threads=threads,
+                       overrides=self._overrides(point) + extra, snapshots=snapshots, reference=reference,
+                       labels=labels)
+
     def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None,
                  replicate: int = 0) -> RunSpec:
         if self.budget is None:
             raise ConfigError(str(self.path), "budget", "required to run a sweep")
         if seed is None:
             seed = self.replicate_seed(strategy, replicate)
-        return RunSpec(
-            scene=str(self.scene),
-            scene_sha256=self.scene_sha256,
-            strategy=strategy,
-            integrator=self.integrator,
-            spp=self.budget.spp if spp is None else spp,
-            time_s=self.budget.time_s if spp is None else 0.0,
-            seed=seed,
-            threads=self.budget.threads,
-            overrides=self._overrides(point),
-            snapshots=self.budget.snapshots,
-            labels=self._labels(point),
-        )
+        return self._spec(point, strategy, spp=self.budget.spp if spp is None else spp,
+                          time_s=self.budget.time_s if spp is None else 0.0, seed=seed,
+                          threads=self.budget.threads, snapshots=self.budget.snapshots)
 
     def regress_spec(self, point: Point, strategy: str, seed: int) -> RunSpec:
         """A fixed-seed, fixed-sample run of `regress` (no time limit, no snapshots asked for)."""
         if self.regress is None:
             raise ConfigError(str(self.path), "regress", "required by the regress command")
-        return RunSpec(
-            scene=str(self.scene),
-            scene_sha256=self.scene_sha256,
-            strategy=strategy,
-            integrator=self.integrator,
-            spp=self.regress.spp,
-            time_s=0.0,
-            seed=seed,
-            threads=self.budget.threads if self.budget else 1,
-            overrides=self._overrides(point),
-            snapshots=NO_SNAPSHOTS,
-            labels=self._labels(point),
-        )
+        return self._spec(point, strategy, spp=self.regress.spp, time_s=0.0, seed=seed,
+                          threads=self.budget.threads if self.budget else 1)
 
     def baseline_path(self, default_dir: Path) -> Path:
         if self.regress is not None and self.regress.baseline != Path():
             return self.regress.baseline
         return default_dir / f"{self.name}.json"
 
-    def reference_spec(self, point: Point, strategy: str, part: int = 0) -> RunSpec:
+    def reference_spec(self, point: Point, strategy: str, part: int = 0, time_s: float | None = None) -> RunSpec:
         """Reference render `part` (0 or 1) of a point with `strategy`: its
-        own seed, and resumable, so that it can be extended (references.py)."""
+        own seed, and resumable, so that it can be extended (references.py).
+        `time_s` replaces reference.time_s (the pilot's prediction)."""
         r = self.reference
-        return RunSpec(
-            scene=str(self.scene),
-            scene_sha256=self.scene_sha256,
-            strategy=strategy,
-            integrator=self.integrator,
-            spp=r.spp,
-            time_s=r.time_s,
-            seed=r.seed + 7 * part,
-            threads=r.threads,
-            overrides=self._overrides(point) + REFERENCE_RENDER_OVERRIDES,
-            snapshots=NO_SNAPSHOTS,
-            reference=True,
-            labels=self._labels(point),
-        )
+        return self._spec(point, strategy, spp=r.spp, time_s=r.time_s if time_s is None else time_s,
+                          seed=r.seed + 7 * part, threads=r.threads, extra=REFERENCE_RENDER_OVERRIDES,
+                          reference=True)
 
     def pilot_spec(self, point: Point, strategy: str) -> RunSpec:
         """A short render of a candidate reference strategy: its own
         variance layer says how efficient the strategy is here."""
         r = self.reference
-        return RunSpec(
-            scene=str(self.scene),
-            scene_sha256=self.scene_sha256,
-            strategy=strategy,
-            integrator=self.integrator,
-            spp=0,
-            time_s=r.pilot_time_s,
-            seed=r.seed + 1000,
-            threads=r.threads,
-            overrides=self._overrides(point),
-            snapshots=NO_SNAPSHOTS,
-            labels=self._labels(point) + (("pilot", 1.0),),
-        )
+        return self._spec(point, strategy, spp=0, time_s=r.pilot_time_s, seed=r.seed + 1000, threads=r.threads,
+                          label="pilot")
 
     def region_map_spec(self, point: Point) -> RunSpec:
         """The render whose region AOV gives the point's region classes."""
         r = self.reference
-        return RunSpec(
-            scene=str(self.scene),
-            scene_sha256=self.scene_sha256,
-            strategy="light",
-            integrator=self.integrator,
-            spp=REGION_MAP_SPP,
-            time_s=0.0,
-            seed=r.seed + 2000,
-            threads=r.threads,
-            overrides=self._overrides(point) + AOV_OVERRIDES,
-            snapshots=NO_SNAPSHOTS,
-            labels=self._labels(point) + (("region_map", 1.0),),
-        )
-
+        return self._spec(point, "light", spp=REGION_MAP_SPP, time_s=0.0, seed=r.seed + 2000, threads=r.threads,
+                          extra=AOV_OVERRIDES, label="region_map")
 
 def _check_override_key(reader: Reader, key: str, where: str) -> None:
     if not key or any(not part for part in key.split(".")):

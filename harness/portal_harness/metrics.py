@@ -108,22 +108,6 @@ def efficiency(rel_mse_value: float, time_s: float) -> float:
     return 1.0 / (rel_mse_value * time_s)
 
 
-# Below this multiple of the reference's noise floor a measured relMSE says
-# little about the strategy: only that its error is at most about that large.
-FLOOR_MARGIN = 2.0
-
-
-def floor_corrected_efficiency(rel_mse_value: float, floor: float, time_s: float) -> tuple[float, bool]:
-    """Efficiency with the reference's noise removed: 1 / ((relMSE - floor) x time),
-    since an independent reference adds its own variance to the expected
-    error. When relMSE < FLOOR_MARGIN x floor the difference is mostly noise;
-    then the raw 1 / (relMSE x time) is returned, which is a lower bound of
-    the true efficiency, flagged by the second value (True: lower bound)."""
-    if rel_mse_value > FLOOR_MARGIN * floor:
-        return efficiency(rel_mse_value - floor, time_s), False
-    return efficiency(rel_mse_value, time_s), True
-
-
 def relative_variance(mean: np.ndarray, variance: np.ndarray, epsilon: float = REL_EPSILON) -> np.ndarray:
     """Per pixel and channel, the variance of the mean relative to the squared
     mean: the expected relMSE of an unbiased image, estimated from one render."""

@@ -1,16 +1,31 @@
-"""Choosing the reference strategies of a sweep point by a short pilot.
+"""Choosing the reference strategies of a sweep point, and the first
+reference's length, by a short pilot.
 
-Every candidate strategy renders the point for reference.pilot_time_s (the
-region AOV on). Its own variance layer estimates the relMSE an unbiased
-image of it would have, and time x that relMSE is its cost per unit of
-precision (the inverse of its efficiency; no reference is needed):
+Every candidate strategy renders the point for reference.pilot_time_s. Its
+own variance layer estimates the relMSE an unbiased image of it would have,
+and time x that relMSE is its cost per unit of precision in a region R (the
+inverse of its efficiency; no reference is needed):
 
-    cost = t * mean_i Var_i / (m_i^2 + eps),
+    cost_s(R) = t * mean_{i in R} Var_i / (m_i^2 + eps).
 
-over the pilot's lit pixels that are not the emitter (where every strategy
-is alike) nor a miss. The lowest cost makes the first reference; the second,
-independent one uses `light` (the baseline every paper trusts), or the
-runner-up when the best is `light` itself, so that the two differ.
+The reference must resolve, in every region, the error of the best strategy
+there (noise_check.py). A reference made with s for time T has noise
+cost_s(R) / T, and the best run of time t has error min_s' cost_s'(R) / t,
+so the reference time R needs grows with the ratio
+
+    need_s(R) = cost_s(R) / min_s' cost_s'(R)
+
+and the first reference is the strategy with the smallest worst ratio over
+the regions (image, lit, insets, classes: regions.py): a strategy very good
+on average but poor in one inset would make that inset's reference very
+long. The second, independent part uses `light` (the baseline every paper
+trusts), or the runner-up when the best is `light` itself, so that the two
+differ.
+
+The first part's render time is then predicted: the noise limit q of the
+error gives T = t * max_R need(R) * (1 - q) / q * margin (noise_check.py's
+extension formula with the pilot's costs), between reference.time_s and the
+cap. The noise check still measures the result and extends it if needed.
 """
 
 from __future__ import annotations
@@ -22,7 +37,7 @@ import numpy as np
 
 from portal_harness import exr
 from portal_harness.metrics import REL_EPSILON
-from portal_harness.regions import EMITTER, class_map
+from portal_harness.regions import NamedRegion
 
 BASELINE = "light"
 
@@ -31,40 +46,48 @@ BASELINE = "light"
 class PilotResult:
     strategy: str
     time_s: float
-    cost: float          # time x expected relMSE over the scored pixels; lower is better
+    worst_need: float                 # max over regions of cost / best cost there; lower is better
+    needs: dict[str, float]           # by region
 
 
-def scored_mask(pilots: list[exr.Snapshot], lit_threshold: float, fractions: np.ndarray | None) -> np.ndarray:
-    """Pixels lit in some pilot, except those whose primary hits are mostly
-    an emitter or nothing (`fractions`: the point's region AOV, if any)."""
-    lit = np.max(np.stack([p.rgb.mean(axis=-1) for p in pilots]), axis=0) > lit_threshold
-    if fractions is not None:
-        classes = class_map(fractions)
-        lit &= (classes != exr.REGION_CLASSES.index(EMITTER)) & (classes != exr.REGION_CLASSES.index("miss"))
-    return lit
+def region_costs(pilot: exr.Snapshot, regions: list[NamedRegion]) -> dict[str, float]:
+    out = {}
+    if pilot.header.spp < 2:
+        return out
+    rel = pilot.variance / (pilot.rgb * pilot.rgb + REL_EPSILON)
+    for r in regions:
+        if r.pixels:
+            out[r.name] = float(pilot.header.render_time_s * np.mean(rel[r.mask]))
+    return out
 
 
-def cost_of(pilot: exr.Snapshot, mask: np.ndarray) -> float:
-    if not mask.any() or pilot.header.spp < 2:
-        return math.inf
-    m = pilot.rgb[mask]
-    rel = pilot.variance[mask] / (m * m + REL_EPSILON)
-    return float(pilot.header.render_time_s * np.mean(rel))
-
-
-def score(pilots: dict[str, exr.Snapshot], lit_threshold: float,
-          fractions: np.ndarray | None = None) -> list[PilotResult]:
-    """Candidates from the cheapest to the dearest."""
-    mask = scored_mask(list(pilots.values()), lit_threshold, fractions)
-    results = [PilotResult(s, p.header.render_time_s, cost_of(p, mask)) for s, p in pilots.items()]
-    return sorted(results, key=lambda r: (r.cost, r.strategy))
+def score(pilots: dict[str, exr.Snapshot], regions: list[NamedRegion]) -> list[PilotResult]:
+    """Candidates from the best reference strategy to the worst."""
+    costs = {s: region_costs(p, regions) for s, p in pilots.items()}
+    names = [r.name for r in regions]
+    best = {n: min((c[n] for c in costs.values() if c.get(n, 0) > 0), default=0.0) for n in names}
+    results = []
+    for s, p in pilots.items():
+        needs = {n: costs[s][n] / best[n] for n in names if best[n] > 0 and n in costs[s]}
+        complete = len(needs) == sum(1 for n in names if best[n] > 0)
+        worst = max(needs.values(), default=math.inf) if complete else math.inf
+        results.append(PilotResult(s, p.header.render_time_s, worst, needs))
+    return sorted(results, key=lambda r: (r.worst_need, r.strategy))
 
 
 def choose(ranked: list[PilotResult]) -> tuple[str, ...]:
-    """The reference strategies: the cheapest, then light (or the runner-up)."""
-    usable = [r.strategy for r in ranked if math.isfinite(r.cost)]
+    """The reference strategies: the best, then light (or the runner-up)."""
+    usable = [r.strategy for r in ranked if math.isfinite(r.worst_need)]
     if not usable:
         return (BASELINE,)
     best = usable[0]
     second = BASELINE if best != BASELINE else next(iter(usable[1:]), None)
     return (best,) if second is None else (best, second)
+
+
+def first_time(ranked: list[PilotResult], run_time_s: float, noise_ratio: float, margin: float) -> float | None:
+    """The predicted render time of the first reference part (None without a prediction)."""
+    usable = [r for r in ranked if math.isfinite(r.worst_need)]
+    if not usable or run_time_s <= 0:
+        return None
+    return run_time_s * usable[0].worst_need * (1 - noise_ratio) / noise_ratio * margin

@@ -62,10 +62,12 @@ class PointReference:
         return tuple(p.spec.strategy for p in self.parts)
 
 
-def plan(experiment: Experiment, point: Point, strategies: tuple[str, ...], renderer_version: str) -> PointReference:
+def plan(experiment: Experiment, point: Point, strategies: tuple[str, ...], renderer_version: str,
+         first_time_s: float | None = None) -> PointReference:
+    """The parts; the first renders for `first_time_s` when given (pilot.first_time)."""
     parts = []
     for i, strategy in enumerate(strategies):
-        spec = experiment.reference_spec(point, strategy, part=i)
+        spec = experiment.reference_spec(point, strategy, part=i, time_s=first_time_s if i == 0 else None)
         parts.append(Part(spec, spec.key(renderer_version)))
     return PointReference(point, tuple(parts))
 

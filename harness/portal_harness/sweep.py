@@ -42,7 +42,7 @@ from portal_harness.index import ROLE_PILOT, ROLE_REFERENCE, ROLE_REFERENCE_PART
 from portal_harness.metrics import WHOLE_IMAGE, rel_variance_floor
 from portal_harness.paths import ResultsLayout
 from portal_harness.references import PointReference
-from portal_harness.regions import LIT
+from portal_harness.regions import LIT, regions_of
 from portal_harness.spec import RunSpec
 
 MAX_EXTENSION_ROUNDS = 3
@@ -380,31 +380,56 @@ def region_maps(experiment: Experiment, options: SweepOptions, conn: sqlite3.Con
     return out
 
 
+@dataclass(frozen=True)
+class ReferenceChoice:
+    strategies: tuple[str, ...]
+    first_time_s: float | None      # the first part's render time, predicted by the pilot
+    pilot_keys: dict[str, str]      # by strategy
+
+
+def _first_time(experiment: Experiment, ranked: list[pilot.PilotResult]) -> float | None:
+    r = experiment.reference
+    budget = experiment.budget
+    if r.time_s <= 0 or budget is None or budget.time_s <= 0:
+        return None  # sample-limited references keep their spp; the noise check extends them
+    predicted = pilot.first_time(ranked, budget.time_s, r.noise_ratio, noise_check.EXTENSION_MARGIN)
+    if predicted is None:
+        return None
+    cap = r.max_time_s or noise_check.DEFAULT_CAP_FACTOR * r.time_s
+    # Whole seconds: the time is part of the reference's key.
+    return float(min(max(math.ceil(predicted), r.time_s), cap))
+
+
 def choose_reference_strategies(experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection,
                                 manifests: dict[str, dict[str, Any]], maps: dict[str, tuple[str, Any]]
-                                ) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, str]]]:
-    """Per point, the reference strategies (given, or by pilot) and the pilots' keys by strategy."""
+                                ) -> dict[str, ReferenceChoice]:
+    """Per point, the reference strategies (given, or by pilot) and the first part's time."""
     points = experiment.points()
     given = experiment.reference.strategies
     if given:
-        return {p.id: given for p in points}, {}
+        return {p.id: ReferenceChoice(given, None, {}) for p in points}
     specs = {(p.id, s): experiment.pilot_spec(p, s) for p in points for s in experiment.strategies}
     manifests.update(execute_specs(list(specs.values()), options, conn, desc="pilots"))
-    chosen: dict[str, tuple[str, ...]] = {}
-    keys: dict[str, dict[str, str]] = {}
+    chosen: dict[str, ReferenceChoice] = {}
     for p in points:
         snaps: dict[str, exr.Snapshot] = {}
+        keys: dict[str, str] = {}
         for s in experiment.strategies:
             key = specs[(p.id, s)].key(options.renderer_version)
-            keys.setdefault(p.id, {})[s] = key
+            keys[s] = key
             if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
                 try:
                     snaps[s] = exr.read_snapshot(options.layout.run(key).final)
                 except CorruptExrError:
                     pass
-        ranked = pilot.score(snaps, experiment.lit_threshold, maps[p.id][1]) if snaps else []
-        chosen[p.id] = pilot.choose(ranked)
-    return chosen, keys
+        ranked: list[pilot.PilotResult] = []
+        if snaps:
+            # The pilots' regions: a light-sampled pilot (or any) stands in for the reference.
+            stand_in = snaps.get(pilot.BASELINE) or next(iter(snaps.values()))
+            ranked = pilot.score(snaps, regions_of(stand_in, experiment.insets, experiment.lit_threshold,
+                                                   maps[p.id][1]))
+        chosen[p.id] = ReferenceChoice(pilot.choose(ranked), _first_time(experiment, ranked), keys)
+    return chosen
 
 
 def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = None) -> int:
@@ -418,8 +443,10 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
     manifests: dict[str, dict[str, Any]] = {}
     try:
         maps = region_maps(experiment, options, conn, manifests)
-        chosen, pilot_keys = choose_reference_strategies(experiment, options, conn, manifests, maps)
-        refs = {p.id: references.plan(experiment, p, chosen[p.id], options.renderer_version)
+        chosen = choose_reference_strategies(experiment, options, conn, manifests, maps)
+        pilot_keys = {pid: c.pilot_keys for pid, c in chosen.items()}
+        refs = {p.id: references.plan(experiment, p, chosen[p.id].strategies, options.renderer_version,
+                                      chosen[p.id].first_time_s)
                 for p in experiment.points()}
         for pid, ref in refs.items():
             ref.region_map_key, ref.fractions = maps[pid]

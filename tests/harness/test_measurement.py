@@ -75,23 +75,32 @@ def test_02_regions_image_lit_insets_classes() -> None:
 # ---- pilot ---------------------------------------------------------------
 
 
-def test_03_pilot_chooses_the_cheapest_and_an_independent_second() -> None:
+def test_03_pilot_minimises_the_worst_region_and_predicts_the_first_time() -> None:
     mean = np.full((H, W, 3), 0.5)
     fr = _fractions(_classes())
-    # cost = time x mean relative variance over lit, non-emitter pixels; the emitter rows
-    # (where "portal" is awful here) are left out of the score
-    var_portal = np.full_like(mean, 1e-4)
-    var_portal[:3] = 10.0
+    left = _classes() == 1
+    # portal: the best on average, but 50x worse than antishadow in the anti_umbra half;
+    # antishadow: never more than 2x the best anywhere
+    var_portal = np.full_like(mean, 1e-5)
+    var_portal[left] = 5e-4
+    var_anti = np.full_like(mean, 2e-5)
+    var_anti[left] = 1e-5
     pilots = {"light": _snap(mean, np.full_like(mean, 1e-3), time_s=0.5),
               "portal": _snap(mean, var_portal, time_s=0.5),
-              "antishadow": _snap(mean, np.full_like(mean, 4e-4), time_s=0.5)}
-    ranked = pilot.score(pilots, 1e-3, fr)
-    assert [r.strategy for r in ranked] == ["portal", "antishadow", "light"]
-    assert ranked[0].cost == pytest.approx(0.5 * 1e-4 / (0.25 + 0.01))
-    assert pilot.choose(ranked) == ("portal", "light")
+              "antishadow": _snap(mean, var_anti, time_s=0.5)}
+    found = regions.regions_of(pilots["light"], (Region("corner", 0, 5, 4, 4),), fractions=fr)
+    ranked = pilot.score(pilots, found)
+    assert [r.strategy for r in ranked] == ["antishadow", "portal", "light"]
+    best = ranked[0]
+    assert best.needs["anti_umbra"] == pytest.approx(1.0) and best.needs["anti_penumbra"] == pytest.approx(2.0)
+    assert best.worst_need == pytest.approx(2.0)
+    assert ranked[1].needs["anti_umbra"] == pytest.approx(50.0)
+    assert pilot.choose(ranked) == ("antishadow", "light")
+    # T = t_run x worst need x (1 - q) / q x margin
+    assert pilot.first_time(ranked, 4.0, 0.1, 1.25) == pytest.approx(4.0 * 2.0 * 9 * 1.25)
     # light the best: the runner-up is the second part
-    assert pilot.choose([pilot.PilotResult("light", 1, 1.0), pilot.PilotResult("portal", 1, 2.0)]) == \
-        ("light", "portal")
+    only = [pilot.PilotResult("light", 1, 1.0, {}), pilot.PilotResult("portal", 1, 2.0, {})]
+    assert pilot.choose(only) == ("light", "portal")
 
 
 # ---- the two references ----------------------------------------------------

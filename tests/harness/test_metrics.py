@@ -124,10 +124,3 @@ def test_10_relative_variance() -> None:
     mean = np.array([[[0.0, 1.0, 2.0]]])
     var = np.array([[[0.01, 0.02, 0.04]]])
     np.testing.assert_allclose(metrics.relative_variance(mean, var), [[[1.0, 0.02 / 1.01, 0.04 / 4.01]]])
-
-
-def test_11_floor_corrected_efficiency() -> None:
-    value, bound = metrics.floor_corrected_efficiency(0.1, 0.01, 2.0)
-    assert value == pytest.approx(1 / (0.09 * 2.0)) and not bound
-    value, bound = metrics.floor_corrected_efficiency(0.015, 0.01, 2.0)
-    assert value == pytest.approx(1 / (0.015 * 2.0)) and bound

@@ -258,3 +258,18 @@ def test_08_replicates_auto_references_and_figures(cli: CliRunner, write_experim
     status, out, err = cli("figures", str(exp))
     assert status == 0, err
     assert (results / "figures" / "tiny_efficiency.png").stat().st_size > 5000
+
+
+def test_09_the_pilot_sets_the_first_reference_time(cli: CliRunner, write_experiment: Callable[..., Path],
+                                                    results: Path) -> None:
+    exp = write_experiment(reference={"strategies": "auto", "time_s": 1, "seed": 99, "pilot_time_s": 0.2})
+    status, out, _ = cli("sweep", str(exp), "--no-progress")
+    assert status == 0, out
+    for ref in _summary(results)["references"]:
+        first, second = ref["parts"]
+        assert (first["strategy"], second["strategy"]) == ("portal", "light")
+        # T = 0.2 s x worst need (about 1 for the fake's portal) x 9 x 1.25, in whole seconds, at
+        # least reference.time_s; the second part keeps reference.time_s
+        assert 2.0 <= first["time_s"] <= 5.0 and abs(first["time_s"] - round(first["time_s"])) < 0.05, first
+        assert second["time_s"] == pytest.approx(1.0, abs=0.02)
+        assert all(c["ok"] for c in ref["noise"])
