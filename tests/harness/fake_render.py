@@ -183,7 +183,8 @@ def main(argv: list[str]) -> int:
 
     emit({"event": "start", "out": str(out), "width": width, "height": height, "strategy": strategy,
           "integrator": integrator, "seed": seed, "config_hash": config_hash, "renderer_version": VERSION,
-          "spp_target": spp_target, "time_target_s": time_target})
+          "spp_target": spp_target, "time_target_s": time_target,
+          "resumed_from_spp": int(np.load(resume_dir / "final.state.npz")["passes"]) if resume_dir else 0})
     mean = true_mean(width, height, s_L)
     sigma = SIGMA[strategy]
     cost = COST[strategy]
