@@ -147,6 +147,14 @@ ROLE_REGION_MAP = "region_map"         # the render whose region AOV gives the p
 MembershipRow = tuple[str, str, str, int, str, str | None, float]
 
 
+def forget_run(conn: sqlite3.Connection, key: str) -> None:
+    """Removes a run and its metrics (a superseded combined reference)."""
+    with _transaction(conn):
+        conn.execute("DELETE FROM metrics WHERE key = ? OR reference_key = ?", (key, key))
+        conn.execute("DELETE FROM run_params WHERE key = ?", (key,))
+        conn.execute("DELETE FROM runs WHERE key = ?", (key,))
+
+
 def record_membership(conn: sqlite3.Connection, experiment: str, rows: Iterable[MembershipRow]) -> None:
     """The rows (point, strategy, role, replicate, key, reference_key,
     axis_value) of an experiment, replacing all its earlier rows (a sweep

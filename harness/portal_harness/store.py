@@ -82,6 +82,17 @@ def install(layout: ResultsLayout, key: str, reference: bool, attempt: RunLayout
     return target
 
 
+def remove_run(layout: ResultsLayout, key: str, reference: bool) -> None:
+    """Removes a run folder: renamed away first, so it vanishes at once."""
+    target = layout.run(key, reference)
+    if not target.dir.exists():
+        return
+    trash = attempts_dir(layout, reference) / f"trash-{key}-{os.getpid()}-{next(_counter)}"
+    trash.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(target.dir, trash)
+    shutil.rmtree(trash, ignore_errors=True)
+
+
 def install_files(layout: ResultsLayout, key: str, reference: bool, files: dict[str, bytes]) -> RunLayout:
     """Installs a run folder shipped back as bytes (the Dask path): every file
     is written to a fresh attempt, the manifest last, then installed."""

@@ -512,7 +512,12 @@ def build_references(experiment: Experiment, refs: dict[str, PointReference], op
     """Builds each point's reference; returns the bias-test failures, as messages."""
     biased: list[str] = []
     for ref in refs.values():
+        before = ref.key
         references.build(ref, experiment, options.layout, options.renderer_version, manifests)
+        if before is not None and before != ref.key and before not in {p.key for p in ref.parts}:
+            # An extension superseded this combined reference: nothing refers to it any more.
+            store.remove_run(options.layout, before, True)
+            index.forget_run(conn, before)
         if ref.key is not None and ref.key in manifests and len(ref.parts) > 1:
             index.record_run(conn, manifests[ref.key], options.layout.run(ref.key, True).dir)
         biased += references.format_disagreement(ref, experiment.reference.bias_z) if len(ref.parts) > 1 else []

@@ -118,6 +118,9 @@ def test_04_real_references_extended_tested_and_a_biased_strategy_caught(
     noise = {c["region"]: c for c in ref["noise"]}
     assert noise["floor"]["ok"] and noise["floor"]["ratio"] <= 0.1, out
     assert abs(ref["bias_max_abs_z"]) < 4
+    # the two parts and the one combined reference in use: superseded combinations are removed
+    folders = sorted(p.name for p in (results / "references").iterdir() if not p.name.startswith("."))
+    assert len(folders) == 3 and ref["key"] in folders
     regions = {r["region"] for r in summary["rows"]}
     assert {"image", "lit", "floor", "anti_antumbra"} <= regions
     floor = next(r for r in summary["rows"] if r["region"] == "floor" and r["strategy"] == "antishadow_exact")
