@@ -3,13 +3,19 @@ their combination into the reference the metrics use.
 
 Bias test. Renders A and B with different strategies and seeds are
 independent, and both unbiased strategies have the same expected image. Over
-the N pixel-channels i of a region, D = sum_i (a_i - b_i) then has mean 0
-and variance sum_i (Var a_i + Var b_i) (each pixel its own random streams),
-estimated from the renders' variance layers, so
+the pixels p and channels c of a region, D = sum_pc (a_pc - b_pc) then has
+mean 0. Pixels are independent (each has its own random streams), but the
+channels of one pixel are not: a sample's R, G and B come from the same
+path (here exactly proportional), so the variance of a pixel's sum over
+channels is up to (sum_c sd_pc)^2, and that bound is used,
 
-    z = D / sqrt(sum_i (va_i + vb_i))  ~  N(0, 1)
+    z = D / sqrt(sum_p (sum_c sqrt(va_pc + vb_pc))^2)  ~  N(0, 1)
 
-by the central limit theorem over the region. |z| > bias_z (default 4, a
+(by the central limit theorem over the region; the channels' variances
+alone, sum_pc (va_pc + vb_pc), would make z up to sqrt(3) too large, and
+false alarms likely). This is the variance of the mean exactly when the
+channels are proportional, and an overestimate (a more conservative test)
+otherwise. |z| > bias_z (default 4, a
 false alarm probability of 6e-5 per region) means one strategy is biased
 there, and the sweep stops: nothing measured against such a reference could
 be trusted. A region where both are exactly equal (no light reaches it) has
@@ -51,9 +57,9 @@ class RegionDisagreement:
 def disagreement(a: exr.Snapshot, b: exr.Snapshot, regions: list[NamedRegion]) -> list[RegionDisagreement]:
     out = []
     for r in regions:
-        d = a.rgb[r.mask] - b.rgb[r.mask]
-        v = a.variance[r.mask] + b.variance[r.mask]
-        total, var = float(np.sum(d)), float(np.sum(v))
+        d = a.rgb[r.mask] - b.rgb[r.mask]                      # (pixels, channels)
+        sd_pixel = np.sum(np.sqrt(a.variance[r.mask] + b.variance[r.mask]), axis=-1)
+        total, var = float(np.sum(d)), float(np.sum(sd_pixel * sd_pixel))
         if var > 0:
             z = total / math.sqrt(var)
         else:

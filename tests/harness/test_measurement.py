@@ -108,8 +108,11 @@ def test_03_pilot_minimises_the_worst_region_and_predicts_the_first_time() -> No
 
 def _noisy_pair(rng: np.random.Generator, mean: np.ndarray, sd_a: float, sd_b: float,
                 bias_b: float = 1.0) -> tuple[Snapshot, Snapshot]:
-    a = mean + sd_a * rng.standard_normal(mean.shape)
-    b = bias_b * mean + sd_b * rng.standard_normal(mean.shape)
+    """Two renders whose channels share each pixel's noise, as the renderer's
+    do (a sample's R, G, B come from one path)."""
+    shape = (*mean.shape[:2], 1)
+    a = mean + sd_a * rng.standard_normal(shape)
+    b = bias_b * mean + sd_b * rng.standard_normal(shape)
     fr = _fractions(_classes())
     return (_snap(a, np.full_like(mean, sd_a**2), fr, strategy="antishadow_exact"),
             _snap(b, np.full_like(mean, sd_b**2), fr))
@@ -126,8 +129,13 @@ def test_04_bias_test_is_standard_normal_for_unbiased_parts_and_catches_a_bias(r
     # mean 0 and variance 1 within 5 standard errors of the sample's own moments
     assert abs(z.mean()) < 5 / math.sqrt(z.size)
     assert abs(z.var() - 1) < 5 * math.sqrt(2 / z.size)
-    # a 3% bias of one part in every pixel: about 11 sigma over the image, 7 over each half
-    a, b = _noisy_pair(rng, mean, 0.01, 0.05, bias_b=1.03)
+    # the channels' variances alone would ignore their correlation: z with sd sqrt(3)
+    a, b = _noisy_pair(rng, mean, 0.01, 0.05)
+    naive = [float(np.sum(a.rgb - b.rgb)) / math.sqrt(float(np.sum(a.variance + b.variance)))
+             for a, b in (_noisy_pair(rng, mean, 0.01, 0.05) for _ in range(200))]
+    assert abs(np.var(naive) - 3) < 5 * 3 * math.sqrt(2 / 200)
+    # a 5% bias of one part in every pixel: about 11 sigma over the image, 7 over each half
+    a, b = _noisy_pair(rng, mean, 0.01, 0.05, bias_b=1.05)
     found = reference_pair.failures(
         reference_pair.disagreement(a, b, regions.regions_of(a, (), fractions=a.regions)), 4.0)
     assert {d.region for d in found} >= {"image", "anti_umbra", "anti_penumbra"}
