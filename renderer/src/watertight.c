@@ -207,7 +207,7 @@ static bool edge_find(const struct grid *g, double eps, struct vec3 a, struct ve
                 }
     }
     /* A point near a cell boundary is found from several cells. */
-    qsort(l->items, (size_t)l->n, sizeof *l->items, cmp_on_edge);
+    if (l->n > 1) qsort(l->items, (size_t)l->n, sizeof *l->items, cmp_on_edge);
     int u = 0;
     for (int i = 0; i < l->n; ++i) {
         bool seen = false;
