@@ -1,9 +1,12 @@
 #include "scene.h"
 
 #include <embree3/rtcore.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "watertight.h"
 
 /* Embree reports device errors through a callback; the first one is kept in
    the struct error the callback points at, so it reaches the caller. */
@@ -54,6 +57,86 @@ static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, con
     if (id != (unsigned)s->n_geometries) return error_set(err, "unexpected Embree geometry id %u", id);
     s->geometries[s->n_geometries++] = info;
     return true;
+}
+
+/* The faces of every shape, in shape order, each shape's quads then its
+   triangles: what watertight_stitch sees. Lights are not among them: the
+   strategies sample their polygons, which must stay as they are. */
+static bool collect_faces(const struct config *cfg, struct watertight_face **out, int *n_out, struct error *err)
+{
+    size_t n = 0;
+    for (int i = 0; i < cfg->n_shapes; ++i) n += (size_t)cfg->shapes[i].n_quads + (size_t)cfg->shapes[i].n_triangles;
+    if (n > (size_t)(INT_MAX / 8)) return error_set(err, "too many faces (%zu)", n);
+    struct watertight_face *f = malloc(sizeof *f * (n > 0 ? n : 1));
+    if (!f) return error_set(err, "out of memory for %zu faces", n);
+    int k = 0;
+    for (int i = 0; i < cfg->n_shapes; ++i) {
+        const struct shape_desc *sh = &cfg->shapes[i];
+        for (int q = 0; q < sh->n_quads; ++q, ++k) {
+            f[k].n = 4;
+            for (int v = 0; v < 4; ++v) f[k].v[v] = sh->vertices[sh->quads[q][v]];
+        }
+        for (int t = 0; t < sh->n_triangles; ++t, ++k) {
+            f[k].n = 3;
+            for (int v = 0; v < 3; ++v) f[k].v[v] = sh->vertices[sh->triangles[t][v]];
+        }
+    }
+    *out = f;
+    *n_out = k;
+    return true;
+}
+
+/* Attaches one shape, its faces being w's faces face0.. (collect_faces'
+   order): the quads that gained no vertex stay one quad geometry (quads
+   trace ~25% faster than two triangles), the triangles that stay and the
+   fans of the faces that changed are one triangle geometry, with the fans'
+   vertices appended to the shape's. Both carry the shape's info, so hits
+   map back to its material. */
+static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct watertight *w, int face0,
+                      struct geometry_info info, struct error *err)
+{
+    int n_quads = 0, n_tris = 0, n_fan = 0;
+    for (int q = 0; q < sh->n_quads; ++q) {
+        if (watertight_changed(w, face0 + q)) n_fan += w->first[face0 + q + 1] - w->first[face0 + q];
+        else ++n_quads;
+    }
+    for (int t = 0; t < sh->n_triangles; ++t) {
+        int f = face0 + sh->n_quads + t;
+        if (watertight_changed(w, f)) n_fan += w->first[f + 1] - w->first[f];
+        else ++n_tris;
+    }
+    int n_verts = sh->n_vertices + 3 * n_fan;
+    int *quads = malloc(sizeof *quads * (size_t)(4 * n_quads + 1));
+    int *tris = malloc(sizeof *tris * (size_t)(3 * (n_tris + n_fan) + 1));
+    struct vec3 *verts = malloc(sizeof *verts * (size_t)(n_verts > 0 ? n_verts : 1));
+    bool ok = quads && tris && verts;
+    if (!ok) error_set(err, "out of memory for the faces of a shape");
+    if (ok) {
+        memcpy(verts, sh->vertices, sizeof *verts * (size_t)sh->n_vertices);
+        int nq = 0, nt = 0, nv = sh->n_vertices;
+        for (int q = 0; q < sh->n_quads; ++q) {
+            if (watertight_changed(w, face0 + q)) continue;
+            for (int v = 0; v < 4; ++v) quads[4 * nq + v] = sh->quads[q][v];
+            ++nq;
+        }
+        for (int t = 0; t < sh->n_triangles; ++t) {
+            if (watertight_changed(w, face0 + sh->n_quads + t)) continue;
+            for (int v = 0; v < 3; ++v) tris[3 * nt + v] = sh->triangles[t][v];
+            ++nt;
+        }
+        for (int f = face0; f < face0 + sh->n_quads + sh->n_triangles; ++f)
+            for (int k = w->first[f]; k < w->first[f + 1]; ++k, ++nt)
+                for (int v = 0; v < 3; ++v) {
+                    verts[nv] = w->tris[k].v[v];
+                    tris[3 * nt + v] = nv++;
+                }
+        if (nq > 0) ok = add_mesh(s, verts, sh->n_vertices, quads, nq, 4, info, err);
+        if (ok && nt > 0) ok = add_mesh(s, verts, nv, tris, nt, 3, info, err);
+    }
+    free(quads);
+    free(tris);
+    free(verts);
+    return ok;
 }
 
 static void bounds_add(struct vec3 *lo, struct vec3 *hi, struct vec3 p)
@@ -123,17 +206,26 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     }
 
     struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
-    for (int i = 0; i < cfg->n_shapes; ++i) {
+    /* T-junctions are stitched before anything reaches Embree: see
+       watertight.c for the cracks they leave otherwise. */
+    struct watertight_face *faces = NULL;
+    int n_faces = 0;
+    struct watertight w;
+    if (!collect_faces(cfg, &faces, &n_faces, err)) goto fail;
+    bool stitched = watertight_stitch(faces, n_faces, &w, err);
+    free(faces);
+    if (!stitched) goto fail;
+    for (int i = 0, face0 = 0; i < cfg->n_shapes; ++i) {
         const struct shape_desc *sh = &cfg->shapes[i];
         struct geometry_info info = { sh->material, -1 };
         for (int v = 0; v < sh->n_vertices; ++v) bounds_add(&lo, &hi, sh->vertices[v]);
-        if (sh->n_quads > 0 &&
-            !add_mesh(s, sh->vertices, sh->n_vertices, &sh->quads[0][0], sh->n_quads, 4, info, err))
+        if (!add_shape(s, sh, &w, face0, info, err)) {
+            watertight_free(&w);
             goto fail;
-        if (sh->n_triangles > 0 &&
-            !add_mesh(s, sh->vertices, sh->n_vertices, &sh->triangles[0][0], sh->n_triangles, 3, info, err))
-            goto fail;
+        }
+        face0 += sh->n_quads + sh->n_triangles;
     }
+    watertight_free(&w);
     if (!build_lights(s, cfg, err)) goto fail;
     for (int i = 0; i < s->n_lights; ++i) {
         const struct polygon *poly = &s->lights[i].target.polygon;
