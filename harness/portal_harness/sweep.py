@@ -295,7 +295,9 @@ def references_info(refs: dict[str, PointReference], checks: dict[str, list[nois
             parts.append({"strategy": p.spec.strategy, "key": p.key, "spp": final.get("spp"),
                           "time_s": final.get("time_s")})
         out.append({
-            "point": pid, "key": ref.key, "parts": parts, "error": ref.error, "capped": ref.capped,
+            # Capped: an extension was cut at the cap and some region is still unresolved.
+            "point": pid, "key": ref.key, "parts": parts, "error": ref.error,
+            "capped": ref.capped and any(not c.ok for c in checks.get(pid, [])),
             "bias_max_abs_z": _clean(references.max_abs_z(ref)),
             "noise": [{"region": c.region, "floor": c.floor, "smallest_error": c.smallest_error,
                        "ratio": _clean(c.ratio), "ok": c.ok} for c in checks.get(pid, [])],
