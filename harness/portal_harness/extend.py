@@ -21,12 +21,20 @@ from portal_harness import exr, store
 from portal_harness.errors import CorruptExrError
 from portal_harness.paths import ResultsLayout
 from portal_harness.renderer import EXIT_OK, render
-from portal_harness.runs import default_timeout, file_tail
-from portal_harness.spec import RunSpec
+from portal_harness.runs import file_tail
 
 
 def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def extension_timeout(manifest: dict[str, Any], total_spp: int) -> float:
+    """Wall seconds after which an extension counts as hung: three times the
+    render time it should take at the rate the reference has rendered so
+    far, plus a minute (like runs.default_timeout for a first render)."""
+    final = manifest["final"]
+    done, time_s = max(int(final["spp"]), 1), float(final["time_s"])
+    return 3.0 * time_s * max(total_spp - done, 1) / done + 60.0
 
 
 def resume_command(renderer: str, run_dir: str, total_spp: int, threads: int) -> list[str]:
@@ -48,10 +56,8 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
             shutil.copy2(item, attempt.dir / item.name)
     before = int(old["final"]["spp"])
     command = resume_command(renderer, str(attempt.dir), total_spp, threads)
-    spec = RunSpec.from_dict(old["spec"])
     started = _now()
-    result = render(command, attempt.events, attempt.stderr,
-                    timeout_s=default_timeout(spec) if spec.time_s > 0 else None)
+    result = render(command, attempt.events, attempt.stderr, timeout_s=extension_timeout(old, total_spp))
     entry: dict[str, Any] = {"from_spp": before, "to_spp": total_spp,
                              "from_time_s": float(old["final"]["time_s"]), "started": started, "finished": _now(),
                              "wall_s": round(result.wall_s, 3), "exit_status": result.exit_status,

@@ -269,3 +269,10 @@ def test_10_combined_reference_round_trips_through_exr(tmp_path: Path, rng: np.r
     assert np.allclose(back.rgb, c.rgb, rtol=1e-6) and np.allclose(back.variance, c.variance, rtol=1e-6)
     assert back.regions is not None and np.array_equal(back.regions, c.regions)
     assert not list(tmp_path.glob(".*tmp*"))
+
+
+def test_11_an_extension_may_take_as_long_as_its_samples_need() -> None:
+    from portal_harness.extend import extension_timeout
+    # 1000 spp in 15 s, extended to 16000: 225 s expected, so more than 3 x that before it counts as hung
+    manifest = {"final": {"spp": 1000, "time_s": 15.0}}
+    assert extension_timeout(manifest, 16000) == pytest.approx(3 * 225 + 60)
