@@ -154,9 +154,10 @@ def _mean_curve(curves: list[list[tuple[float, float, float]]]) -> tuple[np.ndar
 def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
                         layout: ResultsLayout) -> list[Path]:
     """Error against render time, log-log: one column per sweep point, one
-    row per region (lit, whole image); mean over replicates with their range."""
+    row per region (lit, each inset, whole image); mean over replicates with
+    their range."""
     metric = experiment.curve_metric
-    regions = [LIT, WHOLE_IMAGE]
+    regions = [LIT, *(r.name for r in experiment.insets), WHOLE_IMAGE]
     n = len(data.points)
     fig, axes = plt.subplots(len(regions), n, figsize=(3.2 * n, 2.9 * len(regions)), squeeze=False)
     for row, region in enumerate(regions):
@@ -190,7 +191,7 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
     reps = experiment.budget.replicates if experiment.budget else 1
     fig.suptitle(f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
                  f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.12 / fig.get_figheight()))  # room for the title
     return _save(fig, layout, experiment, "error_time")
 
 
