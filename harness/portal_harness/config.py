@@ -21,6 +21,7 @@ from portal_harness.spec import (
     INTEGRATORS,
     NO_SNAPSHOTS,
     SNAPSHOT_KEYS,
+    SNAPSHOT_SPP_KEYS,
     STRATEGIES,
     Overrides,
     RunSpec,
@@ -294,7 +295,7 @@ def load_experiment(path: Path | str) -> Experiment:
             raise r.fail("budget", "expected time_s > 0 or spp > 0 (a run needs a limit)")
         snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
         snapshots = tuple(
-            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if k == "every_spp"
+            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if k in SNAPSHOT_SPP_KEYS
                              else r.number(v, f"budget.snapshots.{k}", positive=True)))
             for k, v in sorted(snaps_node.items())
         )

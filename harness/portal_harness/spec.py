@@ -25,7 +25,9 @@ from typing import Any
 
 STRATEGIES: tuple[str, ...] = ("light_area", "light", "portal", "projection", "antishadow", "antishadow_exact")
 INTEGRATORS: tuple[str, ...] = ("direct", "path")
-SNAPSHOT_KEYS: tuple[str, ...] = ("every", "doubling", "every_spp")
+SNAPSHOT_KEYS: tuple[str, ...] = ("every", "doubling", "every_spp", "doubling_spp")
+# Snapshot keys counted in samples per pixel (integers), the others in seconds.
+SNAPSHOT_SPP_KEYS: frozenset[str] = frozenset({"every_spp", "doubling_spp"})
 # render.* keys that change the expected image (all others only change the noise).
 IMAGE_RENDER_KEYS: frozenset[str] = frozenset({"render.integrator", "render.max_depth", "render.rr_depth"})
 # render.* keys the harness sets itself through flags; an override may not set them.

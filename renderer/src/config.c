@@ -45,7 +45,7 @@ static const char *const render_keys[] = { "integrator", "strategy", "mis",     
                                            "max_depth",  "rr_depth", "spp",       "time",          "snapshots",
                                            "seed",       "threads",  "output",    "aov",
                                            "resumable" };
-static const char *const snapshot_keys[] = { "every", "doubling", "times", "every_spp", "spp" };
+static const char *const snapshot_keys[] = { "every", "doubling", "times", "every_spp", "doubling_spp", "spp" };
 static const char *const aov_keys[] = { "region" };
 /* Optional mappings that --set creates when they are missing, so that
    `--set render.aov.region=true` works on a config without `aov:`. */
@@ -956,6 +956,7 @@ static bool load_snapshots(struct loader *L, const yaml_node_t *map, struct snap
     if ((n = map_get(L, map, "doubling")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->doubling_s))
         return false;
     if ((n = map_get(L, map, "every_spp")) && !get_int(L, n, 0, INT_MAX, &s->every_spp)) return false;
+    if ((n = map_get(L, map, "doubling_spp")) && !get_int(L, n, 0, INT_MAX, &s->doubling_spp)) return false;
     if (!get_optional(L, map, "times", YAML_SEQUENCE_NODE, &n) || (n && !get_times(L, n, s->times_s, &s->n_times)))
         return false;
     if (!get_optional(L, map, "spp", YAML_SEQUENCE_NODE, &n) || (n && !get_spps(L, n, s->spps, &s->n_spps)))
@@ -1410,6 +1411,10 @@ static void emit_snapshots(struct text *t, const struct snapshot_schedule *s)
     }
     if (s->every_spp > 0) {
         text_printf(t, "%severy_spp: %d", sep, s->every_spp);
+        sep = ", ";
+    }
+    if (s->doubling_spp > 0) {
+        text_printf(t, "%sdoubling_spp: %d", sep, s->doubling_spp);
         sep = ", ";
     }
     if (s->n_spps) {

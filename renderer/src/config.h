@@ -102,6 +102,7 @@ struct snapshot_schedule {
     int n_times;
     double times_s[CONFIG_SCHEDULE_MAX];
     int every_spp;                /* 0: off */
+    int doubling_spp;             /* first spp, then 2x, 4x...; 0: off (a scalar, so --set reaches it) */
     int n_spps;
     int spps[CONFIG_SCHEDULE_MAX];
 };

@@ -239,7 +239,7 @@ struct schedule_state {
     const struct snapshot_schedule *sch;
     double next_every, next_doubling;
     int next_time, next_spp_list;
-    int64_t next_every_spp;
+    int64_t next_every_spp, next_doubling_spp;
 };
 
 static void schedule_init(struct schedule_state *s, const struct snapshot_schedule *sch)
@@ -250,6 +250,7 @@ static void schedule_init(struct schedule_state *s, const struct snapshot_schedu
     s->next_time = 0;
     s->next_spp_list = 0;
     s->next_every_spp = sch->every_spp > 0 ? sch->every_spp : INT64_MAX;
+    s->next_doubling_spp = sch->doubling_spp > 0 ? sch->doubling_spp : INT64_MAX;
 }
 
 /* True if a snapshot is due at (t, spp); advances every schedule past it. */
@@ -272,6 +273,12 @@ static bool schedule_due(struct schedule_state *s, double t, int64_t spp)
     if (spp >= s->next_every_spp) {
         due = true;
         while (s->next_every_spp <= spp) s->next_every_spp += sch->every_spp;
+    }
+    if (spp >= s->next_doubling_spp) {
+        due = true;
+        /* Saturates instead of overflowing: INT64_MAX is never reached. */
+        while (s->next_doubling_spp <= spp) s->next_doubling_spp = s->next_doubling_spp > INT64_MAX / 2
+                                                                       ? INT64_MAX : 2 * s->next_doubling_spp;
     }
     while (s->next_spp_list < sch->n_spps && spp >= sch->spps[s->next_spp_list]) {
         due = true;

@@ -148,6 +148,7 @@ def main(argv: list[str]) -> int:
     integrator = str(render.get("integrator", "direct"))
     snaps = render.get("snapshots", {}) or {}
     every, doubling, every_spp = float(snaps.get("every", 0)), float(snaps.get("doubling", 0)), int(snaps.get("every_spp", 0))
+    doubling_spp = int(snaps.get("doubling_spp", 0))
     if (every < 0 or doubling < 0 or ("every" in snaps and every == 0) or ("doubling" in snaps and doubling == 0)
             or ("every_spp" in snaps and every_spp < 1)):
         print(f"{config_path}:1:1: bad snapshot schedule {snaps} (expected every > 0, doubling > 0, every_spp >= 1)",
@@ -233,6 +234,9 @@ def main(argv: list[str]) -> int:
         while t >= next_doubling - 1e-12:
             due, next_doubling = True, next_doubling * 2
         if next_spp is not None and passes % next_spp == 0:
+            due = True
+        k = passes // doubling_spp if doubling_spp > 0 and passes % doubling_spp == 0 else 0
+        if k > 0 and k & (k - 1) == 0:  # doubling_spp x 1, 2, 4, ...
             due = True
         if due:
             index += 1

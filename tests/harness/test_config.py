@@ -100,3 +100,16 @@ def test_06_run_spec_from_scene_defaults(fake_scene: Path) -> None:
     assert dict(spec.snapshots) == {"every": "0.5"}
     with pytest.raises(ConfigError, match="unknown strategy"):
         spec_from_scene(fake_scene, {"render.strategy": "nope"})
+
+
+def test_snapshots_in_spp_are_integers(write_experiment: Callable[..., Path]) -> None:
+    budget = {"time_s": 1, "threads": 1, "snapshots": {"doubling_spp": 1, "every": 0.5}}
+    exp = load_experiment(write_experiment(budget=budget))
+    spec = exp.run_spec(exp.points()[0], "light")
+    assert ("doubling_spp", "1") in spec.snapshots
+    assert "render.snapshots.doubling_spp=1" in spec.command("render", "scene.yaml", "out")
+    for bad in (0, 1.5):
+        with pytest.raises(ConfigError) as e:
+            load_experiment(write_experiment(budget={**budget, "snapshots": {"doubling_spp": bad}}))
+        assert "budget.snapshots.doubling_spp" in str(e.value)
+

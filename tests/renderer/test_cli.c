@@ -364,7 +364,39 @@ static void test_fault_bias(void)
     }
 }
 
+/* render.snapshots.doubling_spp: snapshots at 1, 2, 4, 8, 16 spp of a
+   20-spp render (early snapshots for the harness's error-over-time
+   curves), and the key survives into the effective config. */
+static void test_doubling_spp(void)
+{
+    char dir[] = "/tmp/portal-cli-XXXXXX";
+    make_tmpdir(dir);
+    struct run r;
+    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "20", "--threads", "2",
+                  "--set", "film.width=16", "--set", "film.height=16", "--set", "render.snapshots.doubling_spp=1",
+                  "--quiet", NULL };
+    run_render(a, 0, 0, &r);
+    CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
+    const int expected[] = { 1, 2, 4, 8, 16 };
+    int n = 0;
+    for (const char *line = r.out; (line = strstr(line, "\"event\":\"snapshot\"")); ++line) {
+        const char *spp = strstr(line, "\"spp\":");
+        int v = spp ? atoi(spp + strlen("\"spp\":")) : -1;
+        CHECK_MSG(n < 5 && v == expected[n], "snapshot %d at spp %d", n + 1, v);
+        ++n;
+    }
+    CHECK_MSG(n == 5, "%d snapshots (expected at spp 1, 2, 4, 8, 16)", n);
+    char path[512], text[8192] = { 0 };
+    snprintf(path, sizeof path, "%s/config.yaml", dir);
+    FILE *f = fopen(path, "r");
+    size_t len = f ? fread(text, 1, sizeof text - 1, f) : 0;
+    if (f) fclose(f);
+    CHECK_MSG(len > 0 && strstr(text, "doubling_spp: 1"), "config.yaml: %s", text);
+    remove_tree(dir);
+}
+
 static const struct test_case tests[] = {
+    { "doubling_spp", test_doubling_spp },
     { "nonfinite_dropped", test_nonfinite_dropped },
     { "fault_bias", test_fault_bias },
     { "help_and_version", test_help_and_version },
