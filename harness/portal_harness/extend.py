@@ -13,7 +13,6 @@ state), also when the sweep's renders go to Dask.
 
 from __future__ import annotations
 
-import datetime as dt
 import shutil
 from typing import Any
 
@@ -21,11 +20,7 @@ from portal_harness import exr, store
 from portal_harness.errors import CorruptExrError
 from portal_harness.paths import ResultsLayout
 from portal_harness.renderer import EXIT_OK, render
-from portal_harness.runs import file_tail
-
-
-def _now() -> str:
-    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+from portal_harness.runs import file_tail, final_record, now
 
 
 def extension_timeout(manifest: dict[str, Any], total_spp: int) -> float:
@@ -56,10 +51,10 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
             shutil.copy2(item, attempt.dir / item.name)
     before = int(old["final"]["spp"])
     command = resume_command(renderer, str(attempt.dir), total_spp, threads)
-    started = _now()
+    started = now()
     result = render(command, attempt.events, attempt.stderr, timeout_s=extension_timeout(old, total_spp))
     entry: dict[str, Any] = {"from_spp": before, "to_spp": total_spp,
-                             "from_time_s": float(old["final"]["time_s"]), "started": started, "finished": _now(),
+                             "from_time_s": float(old["final"]["time_s"]), "started": started, "finished": now(),
                              "wall_s": round(result.wall_s, 3), "exit_status": result.exit_status,
                              "command": resume_command(renderer, str(target.dir), total_spp, threads)}
     error = None
@@ -71,8 +66,7 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
             snap = exr.read_snapshot(attempt.final)
             if snap.header.spp != total_spp:
                 error = f"resumed reference has {snap.header.spp} spp, expected {total_spp}"
-            final = {"file": attempt.relative(attempt.final), "time_s": snap.header.render_time_s,
-                     "spp": snap.header.spp, "rays": snap.header.rays, "nonfinite": snap.header.nonfinite_samples}
+            final = final_record(attempt.relative(attempt.final), snap.header)
         except CorruptExrError as e:
             error = str(e)
     if error is not None:

@@ -17,7 +17,6 @@ and extended until it resolves the errors it is compared with.
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,6 +29,7 @@ from portal_harness.errors import CorruptExrError
 from portal_harness.paths import ResultsLayout
 from portal_harness.reference_pair import RegionDisagreement, combine, disagreement
 from portal_harness.regions import NamedRegion, regions_of
+from portal_harness.runs import final_record, now
 from portal_harness.spec import RunSpec, short_hash
 
 COMBINATION_SCHEME = 1
@@ -83,14 +83,13 @@ def _combined_manifest(ref: PointReference, key: str, snapshot: exr.Snapshot, re
     first = ref.parts[0].spec
     spec = {**first.to_dict(), "strategy": snapshot.header.strategy, "spp": snapshot.header.spp,
             "time_s": snapshot.header.render_time_s}
-    now = dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+    made = now()
     return {
         "schema": store.MANIFEST_SCHEMA, "key": key, "kind": "reference", "status": store.STATUS_DONE,
         "error": None, "spec": spec, "params": first.params(), "scene_hash": first.scene_hash(),
         "renderer": {"path": None, "version": renderer_version, "config_hash": snapshot.header.config_hash},
-        "timings": {"started": now, "finished": now, "render_time_s": snapshot.header.render_time_s},
-        "final": {"file": "final.exr", "time_s": snapshot.header.render_time_s, "spp": snapshot.header.spp,
-                  "rays": snapshot.header.rays, "nonfinite": snapshot.header.nonfinite_samples},
+        "timings": {"started": made, "finished": made, "render_time_s": snapshot.header.render_time_s},
+        "final": final_record("final.exr", snapshot.header),
         "snapshots": [],
         "parts": [{"key": p.key, "strategy": p.spec.strategy, "spp": manifests[p.key]["final"]["spp"],
                    "time_s": manifests[p.key]["final"]["time_s"]} for p in ref.parts],
@@ -117,32 +116,37 @@ def build(ref: PointReference, experiment: Experiment, layout: ResultsLayout, re
     ref.part_snapshots = snaps
     if len(snaps) == 1:
         ref.key, ref.snapshot = ref.parts[0].key, snaps[0]
-        ref.regions = regions_of(snaps[0], experiment.insets, experiment.lit_threshold, ref.fractions)
-        ref.disagreements = []
-        return
-    a, b = snaps
-    key = combined_key(ref.parts, [s.header.spp for s in snaps], ref.region_map_key)
-    ref.regions = regions_of(a, experiment.insets, experiment.lit_threshold, ref.fractions)
-    ref.disagreements = disagreement(a, b, ref.regions)
+    else:
+        ref.key = combined_key(ref.parts, [s.header.spp for s in snaps], ref.region_map_key)
+        ref.snapshot = _combined(ref, ref.key, snaps[0], snaps[1], layout, renderer_version, manifests)
+    # One set of regions for the bias test and for every metric of the point.
+    ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold, ref.fractions)
+    ref.disagreements = disagreement(snaps[0], snaps[1], ref.regions) if len(snaps) == 2 else []
+
+
+def _combined(ref: PointReference, key: str, a: exr.Snapshot, b: exr.Snapshot, layout: ResultsLayout,
+              renderer_version: str, manifests: dict[str, dict[str, Any]]) -> exr.Snapshot:
+    """The combined reference `key`: read when it was made before, else
+    made and installed. Either way it is read back from its file, so that
+    the metrics see the same float image whether it was cached or not. Its
+    manifest goes into `manifests`, to be indexed by the caller like a
+    rendered run's."""
     target = layout.run(key, True)
     if store.is_done(target):
         try:
-            ref.key, ref.snapshot = key, exr.read_snapshot(target.final)
-            ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold, ref.fractions)
+            snapshot = exr.read_snapshot(target.final)
             manifests[key] = {**(store.read_manifest(target) or {}), "cached": True}
-            return
+            return snapshot
         except CorruptExrError:
             pass  # made again below
     label = "+".join(p.spec.strategy for p in ref.parts)
-    combined = combine(a, b, label, short_hash([s.header.config_hash for s in snaps]), ref.fractions)
+    combined = combine(a, b, label, short_hash([a.header.config_hash, b.header.config_hash]), ref.fractions)
     attempt = store.new_attempt(layout, key, True)
     exr.write_snapshot(attempt.final, combined)
     store.write_json_atomic(attempt.manifest, _combined_manifest(ref, key, combined, renderer_version, manifests))
     store.install(layout, key, True, attempt)
-    ref.key, ref.snapshot = key, exr.read_snapshot(target.final)
-    ref.regions = regions_of(ref.snapshot, experiment.insets, experiment.lit_threshold, ref.fractions)
-    # The folder's manifest is indexed by the caller, like a rendered run's.
     manifests[key] = store.read_manifest(target) or {}
+    return exr.read_snapshot(target.final)
 
 
 def format_disagreement(ref: PointReference, z_max: float) -> list[str]:

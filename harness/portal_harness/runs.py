@@ -23,8 +23,15 @@ from portal_harness.renderer import EXIT_INTERRUPTED, EXIT_OK, EventCallback, re
 from portal_harness.spec import RunSpec
 
 
-def _now() -> str:
+def now() -> str:
+    """A manifest's timestamp: UTC, ISO 8601, milliseconds."""
     return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def final_record(file: str, header: exr.SnapshotHeader) -> dict[str, Any]:
+    """A manifest's `final` entry for a final image with this header."""
+    return {"file": file, "time_s": header.render_time_s, "spp": header.spp, "rays": header.rays,
+            "nonfinite": header.nonfinite_samples}
 
 
 def _host() -> dict[str, Any]:
@@ -66,9 +73,9 @@ def execute_in(
     there, last. Returns the manifest. `final_dir` is where the folder will be
     installed (recorded in the reproducible command)."""
     command = spec.command(renderer, scene_path or spec.scene, str(run.dir))
-    started = _now()
+    started = now()
     result = render(command, run.events, run.stderr, on_event=on_event, timeout_s=default_timeout(spec))
-    finished = _now()
+    finished = now()
 
     start_event = next((e for e in result.events if e.get("event") == "start"), {})
     final_event = next((e for e in result.events if e.get("event") == "final"), None)
@@ -93,9 +100,7 @@ def execute_in(
     if status == store.STATUS_DONE:
         try:
             snap = exr.read_snapshot(run.final)
-            final = {"file": run.relative(run.final), "time_s": snap.header.render_time_s,
-                     "spp": snap.header.spp, "rays": snap.header.rays,
-                     "nonfinite": snap.header.nonfinite_samples}
+            final = final_record(run.relative(run.final), snap.header)
             if snap.header.strategy != spec.strategy or snap.header.integrator != spec.integrator:
                 status, error = store.STATUS_FAILED, (
                     f"final.exr says strategy={snap.header.strategy} integrator={snap.header.integrator}, "
