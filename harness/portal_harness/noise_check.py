@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from portal_harness import exr
-from portal_harness.metrics import REL_EPSILON
+from portal_harness.metrics import rel_variance_floor
 from portal_harness.regions import NamedRegion
 
 EXTENSION_MARGIN = 1.25
@@ -59,8 +59,8 @@ def check(floors: dict[str, float], smallest: dict[str, float], noise_ratio: flo
 
 
 def pooled_relative_variance(part: exr.Snapshot, mean: np.ndarray, region: NamedRegion) -> float:
-    m = mean[region.mask]
-    return float(np.mean(part.variance[region.mask] / (m * m + REL_EPSILON))) if region.pixels else 0.0
+    """A part's variance relative to the combined `mean`, pooled over the region."""
+    return rel_variance_floor(mean, part.variance, region.mask) if region.pixels else 0.0
 
 
 @dataclass(frozen=True)

@@ -33,10 +33,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 
 from portal_harness import exr
-from portal_harness.metrics import REL_EPSILON
+from portal_harness.metrics import rel_variance_floor
 from portal_harness.regions import NamedRegion
 
 BASELINE = "light"
@@ -54,10 +53,9 @@ def region_costs(pilot: exr.Snapshot, regions: list[NamedRegion]) -> dict[str, f
     out = {}
     if pilot.header.spp < 2:
         return out
-    rel = pilot.variance / (pilot.rgb * pilot.rgb + REL_EPSILON)
     for r in regions:
         if r.pixels:
-            out[r.name] = float(pilot.header.render_time_s * np.mean(rel[r.mask]))
+            out[r.name] = pilot.header.render_time_s * rel_variance_floor(pilot.rgb, pilot.variance, r.mask)
     return out
 
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from portal_harness import exr
-from portal_harness.metrics import REL_EPSILON
+from portal_harness.metrics import rel_variance_floor
 from portal_harness.regions import NamedRegion, class_map
 
 
@@ -84,12 +84,10 @@ def weights(a: exr.Snapshot, b: exr.Snapshot, fractions: np.ndarray | None) -> n
     """Per pixel, the weight of A (B gets 1 - it)."""
     groups = _groups(a, fractions)
     m = 0.5 * (a.rgb + b.rgb)
-    denom = m * m + REL_EPSILON
     w = np.full(groups.shape, 0.5)
     for g in np.unique(groups):
         mask = groups == g
-        va = float(np.mean(a.variance[mask] / denom[mask]))
-        vb = float(np.mean(b.variance[mask] / denom[mask]))
+        va, vb = rel_variance_floor(m, a.variance, mask), rel_variance_floor(m, b.variance, mask)
         if va + vb > 0:
             w[mask] = vb / (va + vb)
     return w
