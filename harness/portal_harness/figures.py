@@ -25,7 +25,7 @@ import math
 import sqlite3
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import matplotlib
 
@@ -195,7 +195,7 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
     return _save(fig, layout, experiment, "error_time")
 
 
-def _legend_below(fig: Figure, axes: Any, rows: int, extra: list[tuple[Any, str]] = ()) -> None:  # type: ignore[assignment]
+def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, str]] = ()) -> None:
     handles, labels = [], []
     for ax in axes.flat:
         for h, lab in zip(*ax.get_legend_handles_labels()):
@@ -367,7 +367,7 @@ def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
     ax.imshow(classes + 1, cmap=cmap, vmin=-0.5, vmax=len(CLASS_COLOURS) + 0.5, interpolation="nearest")
 
 
-def _summary_regions(experiment: Experiment, data: ExperimentData) -> list[str]:
+def _summary_regions(data: ExperimentData) -> list[str]:
     """Regions in report order that the summary has rows for: image, lit, insets, classes."""
     found: list[str] = []
     for r in data.summary:
@@ -382,7 +382,7 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
     speed-up (bottom row) against the swept axis, one column per region,
     from the tidy summary; error bars of one standard error over replicates,
     open triangles for bounds."""
-    regions = _summary_regions(experiment, data)
+    regions = _summary_regions(data)
     measures = (("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
                 ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound",
                  "speed-up at light's final error"))

@@ -8,7 +8,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 from dataclasses import asdict
 from typing import Any
 
@@ -88,8 +87,7 @@ def write_files(run: RunLayout, key: str, reference_key: str, regions: list[Name
         "reference_key": reference_key,
         "regions": _regions_json(regions),
         "epsilon": metrics.REL_EPSILON,
-        "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in asdict(r).items()}
-                 for r in rows],
+        "rows": [{k: store.finite_or_none(v) for k, v in asdict(r).items()} for r in rows],
     })
 
 

@@ -53,13 +53,23 @@ class NamedRegion:
         return int(self.mask.sum())
 
 
-def class_map(regions: np.ndarray, share_min: float = MAJORITY) -> np.ndarray:
-    """Per pixel, the index into REGION_CLASSES of the class holding more
-    than `share_min` of its samples (at least, for share_min >= 0.5: two
-    classes cannot both), or -1 where none does."""
+def _dominant(regions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel, the index of its largest class and that class's share."""
     best = np.argmax(regions, axis=-1)
-    share = np.take_along_axis(regions, best[..., None], axis=-1)[..., 0]
-    return np.where(share > share_min if share_min == MAJORITY else share >= share_min, best, -1)
+    return best, np.take_along_axis(regions, best[..., None], axis=-1)[..., 0]
+
+
+def class_map(regions: np.ndarray) -> np.ndarray:
+    """Per pixel, the index into REGION_CLASSES of the class holding more
+    than half of its samples, or -1 where none does."""
+    best, share = _dominant(regions)
+    return np.where(share > MAJORITY, best, -1)
+
+
+def pure_class_map(regions: np.ndarray) -> np.ndarray:
+    """The same, for the class holding at least PURE of the samples."""
+    best, share = _dominant(regions)
+    return np.where(share >= PURE, best, -1)
 
 
 def inset_mask(region: Region, height: int, width: int) -> np.ndarray:
@@ -84,7 +94,7 @@ def regions_of(reference: Snapshot, insets: tuple[Region, ...], lit_threshold: f
     out.append(NamedRegion(LIT, KIND_LIT, lit))
     out += [NamedRegion(r.name, KIND_INSET, inset_mask(r, height, width)) for r in insets]
     if fractions is not None:
-        pure = class_map(fractions, PURE)
+        pure = pure_class_map(fractions)
         brightness = reference.rgb.mean(axis=-1)
         for i, name in enumerate(REGION_CLASSES):
             mask = pure == i

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import os
 import shutil
 import time
@@ -27,6 +28,11 @@ STATUS_INTERRUPTED = "interrupted"
 MANIFEST_SCHEMA = 1
 ATTEMPTS = ".attempts"
 _counter = itertools.count()
+
+
+def finite_or_none(value: Any) -> Any:
+    """A value for strict JSON (and empty CSV cells): NaN and infinities become None."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def write_json_atomic(path: Path, data: Any) -> None:

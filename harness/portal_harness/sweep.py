@@ -262,15 +262,11 @@ def summarize(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, Po
     return rows
 
 
-def _clean(value: Any) -> Any:
-    return None if isinstance(value, float) and not math.isfinite(value) else value
-
-
 def write_summary(experiment: Experiment, layout: ResultsLayout, rows: list[dict[str, Any]],
                   references_info: list[dict[str, Any]], failures: list[str], problems: list[str]) -> None:
     folder = layout.experiment_dir(experiment.name)
     folder.mkdir(parents=True, exist_ok=True)
-    clean = [{k: _clean(r.get(k)) for k in summary.COLUMNS} for r in rows]
+    clean = [{k: store.finite_or_none(r.get(k)) for k in summary.COLUMNS} for r in rows]
     store.write_json_atomic(layout.summary_json(experiment.name), {
         "experiment": experiment.name, "file": str(experiment.path), "columns": list(summary.COLUMNS),
         "rows": clean, "references": references_info, "failures": failures, "problems": problems,
@@ -298,9 +294,9 @@ def references_info(refs: dict[str, PointReference], checks: dict[str, list[nois
             # Capped: an extension was cut at the cap and some region is still unresolved.
             "point": pid, "key": ref.key, "parts": parts, "error": ref.error,
             "capped": ref.capped and any(not c.ok for c in checks.get(pid, [])),
-            "bias_max_abs_z": _clean(references.max_abs_z(ref)),
+            "bias_max_abs_z": store.finite_or_none(references.max_abs_z(ref)),
             "noise": [{"region": c.region, "floor": c.floor, "smallest_error": c.smallest_error,
-                       "ratio": _clean(c.ratio), "ok": c.ok} for c in checks.get(pid, [])],
+                       "ratio": store.finite_or_none(c.ratio), "ok": c.ok} for c in checks.get(pid, [])],
         })
     return out
 
@@ -319,9 +315,9 @@ def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
     print("-" * len(header), file=out)
     for r in summary.wide(rows, region):
         eff = f"{'>' if r.get('bound') else ' '}{_fmt(r.get('efficiency_vs_light'), '.3g')}"
-        if r.get("efficiency_vs_light_stderr") is not None and math.isfinite(r.get("efficiency_vs_light_stderr")
-                                                                              or math.nan):
-            eff += f" ±{_fmt(r['efficiency_vs_light_stderr'], '.2g')}"
+        se = _fmt(r.get("efficiency_vs_light_stderr"), ".2g")
+        if se != "-":
+            eff += f" ±{se}"
         mark = {"lower": ">", "upper": "<", "mixed": "~"}.get(r.get("speedup_bound") or "", " ")
         print(f"{r['point']:<22} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
               f"{_fmt(r.get('rel_mse'), '10.3e'):>10} {eff:>16} {mark}{_fmt(r.get('speedup_equal_error'), '.3g'):>9} "
@@ -344,13 +340,19 @@ def print_references(info: list[dict[str, Any]], out: TextIO) -> None:
 
 def failures_of(runs: list[PlannedRun], refs: dict[str, PointReference],
                 manifests: dict[str, dict[str, Any]]) -> list[str]:
+    """Every render that did not finish, and every reference that could not
+    be made from finished parts (an unreadable image): each once."""
     out = []
     for pid, ref in refs.items():
+        unfinished = False
         for p in ref.parts:
             m = manifests.get(p.key)
             if m is None or m.get("status") != store.STATUS_DONE:
+                unfinished = True
                 out.append(f"reference {pid} {p.spec.strategy} [{p.key}]: {(m or {}).get('status', 'missing')}: "
                            f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip())
+        if ref.error and not unfinished:
+            out.append(f"reference {pid}: {ref.error}")
     for r in runs:
         m = manifests.get(r.key)
         if m is None or m.get("status") != store.STATUS_DONE:
@@ -457,12 +459,8 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         manifests.update(execute_specs(part_specs, options, conn, desc="references"))
         biased = build_references(experiment, refs, options, conn, manifests)
         if biased:
-            record_plan(conn, experiment, runs, refs, pilot_keys)
-            for line in biased:
-                print(f"bias: {line}", file=out)
-            print(f"sweep {experiment.name}: stopped: the two references of a point disagree, so one of "
-                  f"their strategies is biased; no run was measured against them", file=out)
-            return 1
+            return _stop_biased(experiment, biased, "no run was measured against them", conn, runs, refs,
+                                pilot_keys, out)
         manifests.update(execute_specs([r.spec for r in runs], options, conn, desc="runs"))
         problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
         checks = check_references(experiment, runs, refs, conn)
@@ -475,19 +473,14 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
                     index.record_run(conn, manifests[part.key], layout.run(part.key, True).dir)
             biased = build_references(experiment, {pid: refs[pid] for pid in extended}, options, conn, manifests)
             if biased:
-                record_plan(conn, experiment, runs, refs, pilot_keys)
-                for line in biased:
-                    print(f"bias: {line}", file=out)
-                print(f"sweep {experiment.name}: stopped after extending references: one strategy is biased",
-                      file=out)
-                return 1
+                return _stop_biased(experiment, biased, "found after extending references", conn, runs, refs,
+                                    pilot_keys, out)
             problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
             checks = check_references(experiment, runs, refs, conn)
         record_plan(conn, experiment, runs, refs, pilot_keys)
         rows = summarize(experiment, runs, refs, conn, manifests)
         info = references_info(refs, checks, manifests)
         failures = failures_of(runs, refs, manifests)
-        failures += [f"reference {pid}: {ref.error}" for pid, ref in refs.items() if ref.error]
         write_summary(experiment, layout, rows, info, failures, problems)
     finally:
         conn.close()
@@ -507,6 +500,18 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         for f in failures:
             print(f"  {f}", file=out)
     return 1 if failures or problems else 0
+
+
+def _stop_biased(experiment: Experiment, biased: list[str], when: str, conn: sqlite3.Connection,
+                 runs: list[PlannedRun], refs: dict[str, PointReference], pilot_keys: dict[str, dict[str, str]],
+                 out: TextIO) -> int:
+    """Reports a failed bias test; the sweep stops with exit status 1."""
+    record_plan(conn, experiment, runs, refs, pilot_keys)
+    for line in biased:
+        print(f"bias: {line}", file=out)
+    print(f"sweep {experiment.name}: stopped: the two references of a point disagree, so one of their "
+          f"strategies is biased ({when})", file=out)
+    return 1
 
 
 def build_references(experiment: Experiment, refs: dict[str, PointReference], options: SweepOptions,

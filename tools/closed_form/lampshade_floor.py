@@ -17,6 +17,7 @@ from pathlib import Path
 
 from floor_check import FLOOR_SET, Inset, Row, evaluate, find_runs
 from floor_model import ModelMismatch
+from portal_harness.store import finite_or_none
 
 
 def _fmt(v: float, spec: str = ".4g") -> str:
@@ -76,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json != "-":
         print_table(rows)
     if args.json:
-        doc = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)  # strict JSON: NaN -> null
+        doc = [{k: finite_or_none(v)  # strict JSON: NaN -> null
                  for k, v in {**dataclasses.asdict(r), **dataclasses.asdict(r.comparison)}.items()
                  if k != "comparison"} for r in rows]
         text = json.dumps(doc, indent=1, allow_nan=False)
