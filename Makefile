@@ -37,7 +37,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test test-c test-c-san test-py figures bench fuzz crosscheck clean
+.PHONY: all deps venv test test-c test-c-san test-py figures bench bench-ab fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -99,6 +99,11 @@ figures: $(BUILD)/render $(VENV_STAMP)
 
 bench: $(BUILD)/render
 	@renderer/bench/run.sh $(BUILD)
+
+# Same-run A/B throughput against another build: make bench-ab BASE=old/render
+bench-ab: $(BUILD)/render
+	@test -x "$(BASE)" || { echo "bench-ab: give BASE=path/to/another/render" >&2; exit 2; }
+	@python3 renderer/bench/ab.py $(BASE) $(BUILD)/render $(if $(ROUNDS),--rounds $(ROUNDS),)
 
 fuzz:
 	@renderer/fuzz/run.sh $(or $(FUZZ_SECONDS),60)
