@@ -45,7 +45,10 @@ static const char *const render_keys[] = { "integrator", "strategy", "mis",     
                                            "max_depth",  "rr_depth", "spp",       "time",          "snapshots",
                                            "seed",       "threads",  "output",    "aov",
                                            "resumable" };
-static const char *const snapshot_keys[] = { "every", "doubling", "times", "every_spp", "doubling_spp", "spp" };
+const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT] = { "every",     "doubling",     "times",
+                                                                    "every_spp", "doubling_spp", "spp" };
+/* What each key counts in: render time (get_number_in) or passes (get_int, get_spps). */
+const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT] = { "s", "s", "s", "spp", "spp", "spp" };
 static const char *const aov_keys[] = { "region" };
 /* Optional mappings that --set creates when they are missing, so that
    `--set render.aov.region=true` works on a config without `aov:`. */
@@ -951,7 +954,7 @@ static bool get_spps(struct loader *L, const yaml_node_t *seq, int *spps, int *c
 static bool load_snapshots(struct loader *L, const yaml_node_t *map, struct snapshot_schedule *s)
 {
     yaml_node_t *n;
-    if (!check_keys(L, map, "render.snapshots", snapshot_keys, COUNT(snapshot_keys))) return false;
+    if (!check_keys(L, map, "render.snapshots", config_snapshot_keys, CONFIG_SNAPSHOT_KEY_COUNT)) return false;
     if ((n = map_get(L, map, "every")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->every_s)) return false;
     if ((n = map_get(L, map, "doubling")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->doubling_s))
         return false;
@@ -1939,6 +1942,21 @@ static bool load_document(struct loader *L, const char *text, size_t length)
     return ok;
 }
 
+/* The loader's params (names pointing into its document) copied into the
+   config, which outlives the document: --print-config reports them. */
+static bool keep_params(struct loader *L, struct config *c)
+{
+    if (!L->n_params) return true;
+    c->params = calloc((size_t)L->n_params, sizeof *c->params);
+    if (!c->params) return error_set(L->err, "%s: out of memory", L->file);
+    for (int i = 0; i < L->n_params; ++i) {
+        if (!(c->params[i].name = strdup(L->params[i].name))) return error_set(L->err, "%s: out of memory", L->file);
+        c->params[i].value = L->params[i].value;
+        c->n_params = i + 1;
+    }
+    return true;
+}
+
 /* A load from text, named `name`; st identifies the file, NULL for a string. */
 static bool load_text(const char *text, size_t length, const char *name, const struct stat *st,
                       const struct config_override *overrides, int n_overrides, struct config *out, struct error *err)
@@ -1983,6 +2001,7 @@ static bool load_text(const char *text, size_t length, const char *name, const s
             L.sources[i].path = NULL;
         }
         if (ok) out->n_files = L.n_sources;
+        ok = ok && keep_params(&L, out);
     }
 
     if (L.have_doc) yaml_document_delete(&L.doc);
@@ -2033,5 +2052,7 @@ void config_free(struct config *c)
     free(c->lights);
     free(c->portals);
     free(c->effective_yaml);
+    for (int i = 0; i < c->n_params; ++i) free(c->params[i].name);
+    free(c->params);
     memset(c, 0, sizeof *c);
 }
