@@ -51,10 +51,6 @@ static const char *const aov_keys[] = { "region" };
    `--set render.aov.region=true` works on a config without `aov:`. */
 static const char *const override_mapping_paths[] = { "render.snapshots", "render.aov" };
 
-/* Geometric tolerances, relative to the size (diameter) of each polygon so
-   that a scene in millimetres validates like one in metres. */
-#define PLANAR_REL_TOL 1e-6   /* max distance to the plane / diameter */
-#define AREA_REL_TOL 1e-10    /* area / diameter^2 at or below this is degenerate */
 #define PARALLEL_TOL 1e-9     /* |sin| of the angle between up and the view direction */
 
 #define FILM_SIZE_MAX 16384
@@ -498,29 +494,20 @@ static bool get_rgb(struct loader *L, const yaml_node_t *n, double lo, double hi
 }
 
 
-static double points_diameter(const struct vec3 *v, int n)
-{
-    double d2 = 0.0;
-    for (int i = 0; i < n; ++i)
-        for (int j = i + 1; j < n; ++j) {
-            double l2 = vec3_length2(vec3_sub(v[i], v[j]));
-            if (l2 > d2) d2 = l2;
-        }
-    return sqrt(d2);
-}
-
-/* Non-zero area, planar and convex, all relative to the polygon's size. */
+/* A polygon's validity (polygon_check) as a message at the node. */
 static bool check_polygon(struct loader *L, const yaml_node_t *n, const char *what, const struct polygon *poly)
 {
-    double diam = points_diameter(poly->v, poly->n);
-    if (!(polygon_area(poly) > AREA_REL_TOL * diam * diam))
+    switch (polygon_check(poly)) {
+    case POLYGON_DEFECT_NONE: return true;
+    case POLYGON_DEFECT_DEGENERATE:
         return fail(L, n, "%s is degenerate (expected a polygon with non-zero area)", what);
-    if (!polygon_is_planar(poly, PLANAR_REL_TOL))
+    case POLYGON_DEFECT_NOT_PLANAR:
         return fail(L, n, "%s is not planar (expected every vertex within %g times its size of its plane)", what,
-                    PLANAR_REL_TOL);
-    if (!polygon_is_convex(poly))
+                    POLYGON_PLANARITY_TOLERANCE);
+    case POLYGON_DEFECT_NOT_CONVEX:
         return fail(L, n, "%s is not convex (expected a convex polygon with its vertices in order)", what);
-    return true;
+    }
+    return false;
 }
 
 /* A polygon of min..max points; checked by check_polygon. */
@@ -854,8 +841,8 @@ static bool check_portal_placement(struct loader *L, const yaml_node_t *n, const
                                    const struct light_desc *l)
 {
     struct plane pl = polygon_plane(&l->polygon);
-    double size = fmax(points_diameter(l->polygon.v, l->polygon.n), points_diameter(p->polygon.v, p->polygon.n));
-    double tol = PLANAR_REL_TOL * size, dmin = INFINITY, dmax = -INFINITY;
+    double size = fmax(polygon_diameter(&l->polygon), polygon_diameter(&p->polygon));
+    double tol = POLYGON_PLANARITY_TOLERANCE * size, dmin = INFINITY, dmax = -INFINITY;
     for (int i = 0; i < p->polygon.n; ++i) {
         double d = plane_distance(&pl, p->polygon.v[i]);
         dmin = fmin(dmin, d);
