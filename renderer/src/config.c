@@ -18,13 +18,6 @@
 
 #include "expr.h"
 
-const char *const integrator_names[2] = { "direct", "path" };
-const char *const strategy_names[STRATEGY_COUNT] = { "light_area", "light",      "portal",
-                                                     "projection", "antishadow", "antishadow_exact" };
-const char *const mis_names[3] = { "none", "balance", "power" };
-const char *const portal_weight_names[3] = { "area", "distance", "irradiance" };
-const char *const material_names[2] = { "diffuse", "ggx" };
-
 enum shape_kind { SHAPE_QUAD, SHAPE_BOX, SHAPE_MESH };
 static const char *const shape_kind_names[3] = { "quad", "box", "mesh" };
 
