@@ -4,14 +4,16 @@
    loader, the state of one load (the YAML document, the files it came
    from, the overrides and params), and declares what the module's files
    share:
-     config_node.c   typed getters over YAML nodes, and the error reports
-                     that name file:line:column (or the --set override)
-     config.c        the public API and the section loaders */
+     config_node.c     typed getters over YAML nodes, and the error reports
+                       that name file:line:column (or the --set override)
+     config_include.c  reading files, parsing, the include merge
+     config.c          the public API and the section loaders */
 #ifndef CONFIG_INTERNAL_H
 #define CONFIG_INTERNAL_H
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <sys/stat.h>
 #include <sys/types.h>
 
 #include <yaml.h>
@@ -159,5 +161,14 @@ bool config_get_enum(struct loader *L, const yaml_node_t *n, const char *what, c
 bool config_get_vec3(struct loader *L, const yaml_node_t *n, struct vec3 *out);
 /* [r, g, b], each in [lo, hi]. */
 bool config_get_rgb(struct loader *L, const yaml_node_t *n, double lo, double hi, struct rgb *out);
+
+/* config_include.c: the files. */
+/* The whole of a file that is not a folder; false with *why (a strerror
+   text or "out of memory") otherwise. */
+bool config_read_text(const char *path, char **text, size_t *length, struct stat *st, const char **why);
+/* Parses text, the loaded file (source 0), into L->doc and L->root: its
+   own document, or the merged document of its include tree. False with
+   L->err set. */
+bool config_load_document(struct loader *L, const char *text, size_t length);
 
 #endif
