@@ -7,6 +7,7 @@
      config_node.c     typed getters over YAML nodes, and the error reports
                        that name file:line:column (or the --set override)
      config_include.c  reading files, parsing, the include merge
+     config_override.c --set overrides
      config.c          the public API and the section loaders */
 #ifndef CONFIG_INTERNAL_H
 #define CONFIG_INTERNAL_H
@@ -170,5 +171,11 @@ bool config_read_text(const char *path, char **text, size_t *length, struct stat
    own document, or the merged document of its include tree. False with
    L->err set. */
 bool config_load_document(struct loader *L, const char *text, size_t length);
+
+/* config_override.c: --set. */
+/* Applies L->overrides[k] to L->doc: replaces the scalar its path names,
+   or adds a missing last key of a mapping (and render.snapshots or
+   render.aov when missing). False with L->err naming the override. */
+bool config_apply_override(struct loader *L, int k);
 
 #endif
