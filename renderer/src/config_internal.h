@@ -8,6 +8,7 @@
                        that name file:line:column (or the --set override)
      config_include.c  reading files, parsing, the include merge
      config_override.c --set overrides
+     config_emit.c     the effective YAML and its hashes
      config.c          the public API and the section loaders */
 #ifndef CONFIG_INTERNAL_H
 #define CONFIG_INTERNAL_H
@@ -177,5 +178,10 @@ bool config_load_document(struct loader *L, const char *text, size_t length);
    or adds a missing last key of a mapping (and render.snapshots or
    render.aov when missing). False with L->err naming the override. */
 bool config_apply_override(struct loader *L, int k);
+
+/* config_emit.c: the effective YAML. */
+/* Fills c->effective_yaml, c->hash and c->image_hash from the loaded c
+   (and L->shape_names). False with L->err set when out of memory. */
+bool config_emit_effective(struct loader *L, struct config *c);
 
 #endif
