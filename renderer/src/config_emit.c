@@ -3,13 +3,13 @@
    canonical so that it loads back to the same config, and its two
    FNV-1a hashes: of the whole text, and of the part that decides the
    image of a pass. */
+#include "config_internal.h"
+
 #include <inttypes.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#include "config_internal.h"
 
 struct text {
     char *s;

@@ -2,6 +2,8 @@
    into its one YAML document (libyaml's errors translated once, here), and
    the include merge that builds one document from an include tree, each
    node remembering the file it came from. */
+#include "config_internal.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -9,8 +11,6 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-#include "config_internal.h"
 
 /* Bounds on building the merged document of an include tree: nesting of
    copied nodes (the copy recurses), and nodes made by merging mappings

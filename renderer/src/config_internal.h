@@ -9,7 +9,10 @@
      config_include.c  reading files, parsing, the include merge
      config_override.c --set overrides
      config_emit.c     the effective YAML and its hashes
-     config.c          the public API and the section loaders */
+     config_scene.c    the sections camera, film, materials, shapes, lights
+                       and portals
+     config_render.c   the render section
+     config.c          the public API, the top level and params */
 #ifndef CONFIG_INTERNAL_H
 #define CONFIG_INTERNAL_H
 
@@ -44,6 +47,7 @@ struct source {
     ino_t ino;
 };
 
+/* The state of one load, from reading the file to emitting the effective YAML. */
 struct loader {
     const char *file;       /* the loaded file's name */
     struct error *err;
@@ -66,6 +70,8 @@ struct loader {
     int n_params;
     char (*shape_names)[CONFIG_NAME_MAX]; /* "" when unnamed; only for effective_yaml */
 };
+
+/* config_node.c: message lists, node access, reports, typed getters. */
 
 /* A bounded string for lists in messages; truncates silently. */
 struct config_line {
@@ -183,5 +189,12 @@ bool config_apply_override(struct loader *L, int k);
 /* Fills c->effective_yaml, c->hash and c->image_hash from the loaded c
    (and L->shape_names). False with L->err set when out of memory. */
 bool config_emit_effective(struct loader *L, struct config *c);
+
+/* The section loaders: each reads its keys of the top-level mapping root
+   into c, reporting the first error. */
+/* config_scene.c: camera, film, materials, shapes, lights, portals. */
+bool config_load_scene(struct loader *L, const yaml_node_t *root, struct config *c);
+/* config_render.c: render, with its defaults. */
+bool config_load_render(struct loader *L, const yaml_node_t *root, struct config *c);
 
 #endif

@@ -2,14 +2,15 @@
    document (numbers and expressions, integers, booleans, strings, enums,
    vectors, colours, key checks) and the reports that name the
    file:line:column of a node, or the --set override that made it. */
+#include "config_internal.h"
+
 #include <ctype.h>
 #include <limits.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
-
-#include "config_internal.h"
 
 /* Appends str, after sep unless l is empty. */
 void config_line_append(struct config_line *l, const char *sep, const char *str)

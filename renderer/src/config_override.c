@@ -1,11 +1,11 @@
 /* config_override.c: `--set key.path=value` overrides, applied to the
    (merged) YAML document before the sections are read, each new node
    marked with its override so that errors in it name the override. */
+#include "config_internal.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#include "config_internal.h"
 
 /* Optional mappings that --set creates when they are missing, so that
    `--set render.aov.region=true` works on a config without `aov:`. */
