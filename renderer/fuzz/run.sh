@@ -19,7 +19,10 @@ if ! ls /usr/lib/llvm-"$major"/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a
 fi
 out=renderer/build-fuzz
 mkdir -p "$out" renderer/fuzz/crashes
-srcs=(renderer/src/config.c renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c)
+srcs=(renderer/src/config.c renderer/src/config_emit.c renderer/src/config_include.c renderer/src/config_node.c
+      renderer/src/config_override.c renderer/src/config_render.c renderer/src/config_scene.c
+      renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
+      renderer/src/integrator_kind.c renderer/src/material_kind.c renderer/src/strategy_kind.c)
 clang -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src -fsanitize=fuzzer,address,undefined \
   -fno-sanitize-recover=undefined renderer/fuzz/fuzz_config.c "${srcs[@]}" -o "$out/fuzz_config" -lyaml -lm
 corpus="$out/corpus"

@@ -51,8 +51,6 @@
 
 #include <string.h>
 
-/* Planarity of the inputs, as a fraction of each polygon's size. */
-#define ANTISHADOW_PLANAR_REL 1e-6
 /* Clearance demanded between the light and the portal plane (and used to
    decide whether the portal reaches the light's plane), as a fraction of
    the pair's size. */
@@ -70,9 +68,13 @@ static bool check_polygon(const struct polygon *poly, const char *what, struct e
         if (!isfinite(v.x) || !isfinite(v.y) || !isfinite(v.z))
             return error_set(err, "%s vertex %d is not finite", what, i);
     }
-    if (!polygon_is_planar(poly, ANTISHADOW_PLANAR_REL)) return error_set(err, "%s is degenerate or not planar", what);
-    if (!polygon_is_convex(poly)) return error_set(err, "%s is not strictly convex", what);
-    return true;
+    switch (polygon_check(poly)) {
+    case POLYGON_DEFECT_NONE: return true;
+    case POLYGON_DEFECT_DEGENERATE:
+    case POLYGON_DEFECT_NOT_PLANAR: return error_set(err, "%s is degenerate or not planar", what);
+    case POLYGON_DEFECT_NOT_CONVEX: return error_set(err, "%s is not strictly convex", what);
+    }
+    return false;
 }
 
 /* Cross-section perpendicular to an edge: origin a on the edge, u0 and u1

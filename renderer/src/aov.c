@@ -2,6 +2,8 @@
 
 #include <stdlib.h>
 
+#include "config.h"
+
 const char *const aov_region_names[AOV_REGION_COUNT] = {
     "outside", "anti_umbra", "anti_penumbra", "anti_antumbra", "inside", "emitter", "miss",
 };

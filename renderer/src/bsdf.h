@@ -8,8 +8,8 @@
 
 #include <stdbool.h>
 
-#include "config.h"
 #include "fastmath.h"
+#include "material_kind.h"
 #include "vec.h"
 
 struct material {

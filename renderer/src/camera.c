@@ -1,5 +1,7 @@
 #include "camera.h"
 
+#include "config.h"
+
 void camera_init(struct camera *c, const struct camera_desc *d, int width, int height)
 {
     c->origin = d->position;

@@ -3,8 +3,9 @@
 #ifndef CAMERA_H
 #define CAMERA_H
 
-#include "config.h"
 #include "vec.h"
+
+struct camera_desc; /* config.h */
 
 struct camera {
     struct vec3 origin;

@@ -11,45 +11,16 @@
 #include <stdio.h>
 
 #include "error.h"
+#include "integrator_kind.h"
+#include "material_kind.h"
 #include "polygon.h"
+#include "strategy_kind.h"
 #include "vec.h"
 
 #define CONFIG_NAME_MAX 64
 #define CONFIG_PATH_MAX 1024
 #define CONFIG_SCHEDULE_MAX 256
 #define CONFIG_INCLUDE_DEPTH_MAX 16  /* include: nesting levels below the loaded file */
-
-enum integrator_kind { INTEGRATOR_DIRECT, INTEGRATOR_PATH };
-
-enum strategy_kind {
-    STRATEGY_LIGHT_AREA,
-    STRATEGY_LIGHT,
-    STRATEGY_PORTAL,
-    STRATEGY_PROJECTION,
-    STRATEGY_ANTISHADOW,
-    STRATEGY_ANTISHADOW_EXACT
-};
-#define STRATEGY_COUNT 6
-
-/* MIS_NONE: light sampling only (no BSDF-sampled direct light). */
-enum mis_kind { MIS_NONE, MIS_BALANCE, MIS_POWER };
-
-/* How a shading point distributes light samples over (light, portal) pairs. */
-enum portal_weight_kind { PORTAL_WEIGHT_AREA, PORTAL_WEIGHT_DISTANCE, PORTAL_WEIGHT_IRRADIANCE };
-
-enum material_kind { MATERIAL_DIFFUSE, MATERIAL_GGX };
-
-/* Names as written in configs, indexed by the enums above. */
-extern const char *const integrator_names[2];
-extern const char *const strategy_names[STRATEGY_COUNT];
-extern const char *const mis_names[3];
-extern const char *const portal_weight_names[3];
-extern const char *const material_names[2];
-/* The keys of render.snapshots, and the unit each counts in ("s" of render
-   time or "spp" passes), as the loader checks them. */
-#define CONFIG_SNAPSHOT_KEY_COUNT 6
-extern const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT];
-extern const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT];
 
 struct source_loc {
     int line, column; /* one-based, of the YAML node that defined the item */
@@ -130,6 +101,12 @@ struct render_desc {
     bool aov_region;              /* render.aov.region: per-pixel antishadow region classes (aov.h) */
     bool resumable;               /* also write output/final.state (film_state.h) */
 };
+
+/* The keys of render.snapshots, and the unit each counts in ("s" of render
+   time or "spp" passes), as the loader checks them. */
+#define CONFIG_SNAPSHOT_KEY_COUNT 6
+extern const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT];
+extern const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT];
 
 /* One entry of `params:`, after overrides, evaluated. */
 struct config_param {

@@ -3,6 +3,7 @@
 #include <stdlib.h>
 
 #include "bsdf.h"
+#include "config.h"
 
 void integrator_init(struct integrator *it, const struct render_desc *rd, const struct scene *scene,
                      const struct strategy *strategy)

@@ -7,11 +7,14 @@
 
 #include <stdint.h>
 
-#include "config.h"
+#include "integrator_kind.h"
 #include "rng.h"
 #include "scene.h"
 #include "shading.h"
 #include "strategy.h"
+#include "strategy_kind.h"
+
+struct render_desc; /* config.h */
 
 struct integrator {
     enum integrator_kind kind;

@@ -101,6 +101,29 @@ bool polygon_is_planar(const struct polygon *poly, double rel_tol)
     return true;
 }
 
+/* Area at or below this times the squared diameter is degenerate. */
+#define POLYGON_AREA_REL 1e-10
+
+double polygon_diameter(const struct polygon *poly)
+{
+    double d2 = 0.0;
+    for (int i = 0; i < poly->n; ++i)
+        for (int j = i + 1; j < poly->n; ++j) {
+            double l2 = vec3_length2(vec3_sub(poly->v[i], poly->v[j]));
+            if (l2 > d2) d2 = l2;
+        }
+    return sqrt(d2);
+}
+
+enum polygon_defect polygon_check(const struct polygon *poly)
+{
+    double diam = polygon_diameter(poly);
+    if (!(polygon_area(poly) > POLYGON_AREA_REL * diam * diam)) return POLYGON_DEFECT_DEGENERATE;
+    if (!polygon_is_planar(poly, POLYGON_PLANARITY_TOLERANCE)) return POLYGON_DEFECT_NOT_PLANAR;
+    if (!polygon_is_convex(poly)) return POLYGON_DEFECT_NOT_CONVEX;
+    return POLYGON_DEFECT_NONE;
+}
+
 /* Every other vertex must lie strictly on the inner side of every edge (the
    side the winding normal turns to). This rejects collinear and repeated
    vertices, reflex corners, and self-intersecting or multiply wound polygons

@@ -45,6 +45,25 @@ bool polygon_is_planar(const struct polygon *poly, double rel_tol);
 /* Strictly convex in its plane, consistently wound, no repeated vertices. */
 bool polygon_is_convex(const struct polygon *poly);
 
+/* How far a vertex of a light, portal or face may lie from its polygon's
+   plane, as a fraction of the polygon's size (polygon_check). Relative, so
+   that a scene in millimetres validates like one in metres. */
+#define POLYGON_PLANARITY_TOLERANCE 1e-6
+
+/* What polygon_check finds wrong, the first in this order. */
+enum polygon_defect {
+    POLYGON_DEFECT_NONE,
+    POLYGON_DEFECT_DEGENERATE, /* no area for its diameter (area <= 1e-10 diameter^2) */
+    POLYGON_DEFECT_NOT_PLANAR, /* a vertex off the plane by more than POLYGON_PLANARITY_TOLERANCE */
+    POLYGON_DEFECT_NOT_CONVEX  /* not strictly convex in its plane (polygon_is_convex) */
+};
+/* The one validity test of an input polygon (config and antishadow): non-zero
+   area, planar and convex, all relative to its size. Callers turn the
+   defect into their message. */
+enum polygon_defect polygon_check(const struct polygon *poly);
+/* The largest distance between two vertices (0 for fewer than two). */
+double polygon_diameter(const struct polygon *poly);
+
 /* Sutherland-Hodgman against one plane: keeps the part with
    plane_distance >= 0. Returns the number of output vertices (0 if empty). */
 int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out);

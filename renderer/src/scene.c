@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "config.h"
 #include "watertight.h"
 
 /* Embree reports device errors through a callback; the first one is kept in

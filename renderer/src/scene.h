@@ -9,12 +9,13 @@
 
 #include "antishadow.h"
 #include "bsdf.h"
-#include "config.h"
 #include "error.h"
 #include "fastmath.h"
 #include "light.h"
 #include "ray_stream.h"
 #include "vec.h"
+
+struct config; /* config.h */
 
 /* One portal of a light, with its antishadow precomputed at load. */
 struct portal {

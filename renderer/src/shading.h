@@ -12,9 +12,9 @@
 #include <stdint.h>
 
 #include "bsdf.h"
-#include "config.h"
 #include "scene.h"
 #include "strategy.h"
+#include "strategy_kind.h"
 #include "vec.h"
 
 /* MIS weight of technique a against b (one sample each). */

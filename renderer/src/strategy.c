@@ -3,6 +3,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "config.h"
+
 /* The antishadow strategies classify; `portal` and `projection` are the
    plain techniques of the paper and must not benefit from classification. */
 static bool classifies(enum strategy_kind k)

@@ -14,11 +14,13 @@
 #include <stdbool.h>
 
 #include "alias.h"
-#include "config.h"
 #include "error.h"
 #include "pair_bvh.h"
 #include "scene.h"
+#include "strategy_kind.h"
 #include "vec.h"
+
+struct render_desc; /* config.h */
 
 enum technique {
     TECHNIQUE_NONE,           /* no direction can reach the light through this pair */

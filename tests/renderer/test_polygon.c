@@ -148,6 +148,54 @@ static void test_planar_convex(void)
     CHECK(!polygon_is_planar(&two, 1e-9) && !polygon_is_convex(&two));
 }
 
+/* polygon_check: the first defect in the order degenerate, not planar, not
+   convex; tolerances relative to the size, so scale does not matter. */
+static void test_check(void)
+{
+    struct polygon sq = rect_xy(0, 1, 0, 1, 0, 0);
+    CHECK_NEAR(polygon_diameter(&sq), sqrt(2.0), 1e-15);
+    CHECK(polygon_check(&sq) == POLYGON_DEFECT_NONE);
+    struct polygon oct = regular_ngon(8, 1.0, 0.1);
+    oct = poly_transform(&oct, vec3_make(3, 2, 1));
+    CHECK(polygon_check(&oct) == POLYGON_DEFECT_NONE);
+    const double scales[] = { 1e-3, 1.0, 1e3 };
+    for (int k = 0; k < 3; ++k) {
+        /* Planar: a lift of a tenth of the tolerance passes, ten times it fails. */
+        const double np[4][3] = { { 0, 0, 0 }, { 1, 0, 0 }, { 1, 1, 0 }, { 0, 1, 0 } };
+        struct polygon q = poly_make(4, np);
+        for (int i = 0; i < 4; ++i) q.v[i] = vec3_scale(q.v[i], scales[k]);
+        q.v[2].z = 0.1 * POLYGON_PLANARITY_TOLERANCE * scales[k];
+        CHECK(polygon_check(&q) == POLYGON_DEFECT_NONE);
+        q.v[2].z = 10.0 * POLYGON_PLANARITY_TOLERANCE * scales[k];
+        CHECK(polygon_check(&q) == POLYGON_DEFECT_NOT_PLANAR);
+        q.v[2].z = 0.1 * scales[k];
+        CHECK(polygon_check(&q) == POLYGON_DEFECT_NOT_PLANAR);
+    }
+    /* Not convex: a dart (reflex corner), a lopsided bow-tie. */
+    const double dart[4][3] = { { 0, 0, 0 }, { 2, 1, 0 }, { 0, 2, 0 }, { 0.5, 1, 0 } };
+    struct polygon d = poly_make(4, dart);
+    CHECK(polygon_check(&d) == POLYGON_DEFECT_NOT_CONVEX);
+    const double bow2[4][3] = { { 0, 0, 0 }, { 3, 2, 0 }, { 3, 0, 0 }, { 0, 1, 0 } };
+    struct polygon b = poly_make(4, bow2);
+    CHECK(polygon_check(&b) == POLYGON_DEFECT_NOT_CONVEX);
+    /* Degenerate, reported before the planarity it also fails: collinear
+       points, a sliver of height 1e-11 of its length, one repeated point,
+       and a symmetric bow-tie (zero net area). */
+    const double line[3][3] = { { 0, 0, 0 }, { 1, 1, 1 }, { 2, 2, 2 } };
+    struct polygon deg = poly_make(3, line);
+    CHECK(polygon_check(&deg) == POLYGON_DEFECT_DEGENERATE);
+    const double sliver[3][3] = { { 0, 0, 0 }, { 1, 0, 0 }, { 0.5, 1e-11, 0 } };
+    deg = poly_make(3, sliver);
+    CHECK(polygon_check(&deg) == POLYGON_DEFECT_DEGENERATE);
+    const double point[3][3] = { { 1, 2, 3 }, { 1, 2, 3 }, { 1, 2, 3 } };
+    deg = poly_make(3, point);
+    CHECK(polygon_check(&deg) == POLYGON_DEFECT_DEGENERATE);
+    CHECK(polygon_diameter(&deg) == 0.0);
+    const double bow[4][3] = { { 0, 0, 0 }, { 1, 1, 0 }, { 1, 0, 0 }, { 0, 1, 0 } };
+    deg = poly_make(4, bow);
+    CHECK(polygon_check(&deg) == POLYGON_DEFECT_DEGENERATE);
+}
+
 static bool all_inside(const struct polygon *p, const struct polygon *a, const struct polygon *b)
 {
     for (int i = 0; i < p->n; ++i)
@@ -471,6 +519,7 @@ static void test_projected_solid_angle_numeric(void)
 static const struct test_case polygon_tests[] = {
     { "area_normal_centroid", test_area_normal_centroid },
     { "planar_convex", test_planar_convex },
+    { "check", test_check },
     { "clip_convex", test_clip_convex },
     { "clip_plane", test_clip_plane },
     { "intersect_contains", test_intersect_contains },
