@@ -122,15 +122,6 @@ static void worker_free(struct worker *w)
     aov_scratch_free(&w->aov_scratch);
 }
 
-static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
-{
-    a->rays += b->rays;
-    a->shadow_rays += b->shadow_rays;
-    a->shadow_blocked += b->shadow_blocked;
-    a->light_samples += b->light_samples;
-    a->light_missed += b->light_missed;
-}
-
 /* Seeds the random stream of each pixel of film row y and draws its camera
    ray. One stream per (pixel, pass): pixels never depend on which thread
    rendered them, so fixed-spp renders are bit-identical. A vectorised loop:
@@ -222,7 +213,7 @@ static void *worker_main(void *arg)
             render_row(w, y, pass, &stats, &nonfinite);
             pthread_mutex_lock(&pc->lock);
         }
-        stats_add(&pc->stats, &stats);
+        integrator_stats_add(&pc->stats, &stats);
         pc->nonfinite += nonfinite;
         pc->cpu_s += thread_cpu_s() - cpu0;
         if (--pc->active == 0) pthread_cond_signal(&pc->done);

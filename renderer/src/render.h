@@ -12,6 +12,7 @@
 #include "error.h"
 #include "film_state.h"
 #include "integrator.h"
+#include "integrator_stats.h"
 #include "scene.h"
 
 /* Results are cumulative: a resumed render counts the passes, time,
