@@ -14,12 +14,10 @@
 #include "bsdf.h"
 #include "config.h"
 #include "integrator_stats.h"
+#include "mis.h"
 #include "scene.h"
 #include "strategy.h"
 #include "vec.h"
-
-/* MIS weight of technique a against b (one sample each). */
-double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b);
 
 /* The shading context of a surface hit: side, frame, ray origin. */
 struct vertex {
