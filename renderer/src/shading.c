@@ -72,8 +72,8 @@ FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis
                                                  struct rgb le, struct vec3 nl)
 {
     double cos_i = vec3_dot(wi, n);
-    return shadow_lane(scale, mis, rgb_scale(albedo, 1.0 / M_PI), cos_i, cos_i * (1.0 / M_PI), n, p, wi, dist,
-                       pdf_sa, le, nl);
+    return shadow_lane(scale, mis, bsdf_lambert_f(albedo), cos_i, bsdf_lambert_pdf(cos_i), n, p, wi, dist, pdf_sa,
+                       le, nl);
 }
 
 struct bsdf_lane {
@@ -97,7 +97,7 @@ FM_INLINE struct bsdf_lane lambert_bsdf_lane(double scale, struct vec3 n, struct
     out.dx = d.x;
     out.dy = d.y;
     out.dz = d.z;
-    out.pdf = wl.z * (1.0 / M_PI);
+    out.pdf = bsdf_lambert_pdf(wl.z);
     /* pdf > 0 implies wl.z > 0 (and wl.z >= 2^-26.5 keeps pdf from underflowing). */
     out.trace = out.pdf > 0.0 ? 1.0 : 0.0;
     return out;
