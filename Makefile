@@ -72,9 +72,11 @@ $(BUILD)/tests/%.o: tests/renderer/%.c | $(DEPS_STAMP)
 $(BUILD)/tests/%: $(BUILD)/tests/%.o $(BUILD)/librender.a
 	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
 
-# C tests: every tests/renderer/test_*.c is its own executable.
+# C tests: every tests/renderer/test_*.c is its own executable. The runner
+# also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
 test-c: $(BUILD)/render $(TEST_BINS)
 	@tests/run_c_tests.sh $(BUILD)
+	@tests/check_run_c_tests.sh $(BUILD)
 
 test-c-san:
 	@$(MAKE) --no-print-directory SANITIZE=1 test-c
