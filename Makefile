@@ -32,12 +32,21 @@ SRCS := $(filter-out renderer/src/main.c,$(wildcard renderer/src/*.c))
 OBJS := $(SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
 TEST_SRCS := $(wildcard tests/renderer/test_*.c)
 TEST_BINS := $(TEST_SRCS:tests/renderer/%.c=$(BUILD)/tests/%)
+# The benchmark programs and the config fuzzer's plain replay driver, built
+# with the library's flags by every test-c so that they cannot rot.
+BENCH_BINS := $(BUILD)/bench/micro $(BUILD)/bench/raw_embree
+FUZZ_REPLAY := $(BUILD)/fuzz/fuzz_config_replay
+FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard tests/configs/fuzz)
+# The libFuzzer build (make fuzz): clang, the config loader's sources only.
+FUZZ_CC ?= clang
+FUZZ_BUILD := renderer/build-fuzz
+FUZZ_SRCS := $(wildcard renderer/src/config*.c) renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
 DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test test-c test-c-san test-py figures bench bench-ab fuzz crosscheck clean
+.PHONY: all deps venv test test-c test-c-san test-py figures bench bench-ab bench-bins fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -72,9 +81,34 @@ $(BUILD)/tests/%.o: tests/renderer/%.c | $(DEPS_STAMP)
 $(BUILD)/tests/%: $(BUILD)/tests/%.o $(BUILD)/librender.a
 	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
 
-# C tests: every tests/renderer/test_*.c is its own executable.
-test-c: $(BUILD)/render $(TEST_BINS)
+$(BUILD)/bench/%.o: renderer/bench/%.c | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
+
+$(BUILD)/bench/%: $(BUILD)/bench/%.o $(BUILD)/librender.a
+	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
+
+bench-bins: $(BENCH_BINS)
+
+$(BUILD)/fuzz/%.o: renderer/fuzz/%.c | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
+
+$(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(BUILD)/librender.a
+	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
+
+# libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
+$(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*.h)
+	@mkdir -p $(@D)
+	$(FUZZ_CC) -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
+	  -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined $(filter %.c,$^) -o $@ -lyaml -lm
+
+# C tests: every tests/renderer/test_*.c is its own executable. The runner
+# also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
+test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(FUZZ_REPLAY)
 	@tests/run_c_tests.sh $(BUILD)
+	@tests/check_run_c_tests.sh $(BUILD)
+	@$(FUZZ_REPLAY) $(FUZZ_CORPUS)
 
 test-c-san:
 	@$(MAKE) --no-print-directory SANITIZE=1 test-c
@@ -97,7 +131,7 @@ figures: $(BUILD)/render $(VENV_STAMP)
 	$(VENV)/bin/portal-harness sweep configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml
 	$(VENV)/bin/portal-harness figures configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml
 
-bench: $(BUILD)/render
+bench: $(BUILD)/render $(BENCH_BINS)
 	@renderer/bench/run.sh $(BUILD)
 
 # Same-run A/B throughput against another build: make bench-ab BASE=old/render
@@ -115,9 +149,10 @@ crosscheck: $(BUILD)/render
 	.venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py
 
 clean:
-	rm -rf renderer/build renderer/build-san
+	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)
 
--include $(OBJS:.o=.d) $(BUILD)/obj/main.d $(TEST_BINS:=.d)
+-include $(OBJS:.o=.d) $(BUILD)/obj/main.d $(TEST_BINS:=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
+  $(BUILD)/fuzz/replay.d
 
 # Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c
 # (kills at random moments, inside snapshot and final writes too) run

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The benchmark suite (`make bench`): builds the C micro-benchmarks against
-# BUILD_DIR/librender.a, runs every section (renderer/bench/bench.py) and
+# The benchmark suite (`make bench`): the C micro-benchmarks (Makefile
+# targets BUILD_DIR/bench/micro and raw_embree), runs every section (renderer/bench/bench.py) and
 # writes results/bench/<section>.json plus results/bench/summary.md, which
 # is also printed. Progress goes to stderr.
 #
@@ -27,14 +27,15 @@ PY="${BENCH_PYTHON:-$ROOT/.venv/bin/python}"
 [ -x "$PY" ] || die "python not found at $PY (run make venv, or set BENCH_PYTHON)"
 "$PY" -c 'import numpy, OpenEXR' 2>/dev/null || die "$PY lacks numpy or the openexr bindings"
 
-CC="${CC:-cc}"
-mkdir -p "$BUILD/bench"
+# The programs are the Makefile's targets (the library's own flags); for a
+# build folder inside the repository, make brings them up to date here.
+rel="${BUILD#"$ROOT"/}"
+if [ "$rel" != "$BUILD" ]; then
+    make --no-print-directory "$rel/bench/raw_embree" "$rel/bench/micro" >&2 \
+        || die "cannot build the benchmark programs (make $rel/bench/raw_embree $rel/bench/micro)"
+fi
 for prog in raw_embree micro; do
-    echo "bench: building $BUILD/bench/$prog" >&2
-    "$CC" -std=c99 -O2 -g -Wall -Wextra -Wpedantic -Wshadow -D_POSIX_C_SOURCE=200809L -Irenderer/src \
-        "renderer/bench/$prog.c" "$BUILD/librender.a" -o "$BUILD/bench/$prog" \
-        -lembree3 -lOpenEXRCore -lyaml -lm -pthread \
-        || die "cannot build renderer/bench/$prog.c against $BUILD/librender.a"
+    [ -x "$BUILD/bench/$prog" ] || die "$BUILD/bench/$prog is missing (run make bench)"
 done
 
 args=("$BUILD")

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer target of the config loader with clang
-# (-fsanitize=fuzzer,address,undefined) and runs it for SECONDS (default 60),
+# (-fsanitize=fuzzer,address,undefined; the Makefile's renderer/build-fuzz/
+# fuzz_config) and runs it for SECONDS (default 60),
 # seeded with every good and bad config. A crash input is kept under
 # renderer/fuzz/crashes/ and should be added to tests/configs/fuzz/ as a
 # regression test. Prints the number of executions.
@@ -19,12 +20,8 @@ if ! ls /usr/lib/llvm-"$major"/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a
 fi
 out=renderer/build-fuzz
 mkdir -p "$out" renderer/fuzz/crashes
-srcs=(renderer/src/config.c renderer/src/config_emit.c renderer/src/config_include.c renderer/src/config_node.c
-      renderer/src/config_override.c renderer/src/config_render.c renderer/src/config_scene.c
-      renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
-      renderer/src/integrator_kind.c renderer/src/material_kind.c renderer/src/strategy_kind.c)
-clang -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src -fsanitize=fuzzer,address,undefined \
-  -fno-sanitize-recover=undefined renderer/fuzz/fuzz_config.c "${srcs[@]}" -o "$out/fuzz_config" -lyaml -lm
+# The Makefile target holds the sources and flags (FUZZ_SRCS, FUZZ_CC).
+make --no-print-directory "$out/fuzz_config"
 corpus="$out/corpus"
 mkdir -p "$corpus"
 cp configs/scenes/*.yaml tests/configs/good/*.yaml tests/configs/bad/*.yaml "$corpus"/ 2>/dev/null || true

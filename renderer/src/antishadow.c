@@ -315,6 +315,7 @@ int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enu
 {
     switch (region) {
     case REGION_OUTSIDE:
+    case REGION_INSIDE: /* the light's side: no direction crosses the portal */
         out->n = 0;
         return 0;
     case REGION_ANTI_UMBRA:

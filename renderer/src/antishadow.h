@@ -23,7 +23,19 @@
 #include "polygon.h"
 #include "vec.h"
 
-enum region { REGION_OUTSIDE, REGION_ANTI_UMBRA, REGION_ANTI_PENUMBRA, REGION_ANTI_ANTUMBRA };
+/* The region classes of a point relative to one light: the antishadow's
+   four, which antishadow_classify returns, and REGION_INSIDE, which it
+   never returns: p lies on the light's side of every portal plane of its
+   light, within the light's shade box (strategy.h decides it), where the
+   light is reached directly, not through a portal. aov.h's classes begin
+   with these five. */
+enum region {
+    REGION_OUTSIDE,
+    REGION_ANTI_UMBRA,
+    REGION_ANTI_PENUMBRA,
+    REGION_ANTI_ANTUMBRA,
+    REGION_INSIDE
+};
 
 /* One separating plane per portal edge and at most two per light edge. */
 #define ANTISHADOW_SEPARATING_MAX (3 * POLYGON_INPUT_MAX)

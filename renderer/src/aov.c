@@ -39,23 +39,6 @@ void aov_scratch_free(struct aov_scratch *scratch)
     scratch->cand = NULL;
 }
 
-/* Region codes of strategy_pair_irradiance -> classes. */
-static enum aov_region class_of(int region)
-{
-    if (region == STRATEGY_REGION_INSIDE) return AOV_REGION_INSIDE;
-    switch ((enum region)region) {
-    case REGION_OUTSIDE:
-        return AOV_REGION_OUTSIDE;
-    case REGION_ANTI_UMBRA:
-        return AOV_REGION_ANTI_UMBRA;
-    case REGION_ANTI_PENUMBRA:
-        return AOV_REGION_ANTI_PENUMBRA;
-    case REGION_ANTI_ANTUMBRA:
-        return AOV_REGION_ANTI_ANTUMBRA;
-    }
-    return AOV_REGION_OUTSIDE;
-}
-
 enum aov_region aov_classify_point(const struct aov_classifier *c, struct aov_scratch *scratch, struct vec3 p,
                                    struct vec3 n)
 {
@@ -67,7 +50,8 @@ enum aov_region aov_classify_point(const struct aov_classifier *c, struct aov_sc
     int best_pair = -1;
     enum aov_region cls = AOV_REGION_OUTSIDE;
     for (int k = 0; k < n_cand; ++k) {
-        int i = scratch->cand[k], region;
+        int i = scratch->cand[k];
+        enum region region;
         double e = strategy_pair_irradiance(s, i, p, n, &region);
         if (!(e > 0.0) || !isfinite(e)) continue;
         /* The BVH lists candidates in its own order: among equal pairs the
@@ -75,7 +59,7 @@ enum aov_region aov_classify_point(const struct aov_classifier *c, struct aov_sc
         if (e > best || (e == best && i < best_pair)) {
             best = e;
             best_pair = i;
-            cls = class_of(region);
+            cls = (enum aov_region)region; /* the same values */
         }
     }
     return cls;

@@ -7,19 +7,21 @@
 
 #include <stdbool.h>
 
+#include "antishadow.h"
 #include "error.h"
 #include "scene.h"
 #include "strategy.h"
 #include "vec.h"
 
-/* The classes, in the order of the EXR channels region.<name>. The first
-   four are enum region's. */
+/* The classes, in the order of the EXR channels region.<name>: the five of
+   enum region (antishadow.h), the same values, then two classes of camera
+   rays that hit no surface point. */
 enum aov_region {
-    AOV_REGION_OUTSIDE,       /* no light reaches the point through any portal */
-    AOV_REGION_ANTI_UMBRA,
-    AOV_REGION_ANTI_PENUMBRA,
-    AOV_REGION_ANTI_ANTUMBRA,
-    AOV_REGION_INSIDE,        /* inside the shade of the dominant light */
+    AOV_REGION_OUTSIDE = REGION_OUTSIDE, /* no light reaches the point through any portal */
+    AOV_REGION_ANTI_UMBRA = REGION_ANTI_UMBRA,
+    AOV_REGION_ANTI_PENUMBRA = REGION_ANTI_PENUMBRA,
+    AOV_REGION_ANTI_ANTUMBRA = REGION_ANTI_ANTUMBRA,
+    AOV_REGION_INSIDE = REGION_INSIDE,   /* inside the shade of the dominant light */
     AOV_REGION_EMITTER,       /* the camera ray hits a light */
     AOV_REGION_MISS           /* the camera ray leaves the scene */
 };

@@ -29,7 +29,7 @@ struct rgb bsdf_eval(const struct material *m, struct vec3 wo, struct vec3 wi)
     if (wo.z <= 0.0 || wi.z <= 0.0) return rgb_make(0.0, 0.0, 0.0);
     switch (m->kind) {
     case MATERIAL_DIFFUSE:
-        return rgb_scale(m->albedo, 1.0 / M_PI);
+        return bsdf_lambert_f(m->albedo);
     case MATERIAL_GGX: {
         struct vec3 h = vec3_normalize(vec3_add(wo, wi));
         double d = ggx_d(m->roughness, h);
@@ -47,6 +47,9 @@ double bsdf_pdf(const struct material *m, struct vec3 wo, struct vec3 wi)
     if (wo.z <= 0.0 || wi.z <= 0.0) return 0.0;
     switch (m->kind) {
     case MATERIAL_DIFFUSE:
+        /* bsdf_lambert_pdf(wi.z) up to rounding: x / pi and x * (1 / pi)
+           differ in the last bit for ~15% of x, and the path integrator's
+           accumulators at a fixed seed depend on these bits. */
         return wi.z / M_PI;
     case MATERIAL_GGX: {
         /* Visible-normal sampling: pdf(h) = G1(wo) max(0, wo.h) D(h) / wo.z,

@@ -39,6 +39,19 @@ FM_INLINE struct vec3 bsdf_lambert_dir(double u, double v)
     return vec3_make(r * cos_phi, r * sin_phi, sqrt(z2 > 0.0 ? z2 : 0.0));
 }
 
+/* The Lambertian BSDF, f = albedo / pi, and the density of
+   bsdf_lambert_dir, cos / pi (cos: the direction's local z), for callers
+   that have the cosine already. Inline: the vectorised lanes (shading.c)
+   call them for every point. */
+FM_INLINE struct rgb bsdf_lambert_f(struct rgb albedo)
+{
+    return rgb_scale(albedo, 1.0 / M_PI);
+}
+FM_INLINE double bsdf_lambert_pdf(double cos_theta)
+{
+    return cos_theta * (1.0 / M_PI);
+}
+
 /* False when no valid direction was produced (below the surface). */
 bool bsdf_sample(const struct material *m, struct vec3 wo, double u, double v, struct bsdf_sample *out);
 

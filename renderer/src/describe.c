@@ -7,7 +7,7 @@
 #include "exit_code.h"
 #include "film.h"
 #include "json_write.h"
-#include "render_event.h"
+#include "render_events.h"
 #include "sampler.h"
 #include "version.h"
 

@@ -28,7 +28,7 @@
 
 #include "error.h"
 #include "film.h"
-#include "shading.h"
+#include "integrator_stats.h"
 
 #define FILM_STATE_VERSION 1
 

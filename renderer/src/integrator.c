@@ -168,14 +168,6 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
     return L;
 }
 
-struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
-                               struct vec3 d, struct rng *rng, struct integrator_stats *stats)
-{
-    struct hit h;
-    bool found = scene_intersect(it->scene, o, d, INFINITY, &h);
-    return integrator_radiance_from(it, scratch, o, d, found ? &h : NULL, rng, stats);
-}
-
 /* One film row of shading points in flight (direct_row). */
 struct integrator_row {
     struct vertex *v;

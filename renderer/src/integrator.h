@@ -36,12 +36,9 @@ struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scr
                                 struct vec3 ng, int material, struct vec3 wo, struct rng *rng,
                                 struct integrator_stats *stats);
 
-/* Radiance arriving at the camera along o + t d (d unit). */
-struct rgb integrator_radiance(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
-                               struct vec3 d, struct rng *rng, struct integrator_stats *stats);
-/* The same when the camera ray has been traced already (a row at a time,
-   see scene_intersect_coherent): first is its hit, NULL for a miss. Counts
-   the camera ray in stats like integrator_radiance. */
+/* Radiance arriving at the camera along o + t d (d unit), the camera ray
+   traced already (a row at a time, see scene_intersect_coherent): first is
+   its hit, NULL for a miss. Counts the camera ray in stats. */
 struct rgb integrator_radiance_from(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
                                     struct vec3 d, const struct hit *first, struct rng *rng,
                                     struct integrator_stats *stats);

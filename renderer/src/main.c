@@ -159,7 +159,7 @@ static bool prepare_output(const struct config *cfg, const struct config_overrid
 /* Renders into the prepared output folder and reports; returns the exit
    status. `start`: the state to continue, NULL for a fresh render. */
 static int render_and_report(const struct config *cfg, const struct scene *scene, struct film_state *start,
-                             bool quiet)
+                             const struct render_faults *faults, bool quiet)
 {
     struct error err = { { 0 } };
     struct render_result res;
@@ -171,7 +171,8 @@ static int render_and_report(const struct config *cfg, const struct scene *scene
     else if (!quiet)
         fprintf(stderr, "render: %s, %dx%d, %s/%s, output %s\n", cfg->path, cfg->width, cfg->height,
                 integrator_names[cfg->render.integrator], strategy_names[cfg->render.strategy], cfg->render.output);
-    if (!render_run(cfg, scene, start, stdout, &res, &err)) {
+    struct render_options opt = { cfg, scene, start, stdout, *faults };
+    if (!render_run(&opt, &res, &err)) {
         fprintf(stderr, "render: %s\n", err.message);
         return EXIT_RUNTIME;
     }
@@ -347,7 +348,9 @@ int main(int argc, char **argv)
     struct render_faults faults;
     struct config cfg;
     struct film_state start;
-    if (!print_config && !render_faults_from_env(&faults, &err)) {
+    /* The test hooks: read here, so that the library never reads the environment. */
+    if (!print_config && !render_faults_parse(getenv("PORTAL_LIGHTS_FAULT_NONFINITE"),
+                                              getenv("PORTAL_LIGHTS_FAULT_BIAS"), &faults, &err)) {
         fprintf(stderr, "render: %s\n", err.message);
         goto done;
     }
@@ -374,7 +377,7 @@ int main(int argc, char **argv)
         else if (!ready)
             fprintf(stderr, "%s\n", err.message);
         else
-            status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, quiet);
+            status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, &faults, quiet);
         scene_destroy(&scene);
     }
     if (resume_dir) film_state_free(&start);

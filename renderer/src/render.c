@@ -1,3 +1,5 @@
+/* render.c: the render loop, its thread pool and the final image (see
+   render.h). */
 #include "render.h"
 
 #include "fastmath.h"
@@ -9,7 +11,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 #include <pmmintrin.h>
 #include <xmmintrin.h>
@@ -17,9 +18,12 @@
 #include "aov.h"
 #include "camera.h"
 #include "film.h"
-#include "render_event.h"
+#include "render_events.h"
 #include "rng.h"
+#include "snapshot_schedule.h"
+#include "snapshot_writer.h"
 #include "strategy.h"
+#include "timing.h"
 #include "version.h"
 
 /* The one piece of process-wide state: set by the signal handler, read by
@@ -40,13 +44,6 @@ void render_catch_signals(void)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-}
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 /* ---- passes ------------------------------------------------------------ */
@@ -123,15 +120,6 @@ static void worker_free(struct worker *w)
     aov_scratch_free(&w->aov_scratch);
 }
 
-static void stats_add(struct integrator_stats *a, const struct integrator_stats *b)
-{
-    a->rays += b->rays;
-    a->shadow_rays += b->shadow_rays;
-    a->shadow_blocked += b->shadow_blocked;
-    a->light_samples += b->light_samples;
-    a->light_missed += b->light_missed;
-}
-
 /* Seeds the random stream of each pixel of film row y and draws its camera
    ray. One stream per (pixel, pass): pixels never depend on which thread
    rendered them, so fixed-spp renders are bit-identical. A vectorised loop:
@@ -189,16 +177,6 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
         if (rgb_is_finite(w->row_color[x])) film_add(w->film, x, y, w->row_color[x]);
 }
 
-/* CPU time of the calling thread: what a worker spends rendering,
-   whatever else runs on the machine or in the process (the Embree
-   builder's threads, the EXR writer). */
-static double thread_cpu_s(void)
-{
-    struct timespec ts;
-    if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) return 0.0;
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static void *worker_main(void *arg)
 {
     struct worker *w = arg;
@@ -215,7 +193,7 @@ static void *worker_main(void *arg)
         int64_t pass = pc->pass;
         struct integrator_stats stats = { 0, 0, 0, 0, 0 };
         uint64_t nonfinite = 0;
-        double cpu0 = thread_cpu_s();
+        double cpu0 = timing_thread_cpu_s();
         for (;;) {
             int y = pc->next_row < w->cfg->height ? pc->next_row++ : -1;
             if (y < 0) break;
@@ -223,155 +201,79 @@ static void *worker_main(void *arg)
             render_row(w, y, pass, &stats, &nonfinite);
             pthread_mutex_lock(&pc->lock);
         }
-        stats_add(&pc->stats, &stats);
+        integrator_stats_add(&pc->stats, &stats);
         pc->nonfinite += nonfinite;
-        pc->cpu_s += thread_cpu_s() - cpu0;
+        pc->cpu_s += timing_thread_cpu_s() - cpu0;
         if (--pc->active == 0) pthread_cond_signal(&pc->done);
     }
     pthread_mutex_unlock(&pc->lock);
     return NULL;
 }
 
-/* ---- snapshots ----------------------------------------------------------- */
-
-/* Next due time or sample count of each schedule; a snapshot is taken at the
-   first pass boundary at or after it. */
-struct schedule_state {
-    const struct snapshot_schedule *sch;
-    double next_every, next_doubling;
-    int next_time, next_spp_list;
-    int64_t next_every_spp, next_doubling_spp;
-};
-
-static void schedule_init(struct schedule_state *s, const struct snapshot_schedule *sch)
+/* Starts the render threads, each with its own scratch and row buffers;
+   stops at the first failure (pool_stop joins those started). */
+static bool pool_start(struct pass_control *pc, struct worker **out, int *started, int n_threads,
+                       const struct worker *proto, const struct strategy *strategy, struct error *err)
 {
-    s->sch = sch;
-    s->next_every = sch->every_s > 0.0 ? sch->every_s : INFINITY;
-    s->next_doubling = sch->doubling_s > 0.0 ? sch->doubling_s : INFINITY;
-    s->next_time = 0;
-    s->next_spp_list = 0;
-    s->next_every_spp = sch->every_spp > 0 ? sch->every_spp : INT64_MAX;
-    s->next_doubling_spp = sch->doubling_spp > 0 ? sch->doubling_spp : INT64_MAX;
-}
-
-/* True if a snapshot is due at (t, spp); advances every schedule past it. */
-static bool schedule_due(struct schedule_state *s, double t, int64_t spp)
-{
-    const struct snapshot_schedule *sch = s->sch;
-    bool due = false;
-    if (t >= s->next_every) {
-        due = true;
-        while (s->next_every <= t) s->next_every += sch->every_s;
-    }
-    if (t >= s->next_doubling) {
-        due = true;
-        while (s->next_doubling <= t) s->next_doubling *= 2.0;
-    }
-    while (s->next_time < sch->n_times && t >= sch->times_s[s->next_time]) {
-        due = true;
-        ++s->next_time;
-    }
-    if (spp >= s->next_every_spp) {
-        due = true;
-        while (s->next_every_spp <= spp) s->next_every_spp += sch->every_spp;
-    }
-    if (spp >= s->next_doubling_spp) {
-        due = true;
-        /* Saturates instead of overflowing: INT64_MAX is never reached. */
-        while (s->next_doubling_spp <= spp) s->next_doubling_spp = s->next_doubling_spp > INT64_MAX / 2
-                                                                       ? INT64_MAX : 2 * s->next_doubling_spp;
-    }
-    while (s->next_spp_list < sch->n_spps && spp >= sch->spps[s->next_spp_list]) {
-        due = true;
-        ++s->next_spp_list;
-    }
-    return due;
-}
-
-/* Writes snapshots on its own thread so render threads never wait for I/O;
-   holds one pending image at a time. */
-struct writer {
-    pthread_t thread;
-    pthread_mutex_t lock;
-    pthread_cond_t cond;
-    bool busy, quit, failed;
-    struct error err;
-    FILE *json;
-    struct film_image image;
-    struct snapshot_info info;
-    char path[CONFIG_PATH_MAX + 64];
-    int index;
-    double cpu_s;              /* CPU time spent writing snapshots */
-};
-
-static void json_string(FILE *f, const char *s)
-{
-    fputc('"', f);
-    for (; *s; ++s) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
-        else if (c < 0x20) fprintf(f, "\\u%04x", c);
-        else fputc(c, f);
-    }
-    fputc('"', f);
-}
-
-static void json_snapshot(FILE *f, const char *event, int index, const char *path, const struct snapshot_info *info)
-{
-    fprintf(f, "{\"event\":\"%s\",", event);
-    if (index > 0) fprintf(f, "\"index\":%d,", index);
-    fputs("\"path\":", f);
-    json_string(f, path);
-    fprintf(f, ",\"time_s\":%.6f,\"spp\":%lld,\"rays\":%llu,\"nonfinite\":%llu", info->render_time_s,
-            (long long)info->spp, (unsigned long long)info->rays, (unsigned long long)info->nonfinite_samples);
-}
-
-static void *writer_main(void *arg)
-{
-    struct writer *w = arg;
-    pthread_mutex_lock(&w->lock);
-    for (;;) {
-        while (!w->busy && !w->quit) pthread_cond_wait(&w->cond, &w->lock);
-        if (!w->busy && w->quit) break;
-        pthread_mutex_unlock(&w->lock);
-        double cpu0 = thread_cpu_s();
-        struct error err;
-        bool ok = film_write_exr(w->path, &w->image, &w->info, &err);
-        if (ok) {
-            json_snapshot(w->json, render_event_names[RENDER_EVENT_SNAPSHOT], w->index, w->path, &w->info);
-            fputs("}\n", w->json);
-            fflush(w->json);
+    struct worker *workers = *out = calloc((size_t)n_threads, sizeof *workers);
+    if (!workers) return error_set(err, "out of memory for %d threads", n_threads);
+    for (int i = 0; i < n_threads; ++i) {
+        struct worker *w = &workers[i];
+        *w = *proto;
+        w->pc = pc;
+        if (!strategy_scratch_init(strategy, &w->scratch, err) || !worker_alloc_row(w, proto->cfg->width, err)) {
+            worker_free(w);
+            return false;
         }
-        double cpu = thread_cpu_s() - cpu0;
-        pthread_mutex_lock(&w->lock);
-        w->cpu_s += cpu;
-        if (!ok && !w->failed) {
-            w->failed = true;
-            w->err = err;
+        if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+            worker_free(w);
+            return error_set(err, "cannot start render thread %d", i);
         }
-        w->busy = false;
-        pthread_cond_broadcast(&w->cond);
+        ++*started;
     }
-    pthread_mutex_unlock(&w->lock);
-    return NULL;
+    return true;
 }
 
-static void writer_wait_idle(struct writer *w)
+/* Renders pass `pass` on the n started threads; returns when it is done. */
+static void pool_run_pass(struct pass_control *pc, int64_t pass, int n)
 {
-    pthread_mutex_lock(&w->lock);
-    while (w->busy) pthread_cond_wait(&w->cond, &w->lock);
-    pthread_mutex_unlock(&w->lock);
+    pthread_mutex_lock(&pc->lock);
+    pc->pass = pass;
+    pc->next_row = 0;
+    pc->active = n;
+    ++pc->generation;
+    pthread_cond_broadcast(&pc->start);
+    while (pc->active > 0) pthread_cond_wait(&pc->done, &pc->lock);
+    pthread_mutex_unlock(&pc->lock);
+}
+
+static void pool_stop(struct pass_control *pc, struct worker *workers, int started)
+{
+    pthread_mutex_lock(&pc->lock);
+    pc->quit = true;
+    pthread_cond_broadcast(&pc->start);
+    pthread_mutex_unlock(&pc->lock);
+    for (int i = 0; i < started; ++i) {
+        pthread_join(workers[i].thread, NULL);
+        worker_free(&workers[i]);
+    }
+    free(workers);
+}
+
+static int thread_count(const struct render_desc *rd)
+{
+    if (rd->threads > 0) return rd->threads;
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (int)n : 1;
 }
 
 /* ---- test hooks ------------------------------------------------------------ */
 
-bool render_faults_from_env(struct render_faults *out, struct error *err)
+bool render_faults_parse(const char *nonfinite, const char *bias, struct render_faults *out, struct error *err)
 {
     memset(out, 0, sizeof *out);
     out->bias_factor = 1.0;
-    const char *nonfinite = getenv("PORTAL_LIGHTS_FAULT_NONFINITE");
     if (nonfinite) out->nonfinite_every = atoll(nonfinite);
-    const char *bias = getenv("PORTAL_LIGHTS_FAULT_BIAS");
     if (!bias) return true;
     const char *colon = strchr(bias, ':');
     int k = 0;
@@ -393,13 +295,108 @@ bool render_faults_from_env(struct render_faults *out, struct error *err)
     return true;
 }
 
-/* ---- the loop -------------------------------------------------------------- */
+/* ---- the render -------------------------------------------------------------- */
 
-static int thread_count(const struct render_desc *rd)
+/* What the render has done so far, beyond the film and the workers'
+   counters: restored from a state when resuming, saved in it at the end. */
+struct progress {
+    int64_t pass;              /* passes done */
+    double elapsed;            /* render clock */
+    double last_pass;          /* duration of the latest pass (0 before one) */
+    int snapshots;             /* timed snapshots written */
+    /* What the snapshot schedule costs the main thread: wall time with the
+       render threads paused, and CPU time (the writer's is wr.cpu_s). */
+    double pause_s, pause_cpu_s;
+    bool interrupted;
+};
+
+/* Everything one render_run owns. */
+struct render {
+    const struct config *cfg;
+    struct strategy strategy;
+    struct integrator integrator;
+    struct camera camera;
+    struct film film;
+    struct aov_classifier aov;
+    bool have_aov;
+    struct snapshot_writer wr;
+    struct pass_control pc;
+    struct worker *workers;
+    int started;               /* render threads running */
+    struct progress pr;
+};
+
+/* The strategy, integrator, camera and film (the state's, when resuming).
+   On failure nothing is left to free. */
+static bool render_init(struct render *r, const struct render_options *opt, struct error *err)
 {
-    if (rd->threads > 0) return rd->threads;
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n > 0 ? (int)n : 1;
+    const struct config *cfg = opt->cfg;
+    memset(r, 0, sizeof *r);
+    r->cfg = cfg;
+    if (!strategy_init(&r->strategy, opt->scene, &cfg->render, err)) return false;
+    integrator_init(&r->integrator, &cfg->render, opt->scene, &r->strategy);
+    camera_init(&r->camera, &cfg->camera, cfg->width, cfg->height);
+    if (opt->start) {
+        r->film = opt->start->film;
+        memset(&opt->start->film, 0, sizeof opt->start->film);
+    } else if (!film_init(&r->film, cfg->width, cfg->height, err)) {
+        strategy_free(&r->strategy);
+        return false;
+    }
+    return true;
+}
+
+/* `film` has been moved out of st already. */
+static void progress_restore(struct progress *pr, struct pass_control *pc, const struct film_state *st,
+                             const struct film *film)
+{
+    pr->pass = film->passes;
+    pr->elapsed = st->render_time_s;
+    pr->snapshots = st->snapshots;
+    pr->pause_s = st->snapshot_pause_s;
+    pr->pause_cpu_s = st->snapshot_cpu_s;
+    pc->stats = st->stats;
+    pc->nonfinite = st->nonfinite_samples;
+    pc->cpu_s = st->render_cpu_s;
+}
+
+/* The writer's image, the region AOV, the pass control with the fault
+   hooks, and the progress of a resumed render. render_free undoes it,
+   whether it succeeded or not. */
+static bool render_prepare(struct render *r, const struct render_options *opt, struct error *err)
+{
+    const struct render_desc *rd = &r->cfg->render;
+    bool ok = snapshot_writer_init(&r->wr, r->cfg->width, r->cfg->height, rd->aov_region, opt->json, err);
+    if (ok && rd->aov_region) {
+        ok = aov_classifier_init(&r->aov, opt->scene, err);
+        r->have_aov = ok;
+        /* A resumed film brings its counts along (film_state.c). */
+        ok = ok && (r->film.region_count || film_enable_regions(&r->film, err));
+    } else if (ok && r->film.region_count) {
+        ok = error_set(err, "the resumed state has region AOV counts, but render.aov.region is off");
+    }
+    struct pass_control *pc = &r->pc;
+    /* Fault injection for tests: non-finite samples, to prove they never
+       reach an image; a biased strategy, to prove the harness notices. */
+    pc->fault_nonfinite_every = opt->faults.nonfinite_every;
+    pc->fault_biased = opt->faults.bias && opt->faults.bias_strategy == rd->strategy;
+    pc->fault_bias = opt->faults.bias_factor;
+    if (opt->start) progress_restore(&r->pr, pc, opt->start, &r->film);
+    pthread_mutex_init(&pc->lock, NULL);
+    pthread_cond_init(&pc->start, NULL);
+    pthread_cond_init(&pc->done, NULL);
+    return ok;
+}
+
+static void render_free(struct render *r)
+{
+    pthread_mutex_destroy(&r->pc.lock);
+    pthread_cond_destroy(&r->pc.start);
+    pthread_cond_destroy(&r->pc.done);
+    snapshot_writer_free(&r->wr);
+    film_free(&r->film);
+    if (r->have_aov) aov_classifier_free(&r->aov);
+    strategy_free(&r->strategy);
 }
 
 static void fill_info(struct snapshot_info *info, const struct config *cfg, double t, int64_t spp,
@@ -417,40 +414,67 @@ static void fill_info(struct snapshot_info *info, const struct config *cfg, doub
     info->compress = false;
 }
 
-/* What the render has done so far, beyond the film and the workers'
-   counters: restored from a state when resuming, saved in it at the end. */
-struct progress {
-    int64_t pass;              /* passes done */
-    double elapsed;            /* render clock */
-    double last_pass;          /* duration of the latest pass (0 before one) */
-    int snapshots;             /* timed snapshots written */
-    /* What the snapshot schedule costs the main thread: wall time with the
-       render threads paused, and CPU time (the writer's is wr.cpu_s). */
-    double pause_s, pause_cpu_s;
-    bool interrupted;
-};
-
-/* `film` has been moved out of st already. */
-static void progress_restore(struct progress *pr, struct pass_control *pc, const struct film_state *st,
-                             const struct film *film)
+/* Whether to stop before another pass; notes an interrupt. */
+static bool render_should_stop(const struct render_desc *rd, struct progress *pr)
 {
-    pr->pass = film->passes;
-    pr->elapsed = st->render_time_s;
-    pr->snapshots = st->snapshots;
-    pr->pause_s = st->snapshot_pause_s;
-    pr->pause_cpu_s = st->snapshot_cpu_s;
-    pc->stats = st->stats;
-    pc->nonfinite = st->nonfinite_samples;
-    pc->cpu_s = st->render_cpu_s;
+    if (rd->spp > 0 && pr->pass >= rd->spp) return true;
+    /* Stop when another pass would end nearer past the limit than before it. */
+    if (rd->time_s > 0.0 && pr->elapsed + 0.5 * pr->last_pass >= rd->time_s) return true;
+    if (interrupt_requested) pr->interrupted = true;
+    return pr->interrupted;
+}
+
+/* Hands a copy of the film to the writer. Waiting for the writer and
+   copying happen between passes, outside the render clock. False when an
+   earlier snapshot could not be written (the render stops). */
+static bool render_snapshot(struct render *r)
+{
+    double w0 = timing_now_s(), c0 = timing_thread_cpu_s();
+    struct snapshot_info info;
+    fill_info(&info, r->cfg, r->pr.elapsed, r->pr.pass, &r->pc);
+    if (!snapshot_writer_submit(&r->wr, &r->film, &info, r->cfg->render.output, r->pr.snapshots + 1)) return false;
+    ++r->pr.snapshots;
+    r->pr.pause_s += timing_now_s() - w0;
+    r->pr.pause_cpu_s += timing_thread_cpu_s() - c0;
+    return true;
+}
+
+/* Passes until a limit, an interrupt or a failed snapshot. */
+static void render_passes(struct render *r, bool resumed)
+{
+    const struct render_desc *rd = &r->cfg->render;
+    struct progress *pr = &r->pr;
+    struct snapshot_cursor schedule;
+    snapshot_schedule_start(&schedule, &rd->snapshots);
+    /* The schedule is cumulative: what fell due before the state was saved
+       was taken (or skipped) then. */
+    if (resumed) snapshot_schedule_due(&schedule, pr->elapsed, pr->pass);
+    while (!render_should_stop(rd, pr)) {
+        double t0 = timing_now_s();
+        pool_run_pass(&r->pc, pr->pass, r->started);
+        pr->last_pass = timing_now_s() - t0;
+        pr->elapsed += pr->last_pass;
+        r->film.passes = ++pr->pass;
+        if (snapshot_schedule_due(&schedule, pr->elapsed, pr->pass) && !render_snapshot(r)) break;
+    }
+}
+
+static struct render_timers render_timers_of(const struct render *r)
+{
+    struct render_timers t;
+    t.render_cpu_s = r->pc.cpu_s;
+    t.snapshot_cpu_s = r->wr.cpu_s + r->pr.pause_cpu_s;
+    t.snapshot_pause_s = r->pr.pause_s;
+    return t;
 }
 
 /* DIR/final.state when the render is resumable, written before final.exr
    is renamed into place (so a final.exr is never newer than its state);
    otherwise a state an earlier render left is removed, for the same
    reason. */
-static bool write_final_state(const struct config *cfg, const struct film *film, const struct pass_control *pc,
-                              const struct writer *wr, const struct progress *pr, struct error *err)
+static bool write_final_state(const struct render *r, struct error *err)
 {
+    const struct config *cfg = r->cfg;
     char path[CONFIG_PATH_MAX + 64];
     snprintf(path, sizeof path, "%s/final.state", cfg->render.output);
     if (!cfg->render.resumable) {
@@ -458,222 +482,69 @@ static bool write_final_state(const struct config *cfg, const struct film *film,
             return error_set(err, "%s: cannot remove the state of an earlier render: %s", path, strerror(errno));
         return true;
     }
+    struct render_timers timers = render_timers_of(r);
     struct film_state st;
     memset(&st, 0, sizeof st);
-    st.film = *film;
-    st.render_time_s = pr->elapsed;
-    st.render_cpu_s = pc->cpu_s;
-    st.snapshot_cpu_s = wr->cpu_s + pr->pause_cpu_s;
-    st.snapshot_pause_s = pr->pause_s;
-    st.stats = pc->stats;
-    st.nonfinite_samples = pc->nonfinite;
-    st.snapshots = pr->snapshots;
+    st.film = r->film;
+    st.render_time_s = r->pr.elapsed;
+    st.render_cpu_s = timers.render_cpu_s;
+    st.snapshot_cpu_s = timers.snapshot_cpu_s;
+    st.snapshot_pause_s = timers.snapshot_pause_s;
+    st.stats = r->pc.stats;
+    st.nonfinite_samples = r->pc.nonfinite;
+    st.snapshots = r->pr.snapshots;
     st.seed = cfg->render.seed;
     st.image_hash = cfg->image_hash;
     return film_state_write(path, &st, err);
 }
 
-/* The final snapshot (and state), always, from the main thread, and the
-   `final` JSON line. */
-static bool write_final(const struct config *cfg, const struct film *film, const struct pass_control *pc,
-                        struct writer *wr, const struct progress *pr, FILE *json, struct error *err)
+/* The final snapshot (and state), always, from the main thread once the
+   writer has stopped (its image is free), and the `final` JSON line. */
+static bool write_final(struct render *r, FILE *json, struct error *err)
 {
     struct snapshot_info info;
     char path[CONFIG_PATH_MAX + 64];
-    film_snapshot(film, &wr->image);
-    fill_info(&info, cfg, pr->elapsed, pr->pass, pc);
+    film_snapshot(&r->film, &r->wr.image);
+    fill_info(&info, r->cfg, r->pr.elapsed, r->pr.pass, &r->pc);
     info.compress = true;
-    snprintf(path, sizeof path, "%s/final.exr", cfg->render.output);
-    if (!write_final_state(cfg, film, pc, wr, pr, err) || !film_write_exr(path, &wr->image, &info, err)) return false;
-    json_snapshot(json, render_event_names[RENDER_EVENT_FINAL], 0, path, &info);
-    fprintf(json, ",\"interrupted\":%s,\"shadow_rays\":%llu,\"shadow_blocked\":%llu,"
-                  "\"light_samples\":%llu,\"light_missed\":%llu,\"render_cpu_s\":%.6f,"
-                  "\"snapshot_cpu_s\":%.6f,\"snapshot_pause_s\":%.6f}\n",
-            pr->interrupted ? "true" : "false", (unsigned long long)pc->stats.shadow_rays,
-            (unsigned long long)pc->stats.shadow_blocked, (unsigned long long)pc->stats.light_samples,
-            (unsigned long long)pc->stats.light_missed, pc->cpu_s, wr->cpu_s + pr->pause_cpu_s, pr->pause_s);
-    fflush(json);
+    snprintf(path, sizeof path, "%s/final.exr", r->cfg->render.output);
+    if (!write_final_state(r, err) || !film_write_exr(path, &r->wr.image, &info, err)) return false;
+    struct render_timers timers = render_timers_of(r);
+    render_event_final(json, path, &info, r->pr.interrupted, &r->pc.stats, &timers);
     return true;
 }
 
-bool render_run(const struct config *cfg, const struct scene *scene, struct film_state *start, FILE *json,
-                struct render_result *result, struct error *err)
+bool render_run(const struct render_options *opt, struct render_result *result, struct error *err)
 {
-    const struct render_desc *rd = &cfg->render;
+    const struct config *cfg = opt->cfg;
+    const struct film_state *start = opt->start;
     memset(result, 0, sizeof *result);
-    struct render_faults faults;
-    if (!render_faults_from_env(&faults, err)) return false;
     if (start && (start->film.width != cfg->width || start->film.height != cfg->height || !start->film.mean))
         return error_set(err, "the state to resume is %dx%d, the config %dx%d", start->film.width,
                          start->film.height, cfg->width, cfg->height);
-    struct strategy strategy;
-    if (!strategy_init(&strategy, scene, rd, err)) return false;
-    struct integrator integrator;
-    integrator_init(&integrator, rd, scene, &strategy);
-    struct camera camera;
-    camera_init(&camera, &cfg->camera, cfg->width, cfg->height);
-    struct film film;
-    if (start) {
-        film = start->film;
-        memset(&start->film, 0, sizeof start->film);
-    } else if (!film_init(&film, cfg->width, cfg->height, err)) {
-        strategy_free(&strategy);
-        return false;
-    }
-    struct aov_classifier aov;
-    bool have_aov = false;
-
-    struct writer wr;
-    memset(&wr, 0, sizeof wr);
-    wr.json = json;
-    bool ok = film_image_alloc(&wr.image, cfg->width, cfg->height, err);
-    if (ok && rd->aov_region) {
-        ok = aov_classifier_init(&aov, scene, err);
-        have_aov = ok;
-        /* A resumed film brings its counts along (film_state.c). */
-        ok = ok && (film.region_count || film_enable_regions(&film, err)) &&
-             film_image_enable_regions(&wr.image, err);
-    } else if (ok && film.region_count) {
-        ok = error_set(err, "the resumed state has region AOV counts, but render.aov.region is off");
-    }
-
-    int n_threads = thread_count(rd);
-    struct pass_control pc;
-    memset(&pc, 0, sizeof pc);
-    /* Fault injection for tests: non-finite samples, to prove they never
-       reach an image; a biased strategy, to prove the harness notices. */
-    pc.fault_nonfinite_every = faults.nonfinite_every;
-    pc.fault_biased = faults.bias && faults.bias_strategy == rd->strategy;
-    pc.fault_bias = faults.bias_factor;
-    struct progress pr;
-    memset(&pr, 0, sizeof pr);
-    if (start) progress_restore(&pr, &pc, start, &film);
-    pthread_mutex_init(&pc.lock, NULL);
-    pthread_cond_init(&pc.start, NULL);
-    pthread_cond_init(&pc.done, NULL);
-    pthread_mutex_init(&wr.lock, NULL);
-    pthread_cond_init(&wr.cond, NULL);
-    struct worker *workers = calloc((size_t)n_threads, sizeof *workers);
-    int started = 0;
-    bool writer_started = false;
-    if (ok && !workers) ok = error_set(err, "out of memory for %d threads", n_threads);
-    for (int i = 0; ok && i < n_threads; ++i) {
-        struct worker *w = &workers[i];
-        w->pc = &pc;
-        w->cfg = cfg;
-        w->camera = &camera;
-        w->integrator = &integrator;
-        w->film = &film;
-        w->aov = have_aov ? &aov : NULL;
-        if (!strategy_scratch_init(&strategy, &w->scratch, err) || !worker_alloc_row(w, cfg->width, err)) {
-            worker_free(w);
-            ok = false;
-        } else if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
-            worker_free(w);
-            ok = error_set(err, "cannot start render thread %d", i);
-        } else ++started;
-    }
+    struct render r;
+    if (!render_init(&r, opt, err)) return false;
+    bool ok = render_prepare(&r, opt, err);
+    int n_threads = thread_count(&cfg->render);
+    struct worker proto = { .cfg = cfg, .camera = &r.camera, .integrator = &r.integrator, .film = &r.film,
+                            .aov = r.have_aov ? &r.aov : NULL };
+    ok = ok && pool_start(&r.pc, &r.workers, &r.started, n_threads, &proto, &r.strategy, err) &&
+         snapshot_writer_start(&r.wr, err);
     if (ok) {
-        if (pthread_create(&wr.thread, NULL, writer_main, &wr) != 0) ok = error_set(err, "cannot start the writer thread");
-        else writer_started = true;
+        render_event_start(opt->json, cfg, n_threads, r.pr.pass);
+        render_passes(&r, start != NULL);
     }
+    pool_stop(&r.pc, r.workers, r.started);
+    if (!snapshot_writer_stop(&r.wr, err)) ok = false;
+    if (ok) ok = write_final(&r, opt->json, err);
 
-    if (ok) {
-        fprintf(json, "{\"event\":\"%s\",\"out\":", render_event_names[RENDER_EVENT_START]);
-        json_string(json, rd->output);
-        fprintf(json, ",\"width\":%d,\"height\":%d,\"strategy\":\"%s\",\"integrator\":\"%s\",\"seed\":%llu,"
-                      "\"config_hash\":\"%016llx\",\"renderer_version\":\"%s\",\"threads\":%d,"
-                      "\"spp_target\":%d,\"time_target_s\":%g,\"resumed_from_spp\":%lld}\n",
-                cfg->width, cfg->height, strategy_names[rd->strategy], integrator_names[rd->integrator],
-                (unsigned long long)rd->seed, (unsigned long long)cfg->hash, RENDERER_VERSION, n_threads, rd->spp,
-                rd->time_s, (long long)pr.pass);
-        fflush(json);
-    }
-
-    struct schedule_state sched;
-    schedule_init(&sched, &rd->snapshots);
-    /* The schedule is cumulative: what fell due before the state was saved
-       was taken (or skipped) then. */
-    if (start) schedule_due(&sched, pr.elapsed, pr.pass);
-    while (ok) {
-        if (rd->spp > 0 && pr.pass >= rd->spp) break;
-        /* Stop when another pass would end nearer past the limit than before it. */
-        if (rd->time_s > 0.0 && pr.elapsed + 0.5 * pr.last_pass >= rd->time_s) break;
-        if (interrupt_requested) {
-            pr.interrupted = true;
-            break;
-        }
-        double t0 = now_s();
-        pthread_mutex_lock(&pc.lock);
-        pc.pass = pr.pass;
-        pc.next_row = 0;
-        pc.active = started;
-        ++pc.generation;
-        pthread_cond_broadcast(&pc.start);
-        while (pc.active > 0) pthread_cond_wait(&pc.done, &pc.lock);
-        pthread_mutex_unlock(&pc.lock);
-        pr.last_pass = now_s() - t0;
-        pr.elapsed += pr.last_pass;
-        film.passes = ++pr.pass;
-
-        if (schedule_due(&sched, pr.elapsed, pr.pass)) {
-            /* Waiting for the writer and copying the film happen between
-               passes, outside the render clock. */
-            double w0 = now_s(), c0 = thread_cpu_s();
-            writer_wait_idle(&wr);
-            pthread_mutex_lock(&wr.lock);
-            if (wr.failed) {
-                pthread_mutex_unlock(&wr.lock);
-                break;
-            }
-            film_snapshot(&film, &wr.image);
-            fill_info(&wr.info, cfg, pr.elapsed, pr.pass, &pc);
-            wr.index = ++pr.snapshots;
-            snprintf(wr.path, sizeof wr.path, "%s/snapshot_%04d.exr", rd->output, wr.index);
-            wr.busy = true;
-            pthread_cond_broadcast(&wr.cond);
-            pthread_mutex_unlock(&wr.lock);
-            pr.pause_s += now_s() - w0;
-            pr.pause_cpu_s += thread_cpu_s() - c0;
-        }
-    }
-
-    /* Stop the workers. */
-    pthread_mutex_lock(&pc.lock);
-    pc.quit = true;
-    pthread_cond_broadcast(&pc.start);
-    pthread_mutex_unlock(&pc.lock);
-    for (int i = 0; i < started; ++i) {
-        pthread_join(workers[i].thread, NULL);
-        worker_free(&workers[i]);
-    }
-    if (writer_started) {
-        writer_wait_idle(&wr);
-        pthread_mutex_lock(&wr.lock);
-        wr.quit = true;
-        pthread_cond_broadcast(&wr.cond);
-        pthread_mutex_unlock(&wr.lock);
-        pthread_join(wr.thread, NULL);
-        if (wr.failed) ok = error_set(err, "%s", wr.err.message);
-    }
-
-    if (ok) ok = write_final(cfg, &film, &pc, &wr, &pr, json, err);
-
-    result->spp = pr.pass;
-    result->time_s = pr.elapsed;
-    result->snapshots = pr.snapshots;
-    result->interrupted = pr.interrupted;
-    result->nonfinite_samples = pc.nonfinite;
-    result->stats = pc.stats;
-    free(workers);
-    pthread_mutex_destroy(&pc.lock);
-    pthread_cond_destroy(&pc.start);
-    pthread_cond_destroy(&pc.done);
-    pthread_mutex_destroy(&wr.lock);
-    pthread_cond_destroy(&wr.cond);
-    film_image_free(&wr.image);
-    film_free(&film);
-    if (have_aov) aov_classifier_free(&aov);
-    strategy_free(&strategy);
+    result->spp = r.pr.pass;
+    result->time_s = r.pr.elapsed;
+    result->snapshots = r.pr.snapshots;
+    result->interrupted = r.pr.interrupted;
+    result->nonfinite_samples = r.pc.nonfinite;
+    result->stats = r.pc.stats;
+    result->timers = render_timers_of(&r);
+    render_free(&r);
     return ok;
 }

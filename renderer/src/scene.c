@@ -383,11 +383,3 @@ bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double 
     rtcOccluded1(s->rtc_scene, &ctx, &r);
     return r.tfar < 0.0f;
 }
-
-bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to)
-{
-    struct vec3 d = vec3_sub(to, from);
-    double len = vec3_length(d);
-    if (!(len > 0.0)) return false;
-    return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len);
-}

@@ -89,11 +89,6 @@ struct scene_ray {
 /* True when anything blocks o + t d for t in (0, tmax). */
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
 
-/* True when anything blocks the segment from `from` to `to`. Both ends are
-   expected to be clear of the surfaces they lie on already: use
-   scene_offset_origin at each end (towards the other end). */
-bool scene_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to);
-
 /* The distance scene_offset_origin moves p along d. A shadow ray along a
    sampled unit direction wi to a point at distance dist spans
    (step at p, dist - step at the far end) without renormalising wi.

@@ -3,28 +3,7 @@
 #include "shading.h"
 
 #include "fastmath.h"
-
-double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
-{
-    switch (mis) {
-    case MIS_NONE:
-        return 1.0;
-    case MIS_BALANCE:
-        /* The ratio form, so that an infinite pdf gives 1 or 0, not NaN. */
-        if (pdf_a >= pdf_b) return 1.0 / (1.0 + pdf_b / pdf_a);
-        return pdf_a / pdf_b / (1.0 + pdf_a / pdf_b);
-    case MIS_POWER:
-        /* Squares overflow only for absurd pdfs; the ratio form avoids it. */
-        if (pdf_a >= pdf_b) {
-            double r = pdf_b / pdf_a;
-            return 1.0 / (1.0 + r * r);
-        } else {
-            double r = pdf_a / pdf_b;
-            return r * r / (1.0 + r * r);
-        }
-    }
-    return 1.0;
-}
+#include "mis.h"
 
 bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
                  struct vertex *v)
@@ -57,11 +36,8 @@ struct shadow_lane {
    it until they clear their surfaces: a relative shortening alone leaves
    the end within float precision of the light's plane for points just
    below it.
-   w / pdf_sa takes one division for every MIS kind: 1 / pa (none),
-   1 / (pa + pb) (balance), pa / (pa^2 + pb^2) (power). pa is clamped to
-   1e150 so that no square overflows: an infinite density (a direction
-   grazing an area-sampled light) then weighs ~1e-150 instead of exactly 0
-   in the generic form, and no NaN arises. */
+   w / pdf_sa is mis_ratio's num / den (mis.h): one division for every
+   MIS kind, and no NaN for an infinite density. */
 FM_INLINE struct shadow_lane shadow_lane(double scale, enum mis_kind mis, struct rgb f, double cos_i, double pdf_b,
                                          struct vec3 n, struct vec3 p, struct vec3 wi, double dist, double pdf_sa,
                                          struct rgb le, struct vec3 nl)
@@ -82,10 +58,8 @@ FM_INLINE struct shadow_lane shadow_lane(double scale, enum mis_kind mis, struct
     out.tmax = t1 - t0;
     out.counted = valid;
     out.trace = t1 > t0 ? valid : 0.0;
-    double pa = pdf_sa < 1e150 ? pdf_sa : 1e150, pb = pdf_b;
-    double num = mis == MIS_POWER ? pa : 1.0;
-    double den = mis == MIS_NONE ? pa : (mis == MIS_BALANCE ? pa + pb : pa * pa + pb * pb);
-    double k = valid != 0.0 ? cos_i * num / den : 0.0;
+    struct mis_ratio w = mis_ratio(mis, pdf_sa, pdf_b);
+    double k = valid != 0.0 ? cos_i * w.num / w.den : 0.0;
     out.r = f.r * le.r * k;
     out.g = f.g * le.g * k;
     out.b = f.b * le.b * k;
@@ -98,8 +72,8 @@ FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis
                                                  struct rgb le, struct vec3 nl)
 {
     double cos_i = vec3_dot(wi, n);
-    return shadow_lane(scale, mis, rgb_scale(albedo, 1.0 / M_PI), cos_i, cos_i * (1.0 / M_PI), n, p, wi, dist,
-                       pdf_sa, le, nl);
+    return shadow_lane(scale, mis, bsdf_lambert_f(albedo), cos_i, bsdf_lambert_pdf(cos_i), n, p, wi, dist, pdf_sa,
+                       le, nl);
 }
 
 struct bsdf_lane {
@@ -123,7 +97,7 @@ FM_INLINE struct bsdf_lane lambert_bsdf_lane(double scale, struct vec3 n, struct
     out.dx = d.x;
     out.dy = d.y;
     out.dz = d.z;
-    out.pdf = wl.z * (1.0 / M_PI);
+    out.pdf = bsdf_lambert_pdf(wl.z);
     /* pdf > 0 implies wl.z > 0 (and wl.z >= 2^-26.5 keeps pdf from underflowing). */
     out.trace = out.pdf > 0.0 ? 1.0 : 0.0;
     return out;

@@ -12,13 +12,12 @@
 #include <stdint.h>
 
 #include "bsdf.h"
+#include "integrator_stats.h"
+#include "mis.h"
 #include "scene.h"
 #include "strategy.h"
 #include "strategy_kind.h"
 #include "vec.h"
-
-/* MIS weight of technique a against b (one sample each). */
-double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b);
 
 /* The shading context of a surface hit: side, frame, ray origin. */
 struct vertex {
@@ -55,18 +54,9 @@ static inline bool vertex_init_lanes(const struct scene *sc, struct vec3 p, stru
     return vec3_dot(wo, v->n) > 0.0;
 }
 
-/* Counters a render thread accumulates; summed across threads. The set-up
-   functions below count the rays they prepare. */
-struct integrator_stats {
-    uint64_t rays;              /* all rays traced */
-    uint64_t shadow_rays;       /* occlusion rays towards a sampled light point */
-    uint64_t shadow_blocked;    /* ...of which were occluded */
-    uint64_t light_samples;     /* next-event samples that produced a direction */
-    uint64_t light_missed;      /* ...whose direction missed the light (no ray traced) */
-};
-
 /* A shadow ray still to trace and what the sample delivers if the ray is
-   not blocked. */
+   not blocked. The set-up functions below count the rays they prepare in
+   their struct integrator_stats. */
 struct shadow_query {
     struct scene_ray ray;
     bool trace;               /* a segment to test (else: delivered unless value is black) */

@@ -202,7 +202,7 @@ void strategy_scratch_free(struct strategy_scratch *scratch)
     scratch->vis = NULL;
 }
 
-enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, int region)
+enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, enum region region)
 {
     switch (s->kind) {
     case STRATEGY_LIGHT_AREA:
@@ -217,11 +217,11 @@ enum technique strategy_technique(const struct strategy *s, const struct strateg
     case STRATEGY_ANTISHADOW_EXACT: {
         if (pair->portal < 0) return TECHNIQUE_LIGHT_SOLID;
         bool exact = s->kind == STRATEGY_ANTISHADOW_EXACT;
-        if (region == STRATEGY_REGION_INSIDE) return TECHNIQUE_LIGHT_SOLID;
-        switch ((enum region)region) {
+        switch (region) {
         case REGION_OUTSIDE:
             return TECHNIQUE_NONE;
         case REGION_ANTI_UMBRA:
+        case REGION_INSIDE:
             return TECHNIQUE_LIGHT_SOLID;
         case REGION_ANTI_ANTUMBRA:
             return exact ? TECHNIQUE_PORTAL_SOLID : TECHNIQUE_PORTAL_AREA;
@@ -323,7 +323,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
             /* Only the light's first pair samples it there, and only if some
                of the light is above the receiver's horizon: the outside of
                the shade and the underside of its opening face away. */
-            *region = STRATEGY_REGION_INSIDE;
+            *region = REGION_INSIDE;
             if (pair->portal != l->first_portal || !above_horizon(&l->target.polygon, p, n)) return 0.0;
             return s->n_pairs == 1 ? 1.0 : light_weight(l, heuristic, p, n);
         }
@@ -357,7 +357,8 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     return 0.0;
 }
 
-double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, int *region)
+double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n,
+                                enum region *region)
 {
     const struct scene *sc = s->scene;
     const struct strategy_pair *pair = &s->pairs[i];
@@ -369,13 +370,13 @@ double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, 
     /* The same cases as pair_weight's, in the same order, minus its lone-pair
        shortcut (weight 1): a caller comparing pairs needs the irradiance. */
     if (on_light_side(s, l, p)) {
-        *region = STRATEGY_REGION_INSIDE;
+        *region = REGION_INSIDE;
         if (pair->portal != l->first_portal || !above_horizon(&l->target.polygon, p, n)) return 0.0;
         return light_weight(l, PORTAL_WEIGHT_IRRADIANCE, p, n);
     }
     const struct antishadow *a = &sc->portals[pair->portal].antishadow;
     enum region r = antishadow_classify(a, p);
-    *region = (int)r;
+    *region = r;
     if (r == REGION_OUTSIDE) return 0.0;
     struct polygon vis;
     if (antishadow_visible_polygon_in(a, p, r, &vis) < 3) return 0.0;
@@ -470,9 +471,9 @@ static bool technique_sample(const struct strategy *s, const struct strategy_poi
     return false;
 }
 
-static int region_of(const struct strategy_point *pt, int pair)
+static enum region region_of(const struct strategy_point *pt, int pair)
 {
-    return pt->scratch ? pt->scratch->region[pair] : REGION_ANTI_PENUMBRA;
+    return pt->scratch ? (enum region)pt->scratch->region[pair] : REGION_ANTI_PENUMBRA;
 }
 
 static double pair_probability(const struct strategy_point *pt, int i)

@@ -32,13 +32,6 @@ enum technique {
     TECHNIQUE_VISIBLE_SOLID   /* uniform solid angle of that clipped projection */
 };
 
-/* Beyond the antishadow's four regions (enum region): p lies on the light's
-   side of every portal plane of its light, within its shade box (inside the
-   shade, say), where the light is reached directly, not through a portal.
-   The antishadow strategies sample the light itself there; the first pair
-   of the light carries it. */
-#define STRATEGY_REGION_INSIDE (REGION_ANTI_ANTUMBRA + 1)
-
 struct strategy_pair {
     int light;
     int portal;               /* -1: the light alone */
@@ -126,11 +119,12 @@ int strategy_candidates(const struct strategy *s, struct vec3 p, int *out);
    angle (unoccluded irradiance per unit radiance) of what p sees of the
    light through the pair's portal; of the whole light for a light without
    portals, and for the first pair of a light whose shade contains p. Zero
-   when the pair cannot light p. *region gets the pair's region: enum region
-   or STRATEGY_REGION_INSIDE (REGION_ANTI_UMBRA for a light without
+   when the pair cannot light p. *region gets the pair's region, REGION_INSIDE
+   inside the light's shade (REGION_ANTI_UMBRA for a light without
    portals, which p sees whole). Needs a strategy whose pairs include the
    portals (strategy_kind_uses_portals); s->weight is not read. */
-double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, int *region);
+double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n,
+                                enum region *region);
 
 /* Inline: a film row prepares every shading point, and for the light-only
    strategies this is all there is to it. */
@@ -169,7 +163,9 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
    light `light` (the first light along wi). */
 double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi);
 
-/* The technique a pair uses at a point in `region` (enum region). */
-enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, int region);
+/* The technique a pair uses at a point in `region`. Inside the light's
+   shade (REGION_INSIDE) the antishadow strategies sample the light itself;
+   the first pair of the light carries it. */
+enum technique strategy_technique(const struct strategy *s, const struct strategy_pair *pair, enum region region);
 
 #endif

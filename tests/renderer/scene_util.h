@@ -24,4 +24,15 @@ static inline bool test_scene_load(const char *path, const struct config_overrid
     return true;
 }
 
+/* True when anything blocks the segment from `from` to `to` (scene_occluded
+   along it). Both ends are expected to be clear of the surfaces they lie
+   on already: use scene_offset_origin at each end (towards the other end). */
+static inline bool test_segment_occluded(const struct scene *s, struct vec3 from, struct vec3 to)
+{
+    struct vec3 d = vec3_sub(to, from);
+    double len = vec3_length(d);
+    if (!(len > 0.0)) return false;
+    return scene_occluded(s, from, vec3_scale(d, 1.0 / len), len);
+}
+
 #endif

@@ -654,6 +654,9 @@ static void test_visible_polygon(void)
                 CHECK(om > 0.0 && om <= fmin(om_light, om_portal) * (1.0 + 1e-9));
                 CHECK_NEAR(om_clip, om, 1e-12);
                 break;
+            case REGION_INSIDE: /* the strategies' class, never the classifier's */
+                CHECK(reg != REGION_INSIDE);
+                break;
             }
             /* Rays: points of the visible polygon lie on the portal and their
                rays from p hit the light. */

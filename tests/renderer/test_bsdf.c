@@ -125,10 +125,28 @@ static void test_below_surface(void)
     CHECK(!bsdf_sample(&lambert, down, 0.3, 0.3, &s));
 }
 
+/* The inline Lambertian f and pdf that the vectorised lanes use are
+   bsdf_eval's f bit for bit and bsdf_pdf's density up to one rounding. */
+static void test_lambert_inline(void)
+{
+    struct vec3 wo = vec3_make(0.0, 0.6, 0.8);
+    int bad = 0;
+    for (int i = 1; i <= 1000; ++i) {
+        double z = i / 1000.0, s = sqrt(1.0 - z * z);
+        struct vec3 wi = vec3_make(s * 0.6, s * 0.8, z);
+        struct rgb f = bsdf_eval(&lambert, wo, wi), g = bsdf_lambert_f(lambert.albedo);
+        bad += !same_bits(f.r, g.r) || !same_bits(f.g, g.g) || !same_bits(f.b, g.b);
+        double p = bsdf_pdf(&lambert, wo, wi), q = bsdf_lambert_pdf(z);
+        bad += !(fabs(p - q) <= 0x1p-52 * p);
+    }
+    CHECK_MSG(bad == 0, "%d directions differ", bad);
+}
+
 static const struct test_case tests[] = {
     { "chi2_sampling", test_chi2_sampling },
     { "sample_consistent", test_sample_consistent },
     { "energy", test_energy },
     { "below_surface", test_below_surface },
+    { "lambert_inline", test_lambert_inline },
 };
 TEST_MAIN(tests)

@@ -180,7 +180,7 @@ static double brute_force(const struct scene *sc, struct vec3 p, double albedo, 
                 double cos_p = vec3_dot(w, n);
                 double le = light_emitted(li, vec3_neg(w)).r;
                 if (cos_p <= 0.0 || le == 0.0) continue;
-                if (scene_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w)))) continue;
+                if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w)))) continue;
                 sum += le * cos_p * fabs(vec3_dot(w, li->target.normal)) / r2 * da;
             }
     }

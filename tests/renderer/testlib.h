@@ -1,6 +1,7 @@
 /* testlib.h: a minimal test runner. Each test file lists its tests in one
    table and ends with TEST_MAIN(table); the runner prints one line per test
-   and a closing "N passed, N failed" line. */
+   and a closing "N passed, N failed" line. An argument runs only the tests
+   whose name contains it; one that matches no test is an error (exit 2). */
 #ifndef TESTLIB_H
 #define TESTLIB_H
 
@@ -77,6 +78,13 @@ int test_main(const struct test_case *cases, int n, int argc, char **argv);
             fflush(stdout);                                                        \
         }                                                                          \
         printf("%d passed, %d failed\n", passed, failed);                          \
+        if (argc > 1 && passed + failed == 0) {                                    \
+            /* A filter that runs nothing must not pass for a green run. */          \
+            fprintf(stderr, "%s: no test matches \"%s\"; tests:", argv[0], argv[1]); \
+            for (int i = 0; i < n; ++i) fprintf(stderr, " %s", cases[i].name);     \
+            fputc('\n', stderr);                                                   \
+            return 2;                                                              \
+        }                                                                          \
         return failed ? 1 : 0;                                                     \
     }
 
