@@ -47,10 +47,7 @@ double bsdf_pdf(const struct material *m, struct vec3 wo, struct vec3 wi)
     if (wo.z <= 0.0 || wi.z <= 0.0) return 0.0;
     switch (m->kind) {
     case MATERIAL_DIFFUSE:
-        /* bsdf_lambert_pdf(wi.z) up to rounding: x / pi and x * (1 / pi)
-           differ in the last bit for ~15% of x, and the path integrator's
-           accumulators at a fixed seed depend on these bits. */
-        return wi.z / M_PI;
+        return bsdf_lambert_pdf(wi.z);
     case MATERIAL_GGX: {
         /* Visible-normal sampling: pdf(h) = G1(wo) max(0, wo.h) D(h) / wo.z,
            and the reflection Jacobian 1 / (4 wo.h) gives G1(wo) D(h) / (4 wo.z). */

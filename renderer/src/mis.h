@@ -1,8 +1,8 @@
 /* mis.h: the multiple importance sampling weight of one sample of
    technique a against one of technique b (the balance and power
-   heuristics of Veach 1997, or none), the one home of the heuristics:
-   mis_ratio for estimators divided by pdf_a (the vectorised shadow rays),
-   mis_weight for the weight itself. Pure arithmetic on densities: it must
+   heuristics of Veach 1997, or none), the one home of the heuristics, in
+   one algebraic form: mis_ratio for estimators divided by pdf_a (the
+   vectorised shadow rays), mis_weight for the weight itself. Pure arithmetic on densities: it must
    not see rays, BSDFs, strategies or the scene. */
 #ifndef MIS_H
 #define MIS_H
@@ -33,31 +33,14 @@ FM_INLINE struct mis_ratio mis_ratio(enum mis_kind mis, double pdf_a, double pdf
 }
 
 /* The weight w_a itself, in [0, 1] (1 for MIS_NONE): pdf_a num / den of
-   mis_ratio, written as a ratio of the smaller density to the larger so
-   that an infinite density gives 1 or 0, never NaN. Used where the weight
-   multiplies an estimate that is not divided by pdf_a (a BSDF-sampled ray
-   that reaches a light). It is the same weight as mis_ratio's up to
-   rounding, kept in this form because pdf_a num / den changes the last
-   bits of the render's double accumulators (final.state) at a fixed seed. */
+   mis_ratio, the same form, for an estimate that is not divided by pdf_a
+   (a BSDF-sampled ray that reaches a light). */
 static inline double mis_weight(enum mis_kind mis, double pdf_a, double pdf_b)
 {
-    switch (mis) {
-    case MIS_NONE:
-        return 1.0;
-    case MIS_BALANCE:
-        if (pdf_a >= pdf_b) return 1.0 / (1.0 + pdf_b / pdf_a);
-        return pdf_a / pdf_b / (1.0 + pdf_a / pdf_b);
-    case MIS_POWER:
-        /* Squares overflow only for absurd pdfs; the ratio form avoids it. */
-        if (pdf_a >= pdf_b) {
-            double r = pdf_b / pdf_a;
-            return 1.0 / (1.0 + r * r);
-        } else {
-            double r = pdf_a / pdf_b;
-            return r * r / (1.0 + r * r);
-        }
-    }
-    return 1.0;
+    if (mis == MIS_NONE) return 1.0;
+    struct mis_ratio r = mis_ratio(mis, pdf_a, pdf_b);
+    double pa = pdf_a < MIS_PDF_MAX ? pdf_a : MIS_PDF_MAX;
+    return pa * r.num / r.den;
 }
 
 #endif
