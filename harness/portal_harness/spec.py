@@ -37,10 +37,12 @@ HARNESS_RENDER_KEYS: frozenset[str] = frozenset(
 )
 
 Overrides = tuple[tuple[str, str], ...]
-# The renderer has no "off" for its snapshot period (it wants every > 0):
-# runs that need only final.exr (references, regress) ask for one snapshot
-# per million seconds instead.
-NO_SNAPSHOTS: Overrides = (("every", "1000000"),)
+# Runs that need only final.exr (references, pilots, region maps, regress):
+# 0 turns each of the renderer's scalar schedules off (renderer/src/config.c,
+# load_snapshots; render.c: a period of 0 never comes due), whatever the
+# scene sets. A scene's `times:` or `spp:` lists cannot be overridden by
+# --set and still apply.
+NO_SNAPSHOTS: Overrides = tuple((k, "0") for k in SNAPSHOT_KEYS)
 
 
 def format_value(value: Any) -> str:
