@@ -15,6 +15,7 @@ from typing import Any
 from portal_harness.errors import ConfigError
 from portal_harness.exr import REGION_CLASSES
 from portal_harness.metrics import WHOLE_IMAGE, Region
+from portal_harness.paths import ResultsLayout
 from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
@@ -189,10 +190,11 @@ class Experiment:
         return self._spec(point, strategy, spp=self.regress.spp, time_s=0.0, seed=seed,
                           threads=self.budget.threads if self.budget else 1)
 
-    def baseline_path(self, default_dir: Path) -> Path:
+    def baseline_path(self, layout: ResultsLayout) -> Path:
+        """regress.baseline if given, else results/baselines/<name>.json."""
         if self.regress is not None and self.regress.baseline != Path():
             return self.regress.baseline
-        return default_dir / f"{self.name}.json"
+        return layout.baseline(self.name)
 
     def reference_spec(self, point: Point, strategy: str, part: int = 0, time_s: float | None = None) -> RunSpec:
         """Reference render `part` (0 or 1) of a point with `strategy`: its

@@ -24,7 +24,6 @@ from typing import Any, Callable
 
 from portal_harness import runs, store
 from portal_harness.errors import ConfigError
-from portal_harness.includes import load_merged
 from portal_harness.paths import ResultsLayout
 from portal_harness.spec import RunSpec
 
@@ -32,6 +31,7 @@ DoneCallback = Callable[[RunSpec, dict[str, Any]], None]
 
 
 def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity), for `auto` threads and the job count."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
@@ -109,6 +109,8 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
     """Runs `specs` as tasks of the Dask scheduler at `address`; each returns
     its run folder's files, installed here as each finishes."""
     from distributed import Client, as_completed
+
+    from portal_harness.includes import load_merged  # includes -> schema -> execute: imported here
 
     scene_bytes: dict[str, bytes] = {}
     with Client(address, timeout="30s") as client:  # type: ignore[no-untyped-call]

@@ -47,7 +47,7 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
         raise ValueError(f"reference {key} is not a finished run")
     attempt = store.new_attempt(layout, key, True)
     for item in target.dir.iterdir():
-        if item.is_file() and item.name != "manifest.json":
+        if item.is_file() and item.name != target.manifest.name:
             shutil.copy2(item, attempt.dir / item.name)
     before = int(old["final"]["spp"])
     command = resume_command(renderer, str(attempt.dir), total_spp, threads)

@@ -47,7 +47,7 @@ from portal_harness.config import Experiment, Point  # noqa: E402
 from portal_harness.errors import CorruptExrError, HarnessError  # noqa: E402
 from portal_harness.index import ROLE_REFERENCE, ROLE_RUN  # noqa: E402
 from portal_harness.metrics import WHOLE_IMAGE, Region, crop  # noqa: E402
-from portal_harness.paths import ResultsLayout  # noqa: E402
+from portal_harness.paths import ResultsLayout, RunLayout  # noqa: E402
 from portal_harness.regions import LIT, class_map  # noqa: E402
 from portal_harness.spec import STRATEGIES  # noqa: E402
 
@@ -290,7 +290,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
             continue
         assert ref_cell is not None and ref_cell.run_dir is not None
         try:
-            reference = exr.read_snapshot(ref_cell.run_dir / "final.exr")
+            reference = exr.read_snapshot(RunLayout(ref_cell.run_dir).final)
         except CorruptExrError as e:
             ref_ax.text(0.5, 0.5, f"reference\nunreadable\n{e.reason[:40]}", ha="center", va="center", fontsize=6)
             continue

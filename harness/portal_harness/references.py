@@ -78,8 +78,8 @@ def combined_key(parts: tuple[Part, ...], spps: list[int], region_map_key: str |
                        "parts": [[p.key, n] for p, n in zip(parts, spps)], "region_map": region_map_key})
 
 
-def _combined_manifest(ref: PointReference, key: str, snapshot: exr.Snapshot, renderer_version: str,
-                       manifests: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def _combined_manifest(ref: PointReference, key: str, snapshot: exr.Snapshot, final_file: str,
+                       renderer_version: str, manifests: dict[str, dict[str, Any]]) -> dict[str, Any]:
     first = ref.parts[0].spec
     spec = {**first.to_dict(), "strategy": snapshot.header.strategy, "spp": snapshot.header.spp,
             "time_s": snapshot.header.render_time_s}
@@ -89,7 +89,7 @@ def _combined_manifest(ref: PointReference, key: str, snapshot: exr.Snapshot, re
         "error": None, "spec": spec, "params": first.params(), "scene_hash": first.scene_hash(),
         "renderer": {"path": None, "version": renderer_version, "config_hash": snapshot.header.config_hash},
         "timings": {"started": made, "finished": made, "render_time_s": snapshot.header.render_time_s},
-        "final": final_record("final.exr", snapshot.header),
+        "final": final_record(final_file, snapshot.header),
         "snapshots": [],
         "parts": [{"key": p.key, "strategy": p.spec.strategy, "spp": manifests[p.key]["final"]["spp"],
                    "time_s": manifests[p.key]["final"]["time_s"]} for p in ref.parts],
@@ -143,7 +143,8 @@ def _combined(ref: PointReference, key: str, a: exr.Snapshot, b: exr.Snapshot, l
     combined = combine(a, b, label, short_hash([a.header.config_hash, b.header.config_hash]), ref.fractions)
     attempt = store.new_attempt(layout, key, True)
     exr.write_snapshot(attempt.final, combined)
-    store.write_json_atomic(attempt.manifest, _combined_manifest(ref, key, combined, renderer_version, manifests))
+    manifest = _combined_manifest(ref, key, combined, attempt.relative(attempt.final), renderer_version, manifests)
+    store.write_json_atomic(attempt.manifest, manifest)
     store.install(layout, key, True, attempt)
     manifests[key] = store.read_manifest(target) or {}
     return exr.read_snapshot(target.final)

@@ -109,7 +109,7 @@ def regress(experiment: Experiment, options: SweepOptions, update: bool, out: Te
     settings = experiment.regress
     if settings is None:
         raise ConfigError(str(experiment.path), "regress", "missing (the regress command needs spp and seeds)")
-    baseline_path = experiment.baseline_path(options.layout.baselines_dir)
+    baseline_path = experiment.baseline_path(options.layout)
     baseline = None if update else read_baseline(baseline_path)
 
     groups: dict[str, list[str]] = {}

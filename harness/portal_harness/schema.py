@@ -4,7 +4,6 @@ reads of a scene file."""
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -12,6 +11,7 @@ from typing import Any
 import yaml
 
 from portal_harness.errors import ConfigError
+from portal_harness.execute import available_cores
 
 
 class Reader:
@@ -153,14 +153,8 @@ def read_scene(path: Path) -> SceneInfo:
     return SceneInfo(path=path, scalars=flatten(tree), sha256=files_sha256(files))
 
 
-def available_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 def parse_threads(node: Any, reader: Reader, key: str) -> int:
+    """A thread count, or `auto`: the cores this process may run on."""
     if node == "auto":
         return available_cores()
     return reader.integer(node, key, minimum=1)

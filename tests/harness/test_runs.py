@@ -44,7 +44,7 @@ def test_01_run_writes_manifest_snapshots_and_is_cached(fake_scene: Path, fake_r
         assert exr.read_header(run.resolve(s["file"])).spp == s["spp"]
     assert run.config.exists() and run.final.exists() and run.events.exists()
     assert exr.read_header(run.final).render_time_s == pytest.approx(on_disk["final"]["time_s"])
-    assert not any(layout.runs_dir.joinpath(store.ATTEMPTS).iterdir())
+    assert not any(layout.attempts_dir().iterdir())
     again = runs.execute(spec, layout, str(fake_renderer), version)
     assert again["cached"] and len(render_log()) == 1
 
@@ -77,7 +77,7 @@ def test_03_unimplemented_strategy_and_config_errors_fail(fake_scene: Path, fake
     spec = spec_from_scene(fake_scene, {}, strategy="antishadow_exact", spp=4)
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 1 and "not implemented" in m["stderr_tail"]
-    bad = spec_from_scene(fake_scene, {}, strategy="light", spp=4, snapshots={"every": "0"})
+    bad = spec_from_scene(fake_scene, {}, strategy="light", spp=4, snapshots={"every": "-1"})
     m = runs.execute(bad, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 2
 
@@ -96,7 +96,7 @@ def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_render
         runs.execute(spec, layout, str(fake_renderer), version)
     assert not layout.run(key).dir.exists()
     # a leftover attempt of a dead process is cleaned; of a live one, kept
-    dead = layout.runs_dir / store.ATTEMPTS / f"{key}-999999999-0-1"
+    dead = layout.attempts_dir() / f"{key}-999999999-0-1"
     dead.mkdir(parents=True)
     assert store.clean_stale_attempts(layout) >= 1 and not dead.exists()
 
