@@ -45,7 +45,10 @@ static const char *const render_keys[] = { "integrator", "strategy", "mis",     
                                            "max_depth",  "rr_depth", "spp",       "time",          "snapshots",
                                            "seed",       "threads",  "output",    "aov",
                                            "resumable" };
-static const char *const snapshot_keys[] = { "every", "doubling", "times", "every_spp", "doubling_spp", "spp" };
+const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT] = { "every",     "doubling",     "times",
+                                                                    "every_spp", "doubling_spp", "spp" };
+/* What each key counts in: render time (get_number_in) or passes (get_int, get_spps). */
+const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT] = { "s", "s", "s", "spp", "spp", "spp" };
 static const char *const aov_keys[] = { "region" };
 /* Optional mappings that --set creates when they are missing, so that
    `--set render.aov.region=true` works on a config without `aov:`. */
@@ -951,7 +954,7 @@ static bool get_spps(struct loader *L, const yaml_node_t *seq, int *spps, int *c
 static bool load_snapshots(struct loader *L, const yaml_node_t *map, struct snapshot_schedule *s)
 {
     yaml_node_t *n;
-    if (!check_keys(L, map, "render.snapshots", snapshot_keys, COUNT(snapshot_keys))) return false;
+    if (!check_keys(L, map, "render.snapshots", config_snapshot_keys, CONFIG_SNAPSHOT_KEY_COUNT)) return false;
     if ((n = map_get(L, map, "every")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->every_s)) return false;
     if ((n = map_get(L, map, "doubling")) && !get_number_in(L, n, 0.0, false, INFINITY, false, &s->doubling_s))
         return false;

@@ -44,6 +44,11 @@ extern const char *const strategy_names[STRATEGY_COUNT];
 extern const char *const mis_names[3];
 extern const char *const portal_weight_names[3];
 extern const char *const material_names[2];
+/* The keys of render.snapshots, and the unit each counts in ("s" of render
+   time or "spp" passes), as the loader checks them. */
+#define CONFIG_SNAPSHOT_KEY_COUNT 6
+extern const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT];
+extern const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT];
 
 struct source_loc {
     int line, column; /* one-based, of the YAML node that defined the item */

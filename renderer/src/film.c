@@ -32,20 +32,32 @@
 
 /* Channel names as stored; the file keeps them sorted, so readers map by
    name. Index k < 3 is rgb[k], k >= 3 is variance[k - 3]. */
-static const char *const channel_names[6] = {
+const char *const film_channel_names[FILM_CHANNEL_COUNT] = {
     "R", "G", "B", "variance.R", "variance.G", "variance.B",
 };
 
-/* The region AOV's channels are "region." + aov_region_names[k]. */
-#define REGION_PREFIX "region."
-#define REGION_PREFIX_LEN 7
+const char *const film_attribute_names[FILM_ATTRIBUTE_COUNT] = {
+    [FILM_ATTR_RENDER_TIME_S] = "render_time_s",
+    [FILM_ATTR_SPP] = "spp",
+    [FILM_ATTR_STRATEGY] = "strategy",
+    [FILM_ATTR_INTEGRATOR] = "integrator",
+    [FILM_ATTR_SEED] = "seed",
+    [FILM_ATTR_CONFIG_HASH] = "config_hash",
+    [FILM_ATTR_RENDERER_VERSION] = "renderer_version",
+    [FILM_ATTR_RAYS] = "rays",
+    [FILM_ATTR_NONFINITE_SAMPLES] = "nonfinite_samples",
+};
+#define ATTR(k) film_attribute_names[FILM_ATTR_##k]
+
+#define REGION_PREFIX FILM_REGION_PREFIX
+#define REGION_PREFIX_LEN (sizeof REGION_PREFIX - 1)
 
 /* Where channel `name` lives in img: its first float, with *per_pixel
    floats from one pixel to the next; NULL for a channel img does not hold. */
 static float *channel_data(const struct film_image *img, const char *name, size_t len, int *per_pixel)
 {
-    for (int k = 0; k < 6; ++k)
-        if (len == strlen(channel_names[k]) && !memcmp(name, channel_names[k], len)) {
+    for (int k = 0; k < FILM_CHANNEL_COUNT; ++k)
+        if (len == strlen(film_channel_names[k]) && !memcmp(name, film_channel_names[k], len)) {
             *per_pixel = 3;
             return k < 3 ? img->rgb + k : img->variance + (k - 3);
         }
@@ -345,8 +357,8 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
                                                   info->compress ? FILM_EXR_COMPRESSION
                                                                  : EXR_COMPRESSION_NONE)))
         return exr_fail(err, path, "exr_initialize_required_attr_simple", rc, s);
-    for (int k = 0; k < 6; ++k)
-        if ((rc = exr_add_channel(ctx, part, channel_names[k], EXR_PIXEL_FLOAT,
+    for (int k = 0; k < FILM_CHANNEL_COUNT; ++k)
+        if ((rc = exr_add_channel(ctx, part, film_channel_names[k], EXR_PIXEL_FLOAT,
                                   EXR_PERCEPTUALLY_LINEAR, 1, 1)))
             return exr_fail(err, path, "exr_add_channel", rc, s);
     char classes[REGION_CLASSES_MAX];
@@ -359,7 +371,7 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
     }
     if (img->region) {
         region_classes(classes, sizeof classes);
-        if ((rc = exr_attr_set_string(ctx, part, "aov_region_classes", classes)))
+        if ((rc = exr_attr_set_string(ctx, part, FILM_ATTR_AOV_REGION_CLASSES, classes)))
             return exr_fail(err, path, "exr_attr_set", rc, s);
     }
 
@@ -368,16 +380,16 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
     snprintf(hash, sizeof hash, "%016" PRIx64, info->config_hash);
     /* An EXR int is 32-bit: saturate rather than wrap. */
     int32_t spp = info->spp > INT32_MAX ? INT32_MAX : info->spp < 0 ? 0 : (int32_t)info->spp;
-    if ((rc = exr_attr_set_double(ctx, part, "render_time_s", info->render_time_s)) ||
-        (rc = exr_attr_set_int(ctx, part, "spp", spp)) ||
-        (rc = exr_attr_set_string(ctx, part, "strategy", info->strategy ? info->strategy : "")) ||
-        (rc = exr_attr_set_string(ctx, part, "integrator", info->integrator ? info->integrator : "")) ||
-        (rc = exr_attr_set_string(ctx, part, "seed", seed)) ||
-        (rc = exr_attr_set_string(ctx, part, "config_hash", hash)) ||
-        (rc = exr_attr_set_string(ctx, part, "renderer_version",
+    if ((rc = exr_attr_set_double(ctx, part, ATTR(RENDER_TIME_S), info->render_time_s)) ||
+        (rc = exr_attr_set_int(ctx, part, ATTR(SPP), spp)) ||
+        (rc = exr_attr_set_string(ctx, part, ATTR(STRATEGY), info->strategy ? info->strategy : "")) ||
+        (rc = exr_attr_set_string(ctx, part, ATTR(INTEGRATOR), info->integrator ? info->integrator : "")) ||
+        (rc = exr_attr_set_string(ctx, part, ATTR(SEED), seed)) ||
+        (rc = exr_attr_set_string(ctx, part, ATTR(CONFIG_HASH), hash)) ||
+        (rc = exr_attr_set_string(ctx, part, ATTR(RENDERER_VERSION),
                                   info->renderer_version ? info->renderer_version : "")) ||
-        (rc = exr_attr_set_double(ctx, part, "rays", (double)info->rays)) ||
-        (rc = exr_attr_set_double(ctx, part, "nonfinite_samples", (double)info->nonfinite_samples)))
+        (rc = exr_attr_set_double(ctx, part, ATTR(RAYS), (double)info->rays)) ||
+        (rc = exr_attr_set_double(ctx, part, ATTR(NONFINITE_SAMPLES), (double)info->nonfinite_samples)))
         return exr_fail(err, path, "exr_attr_set", rc, s);
     if ((rc = exr_write_header(ctx))) return exr_fail(err, path, "exr_write_header", rc, s);
 
@@ -475,15 +487,15 @@ bool film_write_exr(const char *path, const struct film_image *img, const struct
 static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snapshot_read *meta,
                           struct error *err)
 {
-    static const char *const string_names[3] = { "strategy", "integrator", "renderer_version" };
+    const char *const string_names[3] = { ATTR(STRATEGY), ATTR(INTEGRATOR), ATTR(RENDERER_VERSION) };
     exr_result_t rc;
-    const char *name = "render_time_s";
+    const char *name = ATTR(RENDER_TIME_S);
     double rays = 0, nonfinite = 0;
     int32_t spp = 0;
     if ((rc = exr_attr_get_double(ctx, 0, name, &meta->info.render_time_s)) ||
-        (rc = exr_attr_get_int(ctx, 0, name = "spp", &spp)) ||
-        (rc = exr_attr_get_double(ctx, 0, name = "rays", &rays)) ||
-        (rc = exr_attr_get_double(ctx, 0, name = "nonfinite_samples", &nonfinite)))
+        (rc = exr_attr_get_int(ctx, 0, name = ATTR(SPP), &spp)) ||
+        (rc = exr_attr_get_double(ctx, 0, name = ATTR(RAYS), &rays)) ||
+        (rc = exr_attr_get_double(ctx, 0, name = ATTR(NONFINITE_SAMPLES), &nonfinite)))
         return error_set(err, "%s: attribute %s: %s", path, name, exr_get_default_error_message(rc));
     meta->info.spp = spp;
     /* Counts were stored as doubles: exact up to 2^53, far beyond any run. */
@@ -516,7 +528,7 @@ static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snap
     char buf[24];
     const char *str;
     int32_t n;
-    if ((rc = exr_attr_get_string(ctx, 0, "seed", &n, &str)))
+    if ((rc = exr_attr_get_string(ctx, 0, ATTR(SEED), &n, &str)))
         return error_set(err, "%s: attribute seed: %s", path, exr_get_default_error_message(rc));
     bool good = n > 0 && n < 21;
     for (int i = 0; good && i < n; ++i) good = str[i] >= '0' && str[i] <= '9';
@@ -528,7 +540,7 @@ static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snap
         good = errno == 0;
     }
     if (!good) return error_set(err, "%s: attribute seed is not a 64-bit decimal number", path);
-    if ((rc = exr_attr_get_string(ctx, 0, "config_hash", &n, &str)))
+    if ((rc = exr_attr_get_string(ctx, 0, ATTR(CONFIG_HASH), &n, &str)))
         return error_set(err, "%s: attribute config_hash: %s", path, exr_get_default_error_message(rc));
     good = n == 16;
     for (int i = 0; good && i < n; ++i)
@@ -558,12 +570,12 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
     const exr_attr_chlist_t *chlist;
     if ((rc = exr_get_channels(ctx, 0, &chlist))) return exr_fail(err, path, "exr_get_channels", rc, s);
     /* The six radiance channels, then the region AOV's: all or none. */
-    char wanted[6 + AOV_REGION_COUNT][REGION_PREFIX_LEN + 32];
-    bool have[6 + AOV_REGION_COUNT];
+    char wanted[FILM_CHANNEL_COUNT + AOV_REGION_COUNT][REGION_PREFIX_LEN + 32];
+    bool have[FILM_CHANNEL_COUNT + AOV_REGION_COUNT];
     int n_regions = 0;
-    for (int k = 0; k < 6 + AOV_REGION_COUNT; ++k) {
-        if (k < 6) snprintf(wanted[k], sizeof wanted[k], "%s", channel_names[k]);
-        else snprintf(wanted[k], sizeof wanted[k], REGION_PREFIX "%s", aov_region_names[k - 6]);
+    for (int k = 0; k < FILM_CHANNEL_COUNT + AOV_REGION_COUNT; ++k) {
+        if (k < FILM_CHANNEL_COUNT) snprintf(wanted[k], sizeof wanted[k], "%s", film_channel_names[k]);
+        else snprintf(wanted[k], sizeof wanted[k], REGION_PREFIX "%s", aov_region_names[k - FILM_CHANNEL_COUNT]);
         const exr_attr_chlist_entry_t *e = NULL;
         for (int c = 0; c < chlist->num_channels && !e; ++c) {
             const exr_attr_string_t *nm = &chlist->entries[c].name;
@@ -571,13 +583,13 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
                 e = &chlist->entries[c];
         }
         have[k] = e != NULL;
-        if (!e && k < 6) return error_set(err, "%s: missing channel %s", path, wanted[k]);
+        if (!e && k < FILM_CHANNEL_COUNT) return error_set(err, "%s: missing channel %s", path, wanted[k]);
         if (e && (e->pixel_type != EXR_PIXEL_FLOAT || e->x_sampling != 1 || e->y_sampling != 1))
             return error_set(err, "%s: channel %s is not a full-resolution 32-bit float channel",
                              path, wanted[k]);
-        n_regions += k >= 6 && e;
+        n_regions += k >= FILM_CHANNEL_COUNT && e;
     }
-    for (int k = 6; n_regions > 0 && k < 6 + AOV_REGION_COUNT; ++k)
+    for (int k = FILM_CHANNEL_COUNT; n_regions > 0 && k < FILM_CHANNEL_COUNT + AOV_REGION_COUNT; ++k)
         if (!have[k]) return error_set(err, "%s: missing channel %s (the file has other region channels)", path,
                                        wanted[k]);
     if (n_regions > 0) {
@@ -587,7 +599,7 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
         const char *str;
         int32_t len;
         region_classes(classes, sizeof classes);
-        if ((rc = exr_attr_get_string(ctx, 0, "aov_region_classes", &len, &str)))
+        if ((rc = exr_attr_get_string(ctx, 0, FILM_ATTR_AOV_REGION_CLASSES, &len, &str)))
             return error_set(err, "%s: attribute aov_region_classes: %s", path, exr_get_default_error_message(rc));
         if ((size_t)len != strlen(classes) || memcmp(str, classes, (size_t)len))
             return error_set(err, "%s: attribute aov_region_classes is \"%.*s\" (expected \"%s\")", path,

@@ -96,6 +96,31 @@ bool film_image_enable_regions(struct film_image *img, struct error *err);
    class / count of the pixel. */
 void film_snapshot(const struct film *f, struct film_image *img);
 
+/* The float channels every snapshot has, as film_write_exr names them:
+   index k < 3 is the mean's R, G, B, k >= 3 the variance of channel k - 3. */
+#define FILM_CHANNEL_COUNT 6
+extern const char *const film_channel_names[FILM_CHANNEL_COUNT];
+/* The region AOV's channels are FILM_REGION_PREFIX + aov_region_names[k]. */
+#define FILM_REGION_PREFIX "region."
+
+/* The header attributes every snapshot has, indexed by enum film_attribute
+   (film_write_exr below gives their types). */
+enum film_attribute {
+    FILM_ATTR_RENDER_TIME_S,
+    FILM_ATTR_SPP,
+    FILM_ATTR_STRATEGY,
+    FILM_ATTR_INTEGRATOR,
+    FILM_ATTR_SEED,
+    FILM_ATTR_CONFIG_HASH,
+    FILM_ATTR_RENDERER_VERSION,
+    FILM_ATTR_RAYS,
+    FILM_ATTR_NONFINITE_SAMPLES
+};
+#define FILM_ATTRIBUTE_COUNT 9
+extern const char *const film_attribute_names[FILM_ATTRIBUTE_COUNT];
+/* The attribute only an image with the region AOV has. */
+#define FILM_ATTR_AOV_REGION_CLASSES "aov_region_classes"
+
 /* Header attributes of a snapshot. */
 struct snapshot_info {
     double render_time_s;          /* rendering only, snapshot I/O excluded */

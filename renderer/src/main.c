@@ -9,16 +9,17 @@
 #include <unistd.h>
 
 #include "config.h"
+#include "describe.h"
+#include "exit_code.h"
 #include "render.h"
 #include "resume.h"
 #include "scene.h"
 #include "version.h"
 
-enum exit_code { EXIT_DONE = 0, EXIT_RUNTIME = 1, EXIT_USAGE = 2, EXIT_INTERRUPTED = 3 };
-
 static const char usage[] =
     "usage: render CONFIG [options]\n"
     "       render --resume DIR [--spp N] [--time S] [--threads N|auto] [--quiet]\n"
+    "       render --describe\n"
     "\n"
     "Renders the scene described by the YAML file CONFIG progressively, writing\n"
     "timed OpenEXR snapshots and DIR/final.exr, and one JSON line per snapshot on\n"
@@ -26,6 +27,9 @@ static const char usage[] =
     "passes it did not draw, to the same bits as one uninterrupted render; --spp\n"
     "and --time are then totals, and only render.spp, render.time, render.threads,\n"
     "render.snapshots.* and render.resumable may be overridden.\n"
+    "--describe prints the renderer's contract as one JSON object (strategies,\n"
+    "integrators, materials, AOV and EXR channels, EXR attributes, snapshot\n"
+    "keys, exit codes, JSON events), read from the tables the renderer uses.\n"
     "\n"
     "options (each overrides the config's value):\n"
     "  --set KEY.PATH=VALUE  override any scalar of the config, e.g.\n"
@@ -43,6 +47,7 @@ static const char usage[] =
     "                        continue the render (render.resumable=true)\n"
     "  --resume DIR          continue the render in DIR (no CONFIG)\n"
     "  --quiet               no progress messages on stderr\n"
+    "  --describe            print the contract as JSON (no other arguments)\n"
     "  --help, --version\n"
     "\n"
     "exit status: 0 done, 1 runtime error, 2 usage or config error, including an\n"
@@ -174,7 +179,7 @@ static int render_and_report(const struct config *cfg, const struct scene *scene
 int main(int argc, char **argv)
 {
     const char *config_path = NULL, *resume_dir = NULL;
-    bool quiet = false;
+    bool quiet = false, describe = false;
     struct config_override *ov = calloc((size_t)argc, sizeof *ov);
     const char **ov_flag = calloc((size_t)argc, sizeof *ov_flag); /* the shorthand that set it, or NULL */
     char **owned = calloc((size_t)argc, sizeof *owned);
@@ -202,6 +207,10 @@ int main(int argc, char **argv)
             printf("render %s\n", RENDERER_VERSION);
             status = EXIT_DONE;
             goto done;
+        }
+        if (!strcmp(a, "--describe")) {
+            describe = true;
+            continue;
         }
         if (!strcmp(a, "--quiet")) {
             quiet = true;
@@ -263,6 +272,16 @@ int main(int argc, char **argv)
             goto done;
         }
         config_path = a;
+    }
+    if (describe && argc != 2) {
+        fprintf(stderr, "render: --describe takes no other arguments\n%s", usage);
+        goto done;
+    }
+    if (describe) {
+        describe_write(stdout);
+        status = fflush(stdout) == 0 && !ferror(stdout) ? EXIT_DONE : EXIT_RUNTIME;
+        if (status != EXIT_DONE) fprintf(stderr, "render: --describe: cannot write to stdout\n");
+        goto done;
     }
     if (resume_dir && config_path) {
         fprintf(stderr, "render: --resume %s takes no CONFIG (it continues %s/config.yaml), got %s\n%s", resume_dir,
