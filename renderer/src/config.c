@@ -1942,6 +1942,21 @@ static bool load_document(struct loader *L, const char *text, size_t length)
     return ok;
 }
 
+/* The loader's params (names pointing into its document) copied into the
+   config, which outlives the document: --print-config reports them. */
+static bool keep_params(struct loader *L, struct config *c)
+{
+    if (!L->n_params) return true;
+    c->params = calloc((size_t)L->n_params, sizeof *c->params);
+    if (!c->params) return error_set(L->err, "%s: out of memory", L->file);
+    for (int i = 0; i < L->n_params; ++i) {
+        if (!(c->params[i].name = strdup(L->params[i].name))) return error_set(L->err, "%s: out of memory", L->file);
+        c->params[i].value = L->params[i].value;
+        c->n_params = i + 1;
+    }
+    return true;
+}
+
 /* A load from text, named `name`; st identifies the file, NULL for a string. */
 static bool load_text(const char *text, size_t length, const char *name, const struct stat *st,
                       const struct config_override *overrides, int n_overrides, struct config *out, struct error *err)
@@ -1986,6 +2001,7 @@ static bool load_text(const char *text, size_t length, const char *name, const s
             L.sources[i].path = NULL;
         }
         if (ok) out->n_files = L.n_sources;
+        ok = ok && keep_params(&L, out);
     }
 
     if (L.have_doc) yaml_document_delete(&L.doc);
@@ -2036,5 +2052,7 @@ void config_free(struct config *c)
     free(c->lights);
     free(c->portals);
     free(c->effective_yaml);
+    for (int i = 0; i < c->n_params; ++i) free(c->params[i].name);
+    free(c->params);
     memset(c, 0, sizeof *c);
 }

@@ -8,6 +8,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "error.h"
 #include "polygon.h"
@@ -130,6 +131,12 @@ struct render_desc {
     bool resumable;               /* also write output/final.state (film_state.h) */
 };
 
+/* One entry of `params:`, after overrides, evaluated. */
+struct config_param {
+    char *name;                   /* owned */
+    double value;
+};
+
 struct config {
     char path[CONFIG_PATH_MAX];   /* the file it came from */
     int n_files;
@@ -158,6 +165,10 @@ struct config {
        applies), or the index of the --set override that set it. */
     struct source_loc output_loc;
     int output_override;
+    /* The params in file order: effective_yaml has them substituted, so
+       this is the only record of their values (render --print-config). */
+    int n_params;
+    struct config_param *params;  /* owned */
 };
 
 /* One --set key.path=value. Paths are dot-separated mapping keys and
@@ -182,5 +193,15 @@ bool config_load_string(const char *text, size_t length, const char *name,
                         const struct config_override *overrides, int n_overrides,
                         struct config *out, struct error *err);
 void config_free(struct config *c);
+
+/* Writes the effective configuration (c->effective_yaml) as one JSON value:
+   mappings become objects in key order, sequences arrays, plain scalars
+   that read as finite decimal numbers JSON numbers (their text when it is
+   valid JSON, else the shortest round-tripping %.17g form), true/false
+   and null/~/empty (YAML 1.2 core spellings) booleans and null, quoted
+   and other scalars strings (config_json.c). Fails only when the text
+   does not parse (it always does for a loaded config) or on memory;
+   out may then hold part of the value. */
+bool config_write_json(const struct config *c, FILE *out, struct error *err);
 
 #endif

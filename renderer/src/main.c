@@ -11,6 +11,7 @@
 #include "config.h"
 #include "describe.h"
 #include "exit_code.h"
+#include "print_config.h"
 #include "render.h"
 #include "resume.h"
 #include "scene.h"
@@ -19,6 +20,7 @@
 static const char usage[] =
     "usage: render CONFIG [options]\n"
     "       render --resume DIR [--spp N] [--time S] [--threads N|auto] [--quiet]\n"
+    "       render --print-config CONFIG [options] [--format yaml|json]\n"
     "       render --describe\n"
     "\n"
     "Renders the scene described by the YAML file CONFIG progressively, writing\n"
@@ -27,6 +29,13 @@ static const char usage[] =
     "passes it did not draw, to the same bits as one uninterrupted render; --spp\n"
     "and --time are then totals, and only render.spp, render.time, render.threads,\n"
     "render.snapshots.* and render.resumable may be overridden.\n"
+    "\n"
+    "--print-config loads CONFIG as a render would (includes, params, overrides,\n"
+    "defaults, every check, same messages and exit status) and prints the\n"
+    "effective configuration instead of rendering: YAML (the config.yaml a render\n"
+    "writes) or, with --format json, one JSON object {config, params, files,\n"
+    "hash, image_hash}; nothing is created, render.output is not touched.\n"
+    "\n"
     "--describe prints the renderer's contract as one JSON object (strategies,\n"
     "integrators, materials, AOV and EXR channels, EXR attributes, snapshot\n"
     "keys, exit codes, JSON events), read from the tables the renderer uses.\n"
@@ -47,6 +56,8 @@ static const char usage[] =
     "                        continue the render (render.resumable=true)\n"
     "  --resume DIR          continue the render in DIR (no CONFIG)\n"
     "  --quiet               no progress messages on stderr\n"
+    "  --print-config        print the effective configuration, do not render\n"
+    "  --format yaml|json    the form of --print-config (default yaml)\n"
     "  --describe            print the contract as JSON (no other arguments)\n"
     "  --help, --version\n"
     "\n"
@@ -179,7 +190,9 @@ static int render_and_report(const struct config *cfg, const struct scene *scene
 int main(int argc, char **argv)
 {
     const char *config_path = NULL, *resume_dir = NULL;
-    bool quiet = false, describe = false;
+    bool quiet = false, describe = false, print_config = false;
+    const char *format_name = NULL;
+    enum print_config_format format = PRINT_CONFIG_YAML;
     struct config_override *ov = calloc((size_t)argc, sizeof *ov);
     const char **ov_flag = calloc((size_t)argc, sizeof *ov_flag); /* the shorthand that set it, or NULL */
     char **owned = calloc((size_t)argc, sizeof *owned);
@@ -210,6 +223,25 @@ int main(int argc, char **argv)
         }
         if (!strcmp(a, "--describe")) {
             describe = true;
+            continue;
+        }
+        if (!strcmp(a, "--print-config")) {
+            print_config = true;
+            continue;
+        }
+        if (!strcmp(a, "--format")) {
+            if (i + 1 >= argc) {
+                fprintf(stderr, "render: --format needs yaml or json\n%s", usage);
+                goto done;
+            }
+            format_name = argv[++i];
+            int k = 0;
+            while (k < PRINT_CONFIG_FORMAT_COUNT && strcmp(format_name, print_config_format_names[k])) ++k;
+            if (k == PRINT_CONFIG_FORMAT_COUNT) {
+                fprintf(stderr, "render: unknown --format %s (expected yaml or json)\n%s", format_name, usage);
+                goto done;
+            }
+            format = (enum print_config_format)k;
             continue;
         }
         if (!strcmp(a, "--quiet")) {
@@ -283,6 +315,14 @@ int main(int argc, char **argv)
         if (status != EXIT_DONE) fprintf(stderr, "render: --describe: cannot write to stdout\n");
         goto done;
     }
+    if (format_name && !print_config) {
+        fprintf(stderr, "render: --format %s is for --print-config only\n%s", format_name, usage);
+        goto done;
+    }
+    if (print_config && resume_dir) {
+        fprintf(stderr, "render: --print-config takes a CONFIG, not --resume %s\n%s", resume_dir, usage);
+        goto done;
+    }
     if (resume_dir && config_path) {
         fprintf(stderr, "render: --resume %s takes no CONFIG (it continues %s/config.yaml), got %s\n%s", resume_dir,
                 resume_dir, config_path, usage);
@@ -307,7 +347,7 @@ int main(int argc, char **argv)
     struct render_faults faults;
     struct config cfg;
     struct film_state start;
-    if (!render_faults_from_env(&faults, &err)) {
+    if (!print_config && !render_faults_from_env(&faults, &err)) {
         fprintf(stderr, "render: %s\n", err.message);
         goto done;
     }
@@ -322,9 +362,14 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s\n", err.message);
     } else {
         /* A resume rewrites config.yaml with the new totals only now that
-           everything has been checked. */
-        bool ready = resume_dir ? write_effective_config(&cfg, &err) : prepare_output(&cfg, ov, ov_flag, &err);
-        if (!ready && resume_dir)
+           everything has been checked. --print-config has checked all a
+           render checks before it makes the output folder, and stops. */
+        bool ready = print_config || (resume_dir ? write_effective_config(&cfg, &err)
+                                                 : prepare_output(&cfg, ov, ov_flag, &err));
+        if (print_config) {
+            status = print_config_write(&cfg, format, stdout, &err) ? EXIT_DONE : EXIT_RUNTIME;
+            if (status != EXIT_DONE) fprintf(stderr, "render: --print-config: %s\n", err.message);
+        } else if (!ready && resume_dir)
             fprintf(stderr, "render: --resume %s: output folder %s\n", resume_dir, err.message);
         else if (!ready)
             fprintf(stderr, "%s\n", err.message);

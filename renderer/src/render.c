@@ -17,6 +17,7 @@
 #include "aov.h"
 #include "camera.h"
 #include "film.h"
+#include "render_event.h"
 #include "rng.h"
 #include "strategy.h"
 #include "version.h"
@@ -337,7 +338,7 @@ static void *writer_main(void *arg)
         struct error err;
         bool ok = film_write_exr(w->path, &w->image, &w->info, &err);
         if (ok) {
-            json_snapshot(w->json, "snapshot", w->index, w->path, &w->info);
+            json_snapshot(w->json, render_event_names[RENDER_EVENT_SNAPSHOT], w->index, w->path, &w->info);
             fputs("}\n", w->json);
             fflush(w->json);
         }
@@ -484,7 +485,7 @@ static bool write_final(const struct config *cfg, const struct film *film, const
     info.compress = true;
     snprintf(path, sizeof path, "%s/final.exr", cfg->render.output);
     if (!write_final_state(cfg, film, pc, wr, pr, err) || !film_write_exr(path, &wr->image, &info, err)) return false;
-    json_snapshot(json, "final", 0, path, &info);
+    json_snapshot(json, render_event_names[RENDER_EVENT_FINAL], 0, path, &info);
     fprintf(json, ",\"interrupted\":%s,\"shadow_rays\":%llu,\"shadow_blocked\":%llu,"
                   "\"light_samples\":%llu,\"light_missed\":%llu,\"render_cpu_s\":%.6f,"
                   "\"snapshot_cpu_s\":%.6f,\"snapshot_pause_s\":%.6f}\n",
@@ -578,7 +579,7 @@ bool render_run(const struct config *cfg, const struct scene *scene, struct film
     }
 
     if (ok) {
-        fprintf(json, "{\"event\":\"start\",\"out\":");
+        fprintf(json, "{\"event\":\"%s\",\"out\":", render_event_names[RENDER_EVENT_START]);
         json_string(json, rd->output);
         fprintf(json, ",\"width\":%d,\"height\":%d,\"strategy\":\"%s\",\"integrator\":\"%s\",\"seed\":%llu,"
                       "\"config_hash\":\"%016llx\",\"renderer_version\":\"%s\",\"threads\":%d,"
