@@ -17,14 +17,14 @@ from typing import Any, Sequence
 from tqdm import tqdm
 
 from portal_harness import __version__, exr, index, measure, runs, store
-from portal_harness.config import load_experiment
+from portal_harness.config import Experiment, load_experiment
 from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
 from portal_harness.metrics import Region
 from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
 from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
 from portal_harness.renderer import renderer_version
-from portal_harness.spec import INTEGRATORS, NO_SNAPSHOTS, STRATEGIES
+from portal_harness.spec import NO_SNAPSHOTS
 from portal_harness.sweep import SweepOptions, sweep
 
 REFERENCE_SPP = 1024
@@ -43,8 +43,9 @@ def _render_options(p: argparse.ArgumentParser, default_strategy: str | None) ->
     p.add_argument("config", type=Path, help="scene file (configs/scenes/*.yaml)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scalar of the scene, e.g. params.s_L=0.075 (repeatable)")
-    p.add_argument("--strategy", choices=STRATEGIES, default=default_strategy)
-    p.add_argument("--integrator", choices=INTEGRATORS)
+    # Names are the renderer's (render --describe): it checks them.
+    p.add_argument("--strategy", default=default_strategy, help="sampling strategy (render --describe lists them)")
+    p.add_argument("--integrator", help="direct or path (render --describe lists them)")
     p.add_argument("--spp", type=int, help="samples per pixel (0: no limit)")
     p.add_argument("--time", type=float, help="render time limit in seconds (0: no limit)")
     p.add_argument("--seed", type=int)
@@ -116,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("query", parents=[common], help="error curves from the index",
                        description="Print (key, time_s, value) of every indexed run of a strategy whose "
                                    "parameters match, e.g. --strategy portal --param ratio=0.25.")
-    p.add_argument("--strategy", required=True, choices=STRATEGIES)
+    p.add_argument("--strategy", required=True)
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="e.g. ratio=0.25 or params.s_L=0.075 (repeatable)")
     p.add_argument("--region", default="image")
@@ -191,12 +192,12 @@ def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
         # A reference has exactly the limits asked for: 1024 spp unless told otherwise.
         spp = spp if spp is not None else (0 if time_s else REFERENCE_SPP)
         time_s = time_s if time_s is not None else 0.0
+    renderer, version = _renderer(args)
     spec = spec_from_scene(
-        args.config, overrides, strategy=args.strategy, integrator=args.integrator, spp=spp, time_s=time_s,
-        seed=args.seed, threads=args.threads, snapshots=snapshots, reference=reference,
+        args.config, overrides, renderer, strategy=args.strategy, integrator=args.integrator, spp=spp,
+        time_s=time_s, seed=args.seed, threads=args.threads, snapshots=snapshots, reference=reference,
     )
     layout = _layout(args)
-    renderer, version = _renderer(args)
     key = spec.key(version)
     progress = _RunProgress(spec.time_s, spec.spp)
     try:
@@ -232,8 +233,13 @@ def _sweep_options(args: argparse.Namespace) -> SweepOptions:
                         progress=not args.no_progress)
 
 
+def _experiment(args: argparse.Namespace, path: Path) -> Experiment:
+    renderer, _ = _renderer(args)
+    return load_experiment(path, renderer)
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
-    experiment = load_experiment(args.experiment)
+    experiment = _experiment(args, args.experiment)
     if experiment.budget is None:
         raise ConfigError(str(args.experiment), "budget", "missing (a sweep needs time_s or spp)")
     return sweep(experiment, _sweep_options(args))
@@ -242,7 +248,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_regress(args: argparse.Namespace) -> int:
     from portal_harness.regress import regress
 
-    experiment = load_experiment(args.experiment)
+    experiment = _experiment(args, args.experiment)
     if experiment.regress is None:
         raise ConfigError(str(args.experiment), "regress", "missing (the regress command needs spp and seeds)")
     return regress(experiment, _sweep_options(args), update=args.update)
@@ -251,7 +257,7 @@ def cmd_regress(args: argparse.Namespace) -> int:
 def cmd_figures(args: argparse.Namespace) -> int:
     from portal_harness.figures import make_all
 
-    experiment = load_experiment(args.experiment)
+    experiment = _experiment(args, args.experiment)
     for path in make_all(experiment, _layout(args)):
         print(path)
     return 0
@@ -284,7 +290,7 @@ def _parse_insets(items: list[str]) -> tuple[Region, ...]:
 
 def cmd_metrics(args: argparse.Namespace) -> int:
     layout = _layout(args)
-    experiment = load_experiment(args.experiment) if args.experiment else None
+    experiment = _experiment(args, args.experiment) if args.experiment else None
     insets = (experiment.insets if experiment else ()) + _parse_insets(args.inset)
     lit_threshold = experiment.lit_threshold if experiment else DEFAULT_LIT_THRESHOLD
     conn = index.connect(layout.index_path)
@@ -357,12 +363,17 @@ def cmd_query(args: argparse.Namespace) -> int:
     conn = index.connect(_layout(args).index_path)
     try:
         found = index.curves(conn, args.strategy, params, region=args.region, metric=args.metric)
+        known = index.strategies(conn)
     finally:
         conn.close()
     print(f"key,time_s,{args.metric}")
     for key, points in found.items():
         for t, v in points:
             print(f"{key},{t},{v}")
+    if args.strategy not in known:
+        # Names are the renderer's; the index knows those it has runs of.
+        print(f"no runs of strategy {args.strategy!r} in the index (it has {', '.join(known) or 'none'})",
+              file=sys.stderr)
     return 0 if found else 1
 
 

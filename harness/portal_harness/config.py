@@ -12,18 +12,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from portal_harness import contract
 from portal_harness.errors import ConfigError
 from portal_harness.exr import REGION_CLASSES
 from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.paths import ResultsLayout
-from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
+from portal_harness.scene import read_scene
+from portal_harness.schema import Reader, kind_of, parse_threads, read_yaml
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
-    INTEGRATORS,
     NO_SNAPSHOTS,
     SNAPSHOT_KEYS,
-    SNAPSHOT_SPP_KEYS,
-    STRATEGIES,
     Overrides,
     RunSpec,
     format_value,
@@ -108,6 +107,8 @@ class Experiment:
     scene: Path
     integrator: str
     strategies: tuple[str, ...]
+    # Every strategy of the renderer, in its order (render --describe): seeds are counted over them.
+    all_strategies: tuple[str, ...]
     sweep: tuple[tuple[str, tuple[Any, ...]], ...]
     fixed: Overrides
     budget: Budget | None
@@ -119,36 +120,17 @@ class Experiment:
     height: int
     equal_time_s: float | None
     curve_metric: str
-    scene_params: tuple[tuple[str, Any], ...]
     scene_sha256: str               # of the scene and its includes, read once at load
+    # The cross product, each point with its axis value from the renderer's
+    # effective config of it (evaluated params).
+    point_list: tuple[Point, ...]
     lit_threshold: float = 0.001    # regions.lit_threshold: reference radiance above which a pixel is lit
 
     def points(self) -> list[Point]:
-        keys = [k for k, _ in self.sweep]
-        out = []
-        for combo in itertools.product(*(values for _, values in self.sweep)):
-            values = tuple(zip(keys, combo))
-            out.append(Point(values=values, axis_value=self._axis_value(dict(values))))
-        return out
-
-    def _lookup(self, key: str, values: dict[str, Any]) -> Any:
-        if key in values:
-            return values[key]
-        fixed = dict(self.fixed)
-        if key in fixed:
-            return fixed[key]
-        return dict(self.scene_params).get(key)
-
-    def _axis_value(self, values: dict[str, Any]) -> float:
-        x = float(self._lookup(self.axis.param, values))
-        if self.axis.divide_by is not None:
-            x /= float(self._lookup(self.axis.divide_by, values))
-        return x
+        return list(self.point_list)
 
     def _overrides(self, point: Point) -> Overrides:
-        merged = dict(self.fixed)
-        merged.update({k: format_value(v) for k, v in point.values})
-        return tuple(sorted(merged.items()))
+        return point_overrides(self.fixed, point.values)
 
     def _labels(self, point: Point) -> tuple[tuple[str, float], ...]:
         return (("ratio", point.axis_value),) if self.axis.divide_by is not None else ()
@@ -160,7 +142,7 @@ class Experiment:
         then of independent estimates; equal seeds would share, e.g., the
         camera jitter)."""
         assert self.budget is not None
-        return self.budget.seed + replicate * len(STRATEGIES) + STRATEGIES.index(strategy)
+        return self.budget.seed + replicate * len(self.all_strategies) + self.all_strategies.index(strategy)
 
     def _spec(self, point: Point, strategy: str, spp: int, time_s: float, seed: int, threads: int,
               snapshots: Overrides = NO_SNAPSHOTS, extra: Overrides = (), reference: bool = False,
@@ -218,15 +200,44 @@ class Experiment:
         return self._spec(point, "light", spp=REGION_MAP_SPP, time_s=0.0, seed=r.seed + 2000, threads=r.threads,
                           extra=AOV_OVERRIDES, label="region_map")
 
-def _check_override_key(reader: Reader, key: str, where: str) -> None:
+def point_overrides(fixed: Overrides, values: tuple[tuple[str, Any], ...]) -> Overrides:
+    """The --set overrides of a point: the fixed ones and the point's values."""
+    merged = dict(fixed)
+    merged.update({k: format_value(v) for k, v in values})
+    return tuple(sorted(merged.items()))
+
+
+def _check_override_key(reader: Reader, key: str, where: str, params: dict[str, float]) -> None:
+    """Keys the harness sets itself are refused; params.NAME must name a
+    parameter of the scene (the renderer would take an unknown one
+    silently, as a new parameter nothing reads). Any other key is checked
+    by the renderer, with the overrides."""
     if not key or any(not part for part in key.split(".")):
         raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {key!r}")
     if key in HARNESS_RENDER_KEYS or key.startswith("render.snapshots"):
         raise reader.fail(where, f"{key} is set by the harness (use strategies, integrator, budget or reference)")
+    name = key.removeprefix("params.")
+    if key.startswith("params.") and name not in params:
+        raise reader.fail(where, f"the scene has no parameter {name!r} (it has {', '.join(sorted(params))})")
 
 
-def load_experiment(path: Path | str) -> Experiment:
-    """Reads and validates an experiment; raises ConfigError on the first problem."""
+def _numeric(effective: contract.EffectiveConfig, key: str) -> float | None:
+    """The number at `key` of an effective config (params evaluated), or None."""
+    if key.startswith("params.") and key.removeprefix("params.") in effective.params:
+        return effective.params[key.removeprefix("params.")]
+    try:
+        value = effective.get(key)
+    except KeyError:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
+def load_experiment(path: Path | str, renderer: str) -> Experiment:
+    """Reads and validates an experiment against the renderer at `renderer`
+    (its strategies and integrators, and its effective config of the scene
+    at every point); raises ConfigError on the first problem."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
     r = Reader(str(path))
     root = r.mapping(
@@ -243,13 +254,16 @@ def load_experiment(path: Path | str) -> Experiment:
     scene = (p.parent / r.string(root["scene"], "scene")).resolve()
     if not scene.is_file():
         raise r.fail("scene", f"scene file {scene} not found")
-    scene_info = read_scene(scene)
+    names = contract.describe(renderer)
+    scene_info = read_scene(renderer, scene)
+    params = scene_info.effective.params
 
-    integrator = r.choice(root.get("integrator", scene_info.scalars.get("render.integrator", "direct")),
-                          "integrator", INTEGRATORS, "integrator")
+    integrator = r.choice(root.get("integrator", scene_info.effective.render.get("integrator")),
+                          "integrator", names.integrators, "integrator")
 
     strategies_node = r.sequence(root["strategies"], "strategies")
-    strategies = tuple(r.choice(s, f"strategies.{i}", STRATEGIES, "strategy") for i, s in enumerate(strategies_node))
+    strategies = tuple(r.choice(s, f"strategies.{i}", names.strategies, "strategy")
+                       for i, s in enumerate(strategies_node))
     if len(set(strategies)) != len(strategies):
         raise r.fail("strategies", "a strategy is listed twice")
 
@@ -261,7 +275,7 @@ def load_experiment(path: Path | str) -> Experiment:
     sweep: list[tuple[str, tuple[Any, ...]]] = []
     for k, values in sweep_node.items():
         key = str(k)
-        _check_override_key(r, key, f"sweep.{key}")
+        _check_override_key(r, key, f"sweep.{key}", params)
         items = r.sequence(values, f"sweep.{key}")
         sweep.append((key, tuple(r.scalar(v, f"sweep.{key}.{i}") for i, v in enumerate(items))))
         if len(set(map(format_value, sweep[-1][1]))) != len(items):
@@ -273,20 +287,17 @@ def load_experiment(path: Path | str) -> Experiment:
     fixed: dict[str, str] = {}
     for k, v in fixed_node.items():
         key = str(k)
-        _check_override_key(r, key, f"fixed.{key}")
+        _check_override_key(r, key, f"fixed.{key}", params)
         if key in dict(sweep):
             raise r.fail(f"fixed.{key}", "also swept (a parameter is either fixed or swept)")
         fixed[key] = format_value(r.scalar(v, f"fixed.{key}"))
 
-    def size(axis: str) -> int:
-        if f"film.{axis}" in fixed:
-            try:
-                return int(fixed[f"film.{axis}"])
-            except ValueError:
-                raise r.fail(f"fixed.film.{axis}", "expected an integer") from None
-        return int(getattr(scene_info, axis))
-
-    width, height = size("width"), size("height")
+    fixed_overrides = tuple(sorted(fixed.items()))
+    try:
+        base = contract.print_config(renderer, scene, fixed_overrides)
+    except ConfigError as e:
+        raise r.fail("fixed", f"the renderer rejects the scene with these values: {e}") from None
+    width, height = base.width, base.height
 
     budget = None
     if "budget" in root:
@@ -296,8 +307,9 @@ def load_experiment(path: Path | str) -> Experiment:
         if time_s == 0 and spp == 0:
             raise r.fail("budget", "expected time_s > 0 or spp > 0 (a run needs a limit)")
         snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
+        # Counted in samples (integers) or seconds, as the renderer says.
         snapshots = tuple(
-            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if k in SNAPSHOT_SPP_KEYS
+            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if names.snapshot_unit(k) == "spp"
                              else r.number(v, f"budget.snapshots.{k}", positive=True)))
             for k, v in sorted(snaps_node.items())
         )
@@ -305,7 +317,7 @@ def load_experiment(path: Path | str) -> Experiment:
                         seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots,
                         replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1))
 
-    reference = _reference_settings(r, root.get("reference", {}) or {}, budget)
+    reference = _reference_settings(r, root.get("reference", {}) or {}, budget, names.strategies)
 
     insets: list[Region] = []
     for i, node in enumerate(r.sequence(root.get("insets", []) or [], "insets", non_empty=False)):
@@ -333,11 +345,6 @@ def load_experiment(path: Path | str) -> Experiment:
     divide_by = axis_node.get("divide_by")
     if divide_by is not None:
         divide_by = r.string(divide_by, "axis.divide_by")
-        value: tuple[Any, ...] = dict(sweep).get(divide_by, (fixed.get(divide_by, scene_info.scalars.get(divide_by)),))
-        try:
-            [float(v) for v in value]
-        except (TypeError, ValueError):
-            raise r.fail("axis.divide_by", f"{divide_by!r} has no numeric value in the sweep, fixed or scene") from None
     for i, v in enumerate(dict(sweep)[axis_param]):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {kind_of(v)}")
@@ -359,6 +366,8 @@ def load_experiment(path: Path | str) -> Experiment:
             baseline=(p.parent / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
         )
 
+    points = _points(r, renderer, scene, tuple(sweep), fixed_overrides, axis)
+
     regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
     lit_threshold = r.number(regions_node.get("lit_threshold", 0.001), "regions.lit_threshold", positive=True)
 
@@ -370,8 +379,9 @@ def load_experiment(path: Path | str) -> Experiment:
         scene=scene,
         integrator=integrator,
         strategies=strategies,
+        all_strategies=names.strategies,
         sweep=tuple(sweep),
-        fixed=tuple(sorted(fixed.items())),
+        fixed=fixed_overrides,
         budget=budget,
         reference=reference,
         insets=tuple(insets),
@@ -381,8 +391,8 @@ def load_experiment(path: Path | str) -> Experiment:
         height=height,
         equal_time_s=None if equal_time is None else r.number(equal_time, "figures.equal_time_s", positive=True),
         curve_metric=r.choice(fig.get("curve_metric", "rel_mse"), "figures.curve_metric", CURVE_METRICS, "metric"),
-        scene_params=tuple((k, v) for k, v in scene_info.scalars.items() if k.startswith("params.")),
         scene_sha256=scene_info.sha256,
+        point_list=points,
         lit_threshold=lit_threshold,
     )
 
@@ -391,17 +401,45 @@ REFERENCE_KEYS = {"strategy", "strategies", "spp", "time_s", "seed", "threads", 
                   "pilot_time_s", "bias_z"}
 
 
-def _reference_settings(r: Reader, node: Any, budget: Budget | None) -> ReferenceSettings:
+def _points(r: Reader, renderer: str, scene: Path, sweep: tuple[tuple[str, tuple[Any, ...]], ...],
+            fixed: Overrides, axis: Axis) -> tuple[Point, ...]:
+    """Every point of the cross product, checked by the renderer (its
+    effective config with the point's overrides), with its axis value from
+    that config: a divisor that is an expression of a swept parameter is
+    evaluated at each point."""
+    keys = [k for k, _ in sweep]
+    out = []
+    for combo in itertools.product(*(values for _, values in sweep)):
+        values = tuple(zip(keys, combo))
+        name = ",".join(f"{k}={format_value(v)}" for k, v in values)
+        try:
+            effective = contract.print_config(renderer, scene, point_overrides(fixed, values))
+        except ConfigError as e:
+            raise r.fail("sweep", f"the renderer rejects the point {name}: {e}") from None
+        x = _numeric(effective, axis.param)
+        if x is None:
+            raise r.fail("axis.param", f"{axis.param!r} has no numeric value at the point {name}")
+        if axis.divide_by is not None:
+            d = _numeric(effective, axis.divide_by)
+            if d is None or d == 0:
+                raise r.fail("axis.divide_by", f"{axis.divide_by!r} has no non-zero numeric value in the sweep, "
+                                               f"fixed or scene (at the point {name})")
+            x /= d
+        out.append(Point(values=values, axis_value=x))
+    return tuple(out)
+
+
+def _reference_settings(r: Reader, node: Any, budget: Budget | None, known: tuple[str, ...]) -> ReferenceSettings:
     m = r.mapping(node, "reference", REFERENCE_KEYS)
     if "strategy" in m and "strategies" in m:
         raise r.fail("reference", "give strategy (one reference) or strategies (one or two), not both")
     if "strategy" in m:
-        strategies: tuple[str, ...] = (r.choice(m["strategy"], "reference.strategy", STRATEGIES, "strategy"),)
+        strategies: tuple[str, ...] = (r.choice(m["strategy"], "reference.strategy", known, "strategy"),)
     elif m.get("strategies", "auto") == "auto":
         strategies = ()
     else:
         items = r.sequence(m["strategies"], "reference.strategies")
-        strategies = tuple(r.choice(s, f"reference.strategies.{i}", STRATEGIES, "strategy")
+        strategies = tuple(r.choice(s, f"reference.strategies.{i}", known, "strategy")
                            for i, s in enumerate(items))
         if len(strategies) > 2 or len(set(strategies)) != len(strategies):
             raise r.fail("reference.strategies", "expected auto, or one or two different strategies")

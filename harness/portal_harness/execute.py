@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from portal_harness import runs, store
+from portal_harness import contract, runs, store
 from portal_harness.errors import ConfigError
 from portal_harness.paths import ResultsLayout
 from portal_harness.spec import RunSpec
@@ -110,15 +110,13 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
     its run folder's files, installed here as each finishes."""
     from distributed import Client, as_completed
 
-    from portal_harness.includes import load_merged  # includes -> schema -> execute: imported here
-
     scene_bytes: dict[str, bytes] = {}
     with Client(address, timeout="30s") as client:  # type: ignore[no-untyped-call]
         futures = {}
         for spec in specs:
             if spec.scene not in scene_bytes:
                 # Workers get the scene file's bytes, not the files it includes.
-                if len(load_merged(Path(spec.scene))[1]) > 1:
+                if len(contract.print_config(target.renderer, Path(spec.scene)).files) > 1:
                     raise ConfigError(spec.scene, "include", "a scene that includes other files cannot be sent to "
                                       "Dask workers: run it locally, or give the merged config.yaml that a "
                                       "render writes to its output folder")

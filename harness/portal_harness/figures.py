@@ -49,13 +49,26 @@ from portal_harness.index import ROLE_REFERENCE, ROLE_RUN  # noqa: E402
 from portal_harness.metrics import WHOLE_IMAGE, Region, crop  # noqa: E402
 from portal_harness.paths import ResultsLayout, RunLayout  # noqa: E402
 from portal_harness.regions import LIT, class_map  # noqa: E402
-from portal_harness.spec import STRATEGIES  # noqa: E402
 
-STRATEGY_COLOURS = dict(zip(STRATEGIES, ("#7f7f7f", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd")))
-STRATEGY_LABELS = {
-    "light_area": "light (area)", "light": "light", "portal": "portal", "projection": "projection",
-    "antishadow": "antishadow", "antishadow_exact": "antishadow (exact)",
-}
+# Display only: a colour and a label for the strategies drawn so far. The
+# strategies themselves are the renderer's (render --describe); a name not
+# listed here is drawn under its own name in a colour of its own.
+STRATEGY_COLOURS = {"light_area": "#7f7f7f", "light": "#1f77b4", "portal": "#ff7f0e", "projection": "#2ca02c",
+                    "antishadow": "#d62728", "antishadow_exact": "#9467bd"}
+STRATEGY_LABELS = {"light_area": "light (area)", "antishadow_exact": "antishadow (exact)"}
+SPARE_COLOURS = ("#8c564b", "#e377c2", "#bcbd22", "#17becf", "#393b79", "#637939")
+
+
+def strategy_label(strategy: str) -> str:
+    return STRATEGY_LABELS.get(strategy, strategy)
+
+
+def strategy_colour(strategy: str, strategies: Sequence[str]) -> str:
+    """The strategy's colour; unknown ones take the spare colours in the order of `strategies`."""
+    if strategy in STRATEGY_COLOURS:
+        return STRATEGY_COLOURS[strategy]
+    unknown = [s for s in strategies if s not in STRATEGY_COLOURS]
+    return SPARE_COLOURS[unknown.index(strategy) % len(SPARE_COLOURS)] if strategy in unknown else "#000000"
 INSET_COLOURS = ("#ffd700", "#00e5ff", "#ff4fd8", "#7CFC00")
 METRIC_LABELS = {"rel_mse": "relMSE", "mse": "MSE"}
 # One colour per region class (exr.REGION_CLASSES order), and grey for no majority.
@@ -170,8 +183,8 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
                 if not curves:
                     continue
                 t, v, lo, hi = _mean_curve(curves)
-                colour_ = STRATEGY_COLOURS[strategy]
-                ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=STRATEGY_LABELS[strategy])
+                colour_ = strategy_colour(strategy, experiment.strategies)
+                ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=strategy_label(strategy))
                 if len(curves) > 1:
                     ax.fill_between(t, lo, hi, color=colour_, alpha=0.2, lw=0)
                 floor = curves[0][0][2]
@@ -339,7 +352,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                     spine.set_edgecolor(INSET_COLOURS[r_i % len(INSET_COLOURS)])
                     spine.set_linewidth(1.2)
                 if p_i == 0 and r_i == 0:
-                    ax.set_title(STRATEGY_LABELS.get(column, column), fontsize=8)
+                    ax.set_title(strategy_label(column), fontsize=8)
                 if image is None:
                     ax.set_facecolor("#dddddd")
                     ax.text(0.5, 0.5, label, ha="center", va="center", fontsize=7, transform=ax.transAxes)
@@ -399,8 +412,8 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
                     continue
                 xs = [r["axis"] for r in rows]
                 ys = [r[column] for r in rows]
-                colour_ = STRATEGY_COLOURS[strategy]
-                ax.plot(xs, ys, lw=1.3, color=colour_, label=STRATEGY_LABELS[strategy])
+                colour_ = strategy_colour(strategy, experiment.strategies)
+                ax.plot(xs, ys, lw=1.3, color=colour_, label=strategy_label(strategy))
                 for r in rows:
                     se = r.get(se_column)
                     bounded = bool(r.get(bound_column))

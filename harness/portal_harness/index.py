@@ -223,6 +223,11 @@ def find_reference(conn: sqlite3.Connection, scene_hash: str) -> sqlite3.Row | N
     return row
 
 
+def strategies(conn: sqlite3.Connection) -> list[str]:
+    """The strategies of the indexed runs, sorted."""
+    return [row[0] for row in conn.execute("SELECT DISTINCT strategy FROM runs ORDER BY strategy")]
+
+
 def curves(
     conn: sqlite3.Connection,
     strategy: str,

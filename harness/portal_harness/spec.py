@@ -1,12 +1,13 @@
 """RunSpec: everything that determines one render, its command line and its keys.
 
 Keys (16 hex digits of SHA-256 over canonical JSON):
-- run key: the scene file's bytes, every --set override, strategy,
+- run key: the bytes of the scene file and of every file it includes
+  (scene.files_sha256), every --set override, strategy,
   integrator, spp, time, seed, threads, snapshot schedule and the renderer
   version. These inputs determine the renderer's effective config
   (DIR/config.yaml) completely, so the key can be known before the render
   starts, which is what resuming needs.
-- scene hash: the scene file's bytes, the integrator and the overrides
+- scene hash: the scene's files' bytes, the integrator and the overrides
   outside render.* plus render.max_depth and render.rr_depth: what changes
   the expected image, not how it is sampled.
 - reference key: the scene hash, the reference strategy, spp, time, seed
@@ -23,11 +24,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-STRATEGIES: tuple[str, ...] = ("light_area", "light", "portal", "projection", "antishadow", "antishadow_exact")
-INTEGRATORS: tuple[str, ...] = ("direct", "path")
+# The renderer's scalar snapshot schedules (render.snapshots.*), the ones
+# --set can reach; their units come from `render --describe`.
 SNAPSHOT_KEYS: tuple[str, ...] = ("every", "doubling", "every_spp", "doubling_spp")
-# Snapshot keys counted in samples per pixel (integers), the others in seconds.
-SNAPSHOT_SPP_KEYS: frozenset[str] = frozenset({"every_spp", "doubling_spp"})
 # render.* keys that change the expected image (all others only change the noise).
 IMAGE_RENDER_KEYS: frozenset[str] = frozenset({"render.integrator", "render.max_depth", "render.rr_depth"})
 # render.* keys the harness sets itself through flags; an override may not set them.
@@ -57,10 +56,6 @@ def format_value(value: Any) -> str:
             return str(int(value)) if not math.isnan(value) else "nan"
         return repr(value)
     return str(value)
-
-
-def sha256_file(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def short_hash(payload: Any) -> str:

@@ -57,8 +57,9 @@ def test_05_missing_renderer_and_bad_arguments_exit_2(cli: CliRunner, fake_scene
     assert status == 2 and "renderer not found" in err
     status, _, err = cli("run", str(fake_scene), "--set", "params.s_L")
     assert status == 2 and "expected KEY=VALUE" in err
+    # the renderer reads the scene, and its message is the error
     status, _, err = cli("run", str(tmp_path / "nope.yaml"))
-    assert status == 2 and "scene file not found" in err
+    assert status == 2 and f"{tmp_path / 'nope.yaml'}: No such file or directory" in err
     status, _, err = cli("figures", str(tmp_path / "nope.yaml"))
     assert status == 2
 

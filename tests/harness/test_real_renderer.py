@@ -91,12 +91,14 @@ def test_02_tiny_sweep_figures_and_resume(real_renderer: Path, tmp_path: Path, r
     assert rendered_now == (0 if portal_ok else 2)
 
 
-def test_03_renderer_config_error_is_a_failed_run_with_its_message(real_renderer: Path,
-                                                                   cli: Callable[..., tuple[int, str, str]]) -> None:
+def test_03_renderer_config_error_is_refused_before_rendering(real_renderer: Path, results: Path,
+                                                              cli: Callable[..., tuple[int, str, str]]) -> None:
+    # render --print-config checks the override: its message, exit 2, no run folder
     status, out, err = cli("run", str(SCENE), *TINY, "--set", "film.width=-3", "--spp", "2",
                            renderer=real_renderer)
-    assert status == 1 and ": failed" in out
-    assert "exited with status 2" in err and "film.width" in err
+    assert status == 2 and out == ""
+    assert "--set film.width=-3: " in err
+    assert not (results / "runs").exists()
 
 
 def test_04_real_references_extended_tested_and_a_biased_strategy_caught(

@@ -3,6 +3,7 @@ failures kept with their stderr, nothing half-finished counted as finished."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -12,6 +13,7 @@ import pytest
 
 from portal_harness.regions import regions_of
 from portal_harness import exr, measure, runs, store
+from portal_harness.errors import ConfigError
 from portal_harness.scene import spec_from_scene
 from portal_harness.metrics import Region
 from portal_harness.paths import ResultsLayout, RunLayout
@@ -27,7 +29,7 @@ def test_01_run_writes_manifest_snapshots_and_is_cached(fake_scene: Path, fake_r
                                                         render_log: Callable[[], list[str]]) -> None:
     version = renderer_version(str(fake_renderer))
     assert version == "0.1.0-fake"
-    spec = spec_from_scene(fake_scene, {}, strategy="portal", spp=0, time_s=0.2,
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2,
                            snapshots={"every": "0.05"})
     events: list[str] = []
     m = runs.execute(spec, layout, str(fake_renderer), version, on_event=lambda e: events.append(e["event"]))
@@ -54,7 +56,7 @@ def test_02_crash_is_failed_with_stderr_kept(fake_scene: Path, fake_renderer: Pa
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("FAKE_RENDER_CRASH", "portal")
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"})
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"})
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["signal"] == "SIGSEGV"
     assert "SIGSEGV" in m["error"]
@@ -74,10 +76,14 @@ def test_03_unimplemented_strategy_and_config_errors_fail(fake_scene: Path, fake
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "antishadow_exact")
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="antishadow_exact", spp=4)
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="antishadow_exact", spp=4)
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 1 and "not implemented" in m["stderr_tail"]
-    bad = spec_from_scene(fake_scene, {}, strategy="light", spp=4, snapshots={"every": "-1"})
+    # the renderer checks the schedule before any render: its message, as a ConfigError
+    with pytest.raises(ConfigError, match="render.snapshots.every=-1"):
+        spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=4, snapshots={"every": "-1"})
+    # and a render it refuses anyway fails with exit status 2
+    bad = dataclasses.replace(spec, strategy="light", snapshots=(("every", "-1"),))
     m = runs.execute(bad, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 2
 
@@ -85,7 +91,7 @@ def test_03_unimplemented_strategy_and_config_errors_fail(fake_scene: Path, fake
 def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="light", spp=8)
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=8)
     key = spec.key(version)
 
     def interrupted(*args: object, **kwargs: object) -> dict[str, object]:
@@ -104,7 +110,7 @@ def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_render
 def test_05_folder_without_done_manifest_is_redone(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
                                                    render_log: Callable[[], list[str]]) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="light", spp=8)
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=8)
     run = layout.run(spec.key(version))
     run.dir.mkdir(parents=True)
     (run.dir / "final.exr").write_bytes(b"half")
@@ -117,7 +123,7 @@ def test_05_folder_without_done_manifest_is_redone(fake_scene: Path, fake_render
 def test_06_corrupt_snapshot_is_reported_not_averaged(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
                                                       render_log: Callable[[], list[str]]) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="light", spp=0, time_s=0.1, snapshots={"every": "0.02"})
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=0, time_s=0.1, snapshots={"every": "0.02"})
     m = runs.execute(spec, layout, str(fake_renderer), version)
     run = layout.run(m["key"])
     ref = exr.read_snapshot(run.final)
