@@ -106,7 +106,7 @@ fuzz:
 # Independent-renderer check: the lampshade against Mitsuba 3 (own venv).
 crosscheck: $(BUILD)/render
 	@test -x .venv-xcheck/bin/python || python3 -m venv .venv-xcheck
-	@.venv-xcheck/bin/pip install -q mitsuba numpy openexr PyYAML pytest
+	@.venv-xcheck/bin/pip install -q mitsuba pytest -e harness
 	.venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py
 
 clean:

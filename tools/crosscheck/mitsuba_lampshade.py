@@ -50,7 +50,7 @@ def ensure_mitsuba() -> None:
         os.execve(str(python), [str(python), str(Path(__file__).resolve()), *sys.argv[1:]], env)
     sys.stderr.write(
         "mitsuba is not importable and %s has no working python with it.\n"
-        "Create it with:  python3 -m venv %s && %s/bin/pip install mitsuba numpy openexr PyYAML\n"
+        "Create it with:  python3 -m venv %s && %s/bin/pip install mitsuba pytest -e harness\n"
         % (XCHECK_VENV, XCHECK_VENV, XCHECK_VENV)
     )
     sys.exit(2)
@@ -158,30 +158,28 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
 
 
 def read_ours(path: Path):
-    """Mean (H, W, 3) and variance of the mean (H, W, 3) from our EXR, float64."""
-    import numpy as np
-    import OpenEXR
+    """Our EXR through the harness's reader (portal_harness.exr, the one
+    EXR reader): the snapshot, whose rgb and variance (of the mean) are
+    (H, W, 3) float64."""
+    from portal_harness import exr
+    from portal_harness.errors import CorruptExrError
 
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        ch = f.channels()
-        header = dict(f.header())
-        mean = np.stack([ch[c].pixels for c in ("R", "G", "B")], axis=-1).astype(np.float64)
-        var = np.stack([ch["variance." + c].pixels for c in ("R", "G", "B")], axis=-1).astype(np.float64)
-    return mean, var, header
+    try:
+        return exr.read_snapshot(path)
+    except CorruptExrError as e:
+        raise SetupError(str(e)) from None
 
 
 def write_exr(path: Path, mean, var) -> None:
-    """Same channel layout as our renderer's EXR (R, G, B, variance.*)."""
-    import numpy as np
-    import OpenEXR
+    """Same channel layout as our renderer's EXR (R, G, B, variance.*), no attributes."""
+    from portal_harness import exr
 
     channels = {}
-    for i, c in enumerate("RGB"):
-        channels[c] = np.ascontiguousarray(mean[..., i], dtype=np.float32)
-        channels["variance." + c] = np.ascontiguousarray(var[..., i], dtype=np.float32)
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, channels) as f:
-        f.write(str(path))
+    for i, c in enumerate(exr.RGB_CHANNELS):
+        channels[c] = mean[..., i]
+    for i, c in enumerate(exr.VARIANCE_CHANNELS):
+        channels[c] = var[..., i]
+    exr.write_exr(path, channels, {})
 
 
 # ---------------------------------------------------------------------------
@@ -634,7 +632,8 @@ def main(argv: list[str] | None = None) -> int:
             print("rendering ours: %d spp ..." % args.ours_spp, file=sys.stderr)
             ours_run = run_ours(args, ours_dir)
             (ours_dir / "ours_run.json").write_text(json.dumps(ours_run, indent=1))
-        ours, ours_var, ours_header = read_ours(final_exr)
+        snapshot = read_ours(final_exr)
+        ours, ours_var, ours_header = snapshot.rgb, snapshot.variance, snapshot.header
         cfg = yaml.safe_load((ours_dir / "config.yaml").read_text())
 
         spp_each = args.mitsuba_spp // args.mitsuba_runs
@@ -669,7 +668,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     result = compare(ours, ours_var, runs, args.block, args.alpha,
-                     ours_spp=int(ours_header.get("spp", args.ours_spp)), mits_spp=args.mitsuba_spp)
+                     ours_spp=ours_header.spp, mits_spp=args.mitsuba_spp)
     write_exr(out / "mitsuba" / "mitsuba.exr", result["mitsuba_mean"], result["mitsuba_var"])
     img_info = write_images(out, ours, result["mitsuba_mean"], result["z"], args.block, result["stats"]["bound"])
 
@@ -681,10 +680,10 @@ def main(argv: list[str] | None = None) -> int:
         "mitsuba_integrator": json.dumps(integ),
         "s_L": args.s_L if args.s_L is not None else (s_L if s_L is not None else "scene default"),
         "strategy": args.strategy,
-        "ours_spp": int(ours_header.get("spp", args.ours_spp)),
+        "ours_spp": ours_header.spp,
         "ours_time_s": float(ours_run["time_s"]),
         "ours_wall_s": float(ours_run["wall_s"]),
-        "ours_config_hash": ours_header.get("config_hash"),
+        "ours_config_hash": ours_header.config_hash,
         "mitsuba_spp": args.mitsuba_spp,
         "mitsuba_runs": args.mitsuba_runs,
         "mitsuba_load_s": load_s,
