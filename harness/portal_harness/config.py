@@ -65,10 +65,10 @@ class ReferenceSettings:
     time_s: float
     seed: int
     threads: int
-    noise_ratio: float = 0.1      # reference noise / smallest error compared, at most
-    max_time_s: float = 0.0       # cap on one reference's extended render time (0: none)
-    pilot_time_s: float = 0.5     # per candidate strategy
-    bias_z: float = 4.0           # the two references may disagree by at most this many sigma
+    noise_ratio: float = 0.1  # reference noise / smallest error compared, at most
+    max_time_s: float = 0.0  # cap on one reference's extended render time (0: none)
+    pilot_time_s: float = 0.5  # per candidate strategy
+    bias_z: float = 4.0  # the two references may disagree by at most this many sigma
 
 
 @dataclass(frozen=True)
@@ -120,11 +120,11 @@ class Experiment:
     height: int
     equal_time_s: float | None
     curve_metric: str
-    scene_sha256: str               # of the scene and its includes, read once at load
+    scene_sha256: str  # of the scene and its includes, read once at load
     # The cross product, each point with its axis value from the renderer's
     # effective config of it (evaluated params).
     point_list: tuple[Point, ...]
-    lit_threshold: float = 0.001    # regions.lit_threshold: reference radiance above which a pixel is lit
+    lit_threshold: float = 0.001  # regions.lit_threshold: reference radiance above which a pixel is lit
 
     def points(self) -> list[Point]:
         return list(self.point_list)
@@ -144,33 +144,66 @@ class Experiment:
         assert self.budget is not None
         return self.budget.seed + replicate * len(self.all_strategies) + self.all_strategies.index(strategy)
 
-    def _spec(self, point: Point, strategy: str, spp: int, time_s: float, seed: int, threads: int,
-              snapshots: Overrides = NO_SNAPSHOTS, extra: Overrides = (), reference: bool = False,
-              label: str | None = None) -> RunSpec:
+    def _spec(
+        self,
+        point: Point,
+        strategy: str,
+        spp: int,
+        time_s: float,
+        seed: int,
+        threads: int,
+        snapshots: Overrides = NO_SNAPSHOTS,
+        extra: Overrides = (),
+        reference: bool = False,
+        label: str | None = None,
+    ) -> RunSpec:
         """A render of this experiment's scene at `point`; `label` tags an
         auxiliary render (pilot, region map) in the index."""
         labels = self._labels(point) + (((label, 1.0),) if label else ())
-        return RunSpec(scene=str(self.scene), scene_sha256=self.scene_sha256, strategy=strategy,
-                       integrator=self.integrator, spp=spp, time_s=time_s, seed=seed, threads=threads,
-                       overrides=self._overrides(point) + extra, snapshots=snapshots, reference=reference,
-                       labels=labels)
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=self.scene_sha256,
+            strategy=strategy,
+            integrator=self.integrator,
+            spp=spp,
+            time_s=time_s,
+            seed=seed,
+            threads=threads,
+            overrides=self._overrides(point) + extra,
+            snapshots=snapshots,
+            reference=reference,
+            labels=labels,
+        )
 
-    def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None,
-                 replicate: int = 0) -> RunSpec:
+    def run_spec(
+        self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None, replicate: int = 0
+    ) -> RunSpec:
         if self.budget is None:
             raise ConfigError(str(self.path), "budget", "required to run a sweep")
         if seed is None:
             seed = self.replicate_seed(strategy, replicate)
-        return self._spec(point, strategy, spp=self.budget.spp if spp is None else spp,
-                          time_s=self.budget.time_s if spp is None else 0.0, seed=seed,
-                          threads=self.budget.threads, snapshots=self.budget.snapshots)
+        return self._spec(
+            point,
+            strategy,
+            spp=self.budget.spp if spp is None else spp,
+            time_s=self.budget.time_s if spp is None else 0.0,
+            seed=seed,
+            threads=self.budget.threads,
+            snapshots=self.budget.snapshots,
+        )
 
     def regress_spec(self, point: Point, strategy: str, seed: int) -> RunSpec:
         """A fixed-seed, fixed-sample run of `regress` (no time limit, no snapshots asked for)."""
         if self.regress is None:
             raise ConfigError(str(self.path), "regress", "required by the regress command")
-        return self._spec(point, strategy, spp=self.regress.spp, time_s=0.0, seed=seed,
-                          threads=self.budget.threads if self.budget else 1)
+        return self._spec(
+            point,
+            strategy,
+            spp=self.regress.spp,
+            time_s=0.0,
+            seed=seed,
+            threads=self.budget.threads if self.budget else 1,
+        )
 
     def baseline_path(self, layout: ResultsLayout) -> Path:
         """regress.baseline if given, else results/baselines/<name>.json."""
@@ -183,22 +216,39 @@ class Experiment:
         own seed, and resumable, so that it can be extended (references.py).
         `time_s` replaces reference.time_s (the pilot's prediction)."""
         r = self.reference
-        return self._spec(point, strategy, spp=r.spp, time_s=r.time_s if time_s is None else time_s,
-                          seed=r.seed + 7 * part, threads=r.threads, extra=REFERENCE_RENDER_OVERRIDES,
-                          reference=True)
+        return self._spec(
+            point,
+            strategy,
+            spp=r.spp,
+            time_s=r.time_s if time_s is None else time_s,
+            seed=r.seed + 7 * part,
+            threads=r.threads,
+            extra=REFERENCE_RENDER_OVERRIDES,
+            reference=True,
+        )
 
     def pilot_spec(self, point: Point, strategy: str) -> RunSpec:
         """A short render of a candidate reference strategy: its own
         variance layer says how efficient the strategy is here."""
         r = self.reference
-        return self._spec(point, strategy, spp=0, time_s=r.pilot_time_s, seed=r.seed + 1000, threads=r.threads,
-                          label="pilot")
+        return self._spec(
+            point, strategy, spp=0, time_s=r.pilot_time_s, seed=r.seed + 1000, threads=r.threads, label="pilot"
+        )
 
     def region_map_spec(self, point: Point) -> RunSpec:
         """The render whose region AOV gives the point's region classes."""
         r = self.reference
-        return self._spec(point, "light", spp=REGION_MAP_SPP, time_s=0.0, seed=r.seed + 2000, threads=r.threads,
-                          extra=AOV_OVERRIDES, label="region_map")
+        return self._spec(
+            point,
+            "light",
+            spp=REGION_MAP_SPP,
+            time_s=0.0,
+            seed=r.seed + 2000,
+            threads=r.threads,
+            extra=AOV_OVERRIDES,
+            label="region_map",
+        )
+
 
 def point_overrides(fixed: Overrides, values: tuple[tuple[str, Any], ...]) -> Overrides:
     """The --set overrides of a point: the fixed ones and the point's values."""
@@ -243,8 +293,22 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     root = r.mapping(
         read_yaml(p, "experiment file"),
         "",
-        allowed={"name", "scene", "integrator", "strategies", "sweep", "fixed", "budget", "reference", "insets",
-                 "axis", "regress", "figures", "description", "regions"},
+        allowed={
+            "name",
+            "scene",
+            "integrator",
+            "strategies",
+            "sweep",
+            "fixed",
+            "budget",
+            "reference",
+            "insets",
+            "axis",
+            "regress",
+            "figures",
+            "description",
+            "regions",
+        },
         required={"scene", "strategies", "sweep"},
     )
     name = r.string(root.get("name", p.stem), "name")
@@ -258,18 +322,25 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     scene_info = read_scene(renderer, scene)
     params = scene_info.effective.params
 
-    integrator = r.choice(root.get("integrator", scene_info.effective.render.get("integrator")),
-                          "integrator", names.integrators, "integrator")
+    integrator = r.choice(
+        root.get("integrator", scene_info.effective.render.get("integrator")),
+        "integrator",
+        names.integrators,
+        "integrator",
+    )
 
     strategies_node = r.sequence(root["strategies"], "strategies")
-    strategies = tuple(r.choice(s, f"strategies.{i}", names.strategies, "strategy")
-                       for i, s in enumerate(strategies_node))
+    strategies = tuple(
+        r.choice(s, f"strategies.{i}", names.strategies, "strategy") for i, s in enumerate(strategies_node)
+    )
     if len(set(strategies)) != len(strategies):
         raise r.fail("strategies", "a strategy is listed twice")
 
     sweep_node = root["sweep"]
     if sweep_node is None or sweep_node == {}:
-        raise r.fail("sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)")
+        raise r.fail(
+            "sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)"
+        )
     if not isinstance(sweep_node, dict):
         raise r.fail("sweep", f"expected a mapping from parameter to list of values, got {kind_of(sweep_node)}")
     sweep: list[tuple[str, tuple[Any, ...]]] = []
@@ -309,13 +380,24 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
         snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
         # Counted in samples (integers) or seconds, as the renderer says.
         snapshots = tuple(
-            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if names.snapshot_unit(k) == "spp"
-                             else r.number(v, f"budget.snapshots.{k}", positive=True)))
+            (
+                k,
+                format_value(
+                    r.integer(v, f"budget.snapshots.{k}", minimum=1)
+                    if names.snapshot_unit(k) == "spp"
+                    else r.number(v, f"budget.snapshots.{k}", positive=True)
+                ),
+            )
             for k, v in sorted(snaps_node.items())
         )
-        budget = Budget(time_s=time_s, spp=spp, threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
-                        seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots,
-                        replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1))
+        budget = Budget(
+            time_s=time_s,
+            spp=spp,
+            threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
+            seed=r.integer(b.get("seed", 1), "budget.seed"),
+            snapshots=snapshots,
+            replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1),
+        )
 
     reference = _reference_settings(r, root.get("reference", {}) or {}, budget, names.strategies)
 
@@ -333,8 +415,11 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
         if region.name in RESERVED_REGION_NAMES or region.name in {x.name for x in insets}:
             raise r.fail(f"{key}.name", f"inset name {region.name!r} is reserved or used twice")
         if not region.fits(width, height):
-            raise r.fail(key, f"rectangle x={region.x} y={region.y} {region.width}x{region.height} "
-                              f"does not fit the {width}x{height} image")
+            raise r.fail(
+                key,
+                f"rectangle x={region.x} y={region.y} {region.width}x{region.height} "
+                f"does not fit the {width}x{height} image",
+            )
         insets.append(region)
 
     swept = [k for k, _ in sweep]
@@ -348,14 +433,20 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     for i, v in enumerate(dict(sweep)[axis_param]):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {kind_of(v)}")
-    default_label = f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
-    axis = Axis(param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label"))
+    default_label = (
+        f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
+    )
+    axis = Axis(
+        param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label")
+    )
 
     regress = None
     if "regress" in root:
         g = r.mapping(root["regress"], "regress", {"spp", "seeds", "z_max", "baseline"}, {"spp"})
-        seeds = tuple(r.integer(s, f"regress.seeds.{i}")
-                      for i, s in enumerate(r.sequence(g.get("seeds", [1, 2]), "regress.seeds")))
+        seeds = tuple(
+            r.integer(s, f"regress.seeds.{i}")
+            for i, s in enumerate(r.sequence(g.get("seeds", [1, 2]), "regress.seeds"))
+        )
         if len(seeds) < 2 or len(set(seeds)) != len(seeds):
             raise r.fail("regress.seeds", "expected at least two different seeds (the standard error needs them)")
         baseline = g.get("baseline")
@@ -397,12 +488,23 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     )
 
 
-REFERENCE_KEYS = {"strategy", "strategies", "spp", "time_s", "seed", "threads", "noise_ratio", "max_time_s",
-                  "pilot_time_s", "bias_z"}
+REFERENCE_KEYS = {
+    "strategy",
+    "strategies",
+    "spp",
+    "time_s",
+    "seed",
+    "threads",
+    "noise_ratio",
+    "max_time_s",
+    "pilot_time_s",
+    "bias_z",
+}
 
 
-def _points(r: Reader, renderer: str, scene: Path, sweep: tuple[tuple[str, tuple[Any, ...]], ...],
-            fixed: Overrides, axis: Axis) -> tuple[Point, ...]:
+def _points(
+    r: Reader, renderer: str, scene: Path, sweep: tuple[tuple[str, tuple[Any, ...]], ...], fixed: Overrides, axis: Axis
+) -> tuple[Point, ...]:
     """Every point of the cross product, checked by the renderer (its
     effective config with the point's overrides), with its axis value from
     that config: a divisor that is an expression of a swept parameter is
@@ -422,8 +524,11 @@ def _points(r: Reader, renderer: str, scene: Path, sweep: tuple[tuple[str, tuple
         if axis.divide_by is not None:
             d = _numeric(effective, axis.divide_by)
             if d is None or d == 0:
-                raise r.fail("axis.divide_by", f"{axis.divide_by!r} has no non-zero numeric value in the sweep, "
-                                               f"fixed or scene (at the point {name})")
+                raise r.fail(
+                    "axis.divide_by",
+                    f"{axis.divide_by!r} has no non-zero numeric value in the sweep, "
+                    f"fixed or scene (at the point {name})",
+                )
             x /= d
         out.append(Point(values=values, axis_value=x))
     return tuple(out)
@@ -439,8 +544,7 @@ def _reference_settings(r: Reader, node: Any, budget: Budget | None, known: tupl
         strategies = ()
     else:
         items = r.sequence(m["strategies"], "reference.strategies")
-        strategies = tuple(r.choice(s, f"reference.strategies.{i}", known, "strategy")
-                           for i, s in enumerate(items))
+        strategies = tuple(r.choice(s, f"reference.strategies.{i}", known, "strategy") for i, s in enumerate(items))
         if len(strategies) > 2 or len(set(strategies)) != len(strategies):
             raise r.fail("reference.strategies", "expected auto, or one or two different strategies")
     time_s = r.number(m.get("time_s", 0), "reference.time_s")

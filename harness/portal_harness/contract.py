@@ -158,8 +158,9 @@ def describe(renderer: str | Path) -> Contract:
     if found is None:
         out = _run(stamp, ["--describe"])
         if out.returncode != 0:
-            raise RendererError(f"renderer {stamp[0]} --describe failed (exit {out.returncode}): "
-                                f"{out.stderr.strip()[:200]}")
+            raise RendererError(
+                f"renderer {stamp[0]} --describe failed (exit {out.returncode}): {out.stderr.strip()[:200]}"
+            )
         found = _contracts[stamp] = _parse_describe(stamp[0], out.stdout)
     return found
 
@@ -183,12 +184,14 @@ def _config_error(text: str, scene: Path) -> ConfigError:
     return ConfigError(where, "", rest) if sep else ConfigError(str(scene), "", message)
 
 
-_configs: dict[tuple[BinaryStamp, str, tuple[tuple[str, str], ...], tuple[str, ...]],
-               tuple[EffectiveConfig, FileStamps]] = {}
+_configs: dict[
+    tuple[BinaryStamp, str, tuple[tuple[str, str], ...], tuple[str, ...]], tuple[EffectiveConfig, FileStamps]
+] = {}
 
 
-def print_config(renderer: str | Path, scene: Path, overrides: Sequence[tuple[str, str]] = (),
-                 flags: Sequence[str] = ()) -> EffectiveConfig:
+def print_config(
+    renderer: str | Path, scene: Path, overrides: Sequence[tuple[str, str]] = (), flags: Sequence[str] = ()
+) -> EffectiveConfig:
     """The effective config of `scene` with `--set K=V` for each override
     and the renderer options `flags` (e.g. ["--strategy", "portal"]). A
     config the renderer rejects raises ConfigError with the renderer's own

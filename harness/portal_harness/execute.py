@@ -68,14 +68,26 @@ def _worker_init() -> None:
 
 
 def _task(spec: RunSpec, target: Target) -> dict[str, Any]:
-    return runs.execute(spec, target.layout, target.renderer, target.renderer_version,
-                        force=target.force, retry_failed=target.retry_failed)
+    return runs.execute(
+        spec,
+        target.layout,
+        target.renderer,
+        target.renderer_version,
+        force=target.force,
+        retry_failed=target.retry_failed,
+    )
 
 
 def _failure(spec: RunSpec, target: Target, error: BaseException) -> dict[str, Any]:
     """A manifest-like record of a task that failed outside the renderer; not installed."""
-    return {"key": spec.key(target.renderer_version), "status": store.STATUS_FAILED, "cached": False,
-            "error": f"harness error: {type(error).__name__}: {error}", "spec": spec.to_dict(), "installed": False}
+    return {
+        "key": spec.key(target.renderer_version),
+        "status": store.STATUS_FAILED,
+        "cached": False,
+        "error": f"harness error: {type(error).__name__}: {error}",
+        "spec": spec.to_dict(),
+        "installed": False,
+    }
 
 
 def run_local(specs: list[RunSpec], target: Target, jobs: int, on_done: DoneCallback) -> None:
@@ -117,15 +129,26 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
             if spec.scene not in scene_bytes:
                 # Workers get the scene file's bytes, not the files it includes.
                 if len(contract.print_config(target.renderer, Path(spec.scene)).files) > 1:
-                    raise ConfigError(spec.scene, "include", "a scene that includes other files cannot be sent to "
-                                      "Dask workers: run it locally, or give the merged config.yaml that a "
-                                      "render writes to its output folder")
+                    raise ConfigError(
+                        spec.scene,
+                        "include",
+                        "a scene that includes other files cannot be sent to "
+                        "Dask workers: run it locally, or give the merged config.yaml that a "
+                        "render writes to its output folder",
+                    )
                 scene_bytes[spec.scene] = Path(spec.scene).read_bytes()
             key = spec.key(target.renderer_version)
             final_dir = str(target.layout.run(key, spec.reference).dir)
             future = client.submit(
-                runs.execute_packed, spec, scene_bytes[spec.scene], target.renderer, target.renderer_version,
-                final_dir, key=f"render-{key}-{os.getpid()}", pure=False, retries=0,
+                runs.execute_packed,
+                spec,
+                scene_bytes[spec.scene],
+                target.renderer,
+                target.renderer_version,
+                final_dir,
+                key=f"render-{key}-{os.getpid()}",
+                pure=False,
+                retries=0,
             )
             futures[future] = spec
         for future in as_completed(list(futures)):  # type: ignore[no-untyped-call]

@@ -123,8 +123,11 @@ def read_snapshot(path: Path | str) -> Snapshot:
             header = _header_from(p, raw)
             rgb = _stack(p, channels, RGB_CHANNELS, header.height, header.width)
             variance = _stack(p, channels, VARIANCE_CHANNELS, header.height, header.width)
-            regions = (_stack(p, channels, REGION_CHANNELS, header.height, header.width)
-                       if any(name in channels for name in REGION_CHANNELS) else None)
+            regions = (
+                _stack(p, channels, REGION_CHANNELS, header.height, header.width)
+                if any(name in channels for name in REGION_CHANNELS)
+                else None
+            )
     except CorruptExrError:
         raise
     except (RuntimeError, ValueError, OSError, IndexError, KeyError) as e:
@@ -173,8 +176,11 @@ def write_exr(path: Path | str, channels: dict[str, np.ndarray], attributes: dic
 def snapshot_channels(snapshot: Snapshot) -> dict[str, np.ndarray]:
     """The channels of a snapshot by EXR name: RGB, variance and (if present) the region AOV."""
     channels: dict[str, np.ndarray] = {}
-    for names, planes in ((RGB_CHANNELS, snapshot.rgb), (VARIANCE_CHANNELS, snapshot.variance),
-                          (REGION_CHANNELS, snapshot.regions)):
+    for names, planes in (
+        (RGB_CHANNELS, snapshot.rgb),
+        (VARIANCE_CHANNELS, snapshot.variance),
+        (REGION_CHANNELS, snapshot.regions),
+    ):
         if planes is None:
             continue
         for i, name in enumerate(names):

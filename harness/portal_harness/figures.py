@@ -53,8 +53,14 @@ from portal_harness.regions import LIT, class_map  # noqa: E402
 # Display only: a colour and a label for the strategies drawn so far. The
 # strategies themselves are the renderer's (render --describe); a name not
 # listed here is drawn under its own name in a colour of its own.
-STRATEGY_COLOURS = {"light_area": "#7f7f7f", "light": "#1f77b4", "portal": "#ff7f0e", "projection": "#2ca02c",
-                    "antishadow": "#d62728", "antishadow_exact": "#9467bd"}
+STRATEGY_COLOURS = {
+    "light_area": "#7f7f7f",
+    "light": "#1f77b4",
+    "portal": "#ff7f0e",
+    "projection": "#2ca02c",
+    "antishadow": "#d62728",
+    "antishadow_exact": "#9467bd",
+}
 STRATEGY_LABELS = {"light_area": "light (area)", "antishadow_exact": "antishadow (exact)"}
 SPARE_COLOURS = ("#8c564b", "#e377c2", "#bcbd22", "#17becf", "#393b79", "#637939")
 
@@ -69,6 +75,8 @@ def strategy_colour(strategy: str, strategies: Sequence[str]) -> str:
         return STRATEGY_COLOURS[strategy]
     unknown = [s for s in strategies if s not in STRATEGY_COLOURS]
     return SPARE_COLOURS[unknown.index(strategy) % len(SPARE_COLOURS)] if strategy in unknown else "#000000"
+
+
 INSET_COLOURS = ("#ffd700", "#00e5ff", "#ff4fd8", "#7CFC00")
 METRIC_LABELS = {"rel_mse": "relMSE", "mse": "MSE"}
 # One colour per region class (exr.REGION_CLASSES order), and grey for no majority.
@@ -90,10 +98,10 @@ class Cell:
 @dataclass(frozen=True)
 class ExperimentData:
     points: tuple[Point, ...]
-    runs: dict[tuple[str, str], Cell]                  # replicate 0 of (point, strategy)
-    replicates: dict[tuple[str, str], list[Cell]]      # every replicate
+    runs: dict[tuple[str, str], Cell]  # replicate 0 of (point, strategy)
+    replicates: dict[tuple[str, str], list[Cell]]  # every replicate
     references: dict[str, Cell]
-    summary: list[dict[str, Any]]                      # summary.json's tidy rows
+    summary: list[dict[str, Any]]  # summary.json's tidy rows
 
 
 def load(experiment: Experiment, conn: sqlite3.Connection, layout: ResultsLayout) -> ExperimentData:
@@ -149,13 +157,16 @@ def _done(cell: Cell | None) -> bool:
 
 def _curve(conn: sqlite3.Connection, cell: Cell, region: str, metric: str) -> list[tuple[float, float, float]]:
     """(time_s, metric, reference noise) of a run's images in one region, in time order."""
-    return sorted((m["time_s"], m[metric], m["floor_rel"] or 0.0)
-                  for m in index.metrics_of(conn, cell.key, cell.reference_key)
-                  if m["region"] == region and m["error"] is None and m["time_s"] and m[metric])
+    return sorted(
+        (m["time_s"], m[metric], m["floor_rel"] or 0.0)
+        for m in index.metrics_of(conn, cell.key, cell.reference_key)
+        if m["region"] == region and m["error"] is None and m["time_s"] and m[metric]
+    )
 
 
-def _mean_curve(curves: list[list[tuple[float, float, float]]]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                            np.ndarray]:
+def _mean_curve(
+    curves: list[list[tuple[float, float, float]]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Replicates aligned by image index (the same snapshot schedule): mean
     time, mean value, smallest and largest value."""
     n = min(len(c) for c in curves)
@@ -164,8 +175,9 @@ def _mean_curve(curves: list[list[tuple[float, float, float]]]) -> tuple[np.ndar
     return t.mean(axis=0), v.mean(axis=0), v.min(axis=0), v.max(axis=0)
 
 
-def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
-                        layout: ResultsLayout) -> list[Path]:
+def figure_error_curves(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
     """Error against render time, log-log: one column per sweep point, one
     row per region (lit, each inset, whole image); mean over replicates with
     their range."""
@@ -202,8 +214,11 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
             ax.tick_params(which="both", labelsize=7)
     _legend_below(fig, axes, 2)
     reps = experiment.budget.replicates if experiment.budget else 1
-    fig.suptitle(f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
-                 f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})", fontsize=10)
+    fig.suptitle(
+        f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
+        f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.12 / fig.get_figheight()))  # room for the title
     return _save(fig, layout, experiment, "error_time")
 
@@ -218,8 +233,15 @@ def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, 
     for h, lab in extra:
         handles.append(h)
         labels.append(lab)
-    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 7), fontsize=8, frameon=False,
-               bbox_to_anchor=(0.5, -0.02 - 0.02 * rows))
+    fig.legend(
+        handles,
+        labels,
+        loc="lower center",
+        ncol=min(len(labels), 7),
+        fontsize=8,
+        frameon=False,
+        bbox_to_anchor=(0.5, -0.02 - 0.02 * rows),
+    )
 
 
 def _region_title(region: str) -> str:
@@ -268,12 +290,12 @@ def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: Experimen
     return min(finals) if finals else math.inf
 
 
-def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
-                  layout: ResultsLayout) -> list[Path]:
+def figure_insets(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
     """Per sweep point: the reference with the insets drawn on it, then each
     inset of the reference and of every strategy at equal time, relMSE under it."""
-    regions: tuple[Region, ...] = experiment.insets or (
-        Region(WHOLE_IMAGE, 0, 0, experiment.width, experiment.height),)
+    regions: tuple[Region, ...] = experiment.insets or (Region(WHOLE_IMAGE, 0, 0, experiment.width, experiment.height),)
     n_sub = len(regions)
     columns = ["reference", *experiment.strategies]
     # Sizes in inches: every inset column is cell_in wide; a block (one sweep
@@ -288,9 +310,13 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
     outer = fig.add_gridspec(len(data.points), 1, hspace=0.1, top=1 - 0.55 / height, bottom=0.25 / height)
     for p_i, point in enumerate(data.points):
         ref_cell = data.references.get(point.id)
-        grid = outer[p_i].subgridspec(n_sub, 2 + len(columns),
-                                      width_ratios=[ref_w / cell_in] * 2 + [1] * len(columns),
-                                      wspace=0.06, hspace=label_in / inset_h * 1.1)
+        grid = outer[p_i].subgridspec(
+            n_sub,
+            2 + len(columns),
+            width_ratios=[ref_w / cell_in] * 2 + [1] * len(columns),
+            wspace=0.06,
+            hspace=label_in / inset_h * 1.1,
+        )
         ref_ax = fig.add_subplot(grid[:, 0])
         class_ax = fig.add_subplot(grid[:, 1])
         class_ax.set_xticks([])
@@ -313,8 +339,11 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
         for r_i, region in enumerate(regions):
             colour_ = INSET_COLOURS[r_i % len(INSET_COLOURS)]
             for ax_ in (ref_ax, class_ax):
-                ax_.add_patch(Rectangle((region.x - 0.5, region.y - 0.5), region.width, region.height,
-                                        fill=False, ec=colour_, lw=1.2))
+                ax_.add_patch(
+                    Rectangle(
+                        (region.x - 0.5, region.y - 0.5), region.width, region.height, fill=False, ec=colour_, lw=1.2
+                    )
+                )
         if p_i == 0:
             ref_ax.set_title("reference", fontsize=8)
             class_ax.set_title("antishadow region classes", fontsize=8)
@@ -343,7 +372,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                         except CorruptExrError:
                             label = "unreadable"
                 else:
-                    label = (cell.status if cell and cell.status else "missing")
+                    label = cell.status if cell and cell.status else "missing"
             for r_i, region in enumerate(regions):
                 ax = fig.add_subplot(grid[r_i, 2 + c_i])
                 ax.set_xticks([])
@@ -359,14 +388,18 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                     continue
                 ax.imshow(display.to_display(crop(image, region), exposure), interpolation="nearest")
                 value = values.get(region.name)
-                text = label_time if column == "reference" else (
-                    f"{value:.3g}" if value is not None else "-")
+                text = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
-    fig.legend(handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS)]
-               + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
-               loc="lower center", ncol=8, fontsize=7, frameon=False, bbox_to_anchor=(0.5, -0.01))
-    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10,
-                 y=0.995)
+    fig.legend(
+        handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS)]
+        + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
+        loc="lower center",
+        ncol=8,
+        fontsize=7,
+        frameon=False,
+        bbox_to_anchor=(0.5, -0.01),
+    )
+    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10, y=0.995)
     return _save(fig, layout, experiment, "insets")
 
 
@@ -389,25 +422,36 @@ def _summary_regions(data: ExperimentData) -> list[str]:
     return found
 
 
-def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
-                      layout: ResultsLayout) -> list[Path]:
+def figure_efficiency(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
     """Efficiency relative to light sampling (top row) and equal-error
     speed-up (bottom row) against the swept axis, one column per region,
     from the tidy summary; error bars of one standard error over replicates,
     open triangles for bounds."""
     regions = _summary_regions(data)
-    measures = (("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
-                ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound",
-                 "speed-up at light's final error"))
-    fig, axes = plt.subplots(len(measures), len(regions), figsize=(3.3 * len(regions), 3.0 * len(measures)),
-                             squeeze=False)
+    measures = (
+        ("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
+        ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up at light's final error"),
+    )
+    fig, axes = plt.subplots(
+        len(measures), len(regions), figsize=(3.3 * len(regions), 3.0 * len(measures)), squeeze=False
+    )
     for m_i, (column, se_column, bound_column, label) in enumerate(measures):
         for r_i, region in enumerate(regions):
             ax = axes[m_i][r_i]
             for strategy in experiment.strategies:
-                rows = sorted((r for r in data.summary if r["region"] == region and r["strategy"] == strategy
-                               and isinstance(r.get(column), (int, float)) and r[column] > 0),
-                              key=lambda r: r["axis"])
+                rows = sorted(
+                    (
+                        r
+                        for r in data.summary
+                        if r["region"] == region
+                        and r["strategy"] == strategy
+                        and isinstance(r.get(column), (int, float))
+                        and r[column] > 0
+                    ),
+                    key=lambda r: r["axis"],
+                )
                 if not rows:
                     continue
                 xs = [r["axis"] for r in rows]
@@ -419,11 +463,25 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
                     bounded = bool(r.get(bound_column))
                     if isinstance(se, (int, float)) and math.isfinite(se) and se > 0:
                         lo = max(r[column] - se, r[column] * 1e-3)
-                        ax.errorbar([r["axis"]], [r[column]], yerr=[[r[column] - lo], [se]], color=colour_,
-                                    lw=0.9, capsize=2, ls="none")
+                        ax.errorbar(
+                            [r["axis"]],
+                            [r[column]],
+                            yerr=[[r[column] - lo], [se]],
+                            color=colour_,
+                            lw=0.9,
+                            capsize=2,
+                            ls="none",
+                        )
                     marker = {"lower": "^", "upper": "v"}.get(r.get(bound_column) or "", "D" if bounded else "o")
-                    ax.plot([r["axis"]], [r[column]], ls="none", marker=marker, ms=5 if bounded else 4,
-                            mfc="white" if bounded else colour_, color=colour_)
+                    ax.plot(
+                        [r["axis"]],
+                        [r[column]],
+                        ls="none",
+                        marker=marker,
+                        ms=5 if bounded else 4,
+                        mfc="white" if bounded else colour_,
+                        color=colour_,
+                    )
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_xlabel(experiment.axis.label, fontsize=8)
@@ -436,13 +494,17 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
             ax.xaxis.set_minor_formatter(NullFormatter())
             ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
             ax.tick_params(which="both", labelsize=7)
-    extra = [(Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
-             (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound")]
+    extra = [
+        (Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
+        (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound"),
+    ]
     _legend_below(fig, axes, len(measures), extra)
     reps = experiment.budget.replicates if experiment.budget else 1
-    fig.suptitle(f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
-                 f"sampling (reference noise removed; bars: one standard error over {reps} replicates)",
-                 fontsize=10)
+    fig.suptitle(
+        f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
+        f"sampling (reference noise removed; bars: one standard error over {reps} replicates)",
+        fontsize=10,
+    )
     fig.tight_layout()
     return _save(fig, layout, experiment, "efficiency")
 

@@ -38,9 +38,9 @@ DEFAULT_CAP_FACTOR = 20.0
 @dataclass(frozen=True)
 class RegionCheck:
     region: str
-    floor: float            # the reference's noise in relMSE units
-    smallest_error: float   # smallest mean final relMSE of any strategy (measured, floor included)
-    ratio: float            # floor / smallest_error; nan when both are 0
+    floor: float  # the reference's noise in relMSE units
+    smallest_error: float  # smallest mean final relMSE of any strategy (measured, floor included)
+    ratio: float  # floor / smallest_error; nan when both are 0
     ok: bool
 
 
@@ -65,13 +65,18 @@ def pooled_relative_variance(part: exr.Snapshot, mean: np.ndarray, region: Named
 
 @dataclass(frozen=True)
 class Extension:
-    part: int               # index of the reference part to extend
-    factor: float           # its samples are multiplied by this
+    part: int  # index of the reference part to extend
+    factor: float  # its samples are multiplied by this
     regions: tuple[str, ...]
 
 
-def plan_extension(failed: list[RegionCheck], parts: list[exr.Snapshot], mean: np.ndarray,
-                   regions: list[NamedRegion], noise_ratio: float) -> Extension | None:
+def plan_extension(
+    failed: list[RegionCheck],
+    parts: list[exr.Snapshot],
+    mean: np.ndarray,
+    regions: list[NamedRegion],
+    noise_ratio: float,
+) -> Extension | None:
     """The one extension that brings every failed region within the limit."""
     by_name = {r.name: r for r in regions}
     needs: dict[int, float] = {}

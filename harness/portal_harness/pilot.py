@@ -45,8 +45,8 @@ BASELINE = "light"
 class PilotResult:
     strategy: str
     time_s: float
-    worst_need: float                 # max over regions of cost / best cost there; lower is better
-    needs: dict[str, float]           # by region
+    worst_need: float  # max over regions of cost / best cost there; lower is better
+    needs: dict[str, float]  # by region
 
 
 def region_costs(pilot: exr.Snapshot, regions: list[NamedRegion]) -> dict[str, float]:

@@ -80,9 +80,14 @@ def spec_from_scene(
     renderer validates the overrides and the settings."""
     scene = scene.resolve()
     flags: list[str] = []
-    for flag, value in (("--strategy", strategy), ("--integrator", integrator), ("--spp", spp),
-                        ("--time", None if time_s is None else float(time_s)), ("--seed", seed),
-                        ("--threads", threads)):
+    for flag, value in (
+        ("--strategy", strategy),
+        ("--integrator", integrator),
+        ("--spp", spp),
+        ("--time", None if time_s is None else float(time_s)),
+        ("--seed", seed),
+        ("--threads", threads),
+    ):
         if value is not None:
             flags += [flag, format_value(value)]
     asked = [*overrides.items(), *((f"render.snapshots.{k}", v) for k, v in (snapshots or {}).items())]
@@ -96,7 +101,9 @@ def spec_from_scene(
     if snapshots is None:
         schedule = render.get("snapshots") or {}
         snapshots = {k: format_value(v) for k, v in schedule.items() if k in SNAPSHOT_KEYS}
-    passed = {k: v for k, v in overrides.items() if k not in HARNESS_RENDER_KEYS and not k.startswith("render.snapshots")}
+    passed = {
+        k: v for k, v in overrides.items() if k not in HARNESS_RENDER_KEYS and not k.startswith("render.snapshots")
+    }
     if not isinstance(render.get("strategy"), str) or not isinstance(render.get("integrator"), str):
         raise ConfigError(str(scene), "render", "the renderer's effective config names no strategy or integrator")
     return RunSpec(

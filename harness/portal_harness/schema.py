@@ -21,8 +21,9 @@ class Reader:
     def fail(self, key: str, message: str) -> ConfigError:
         return ConfigError(self.file, key, message)
 
-    def mapping(self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
-                ) -> dict[str, Any]:
+    def mapping(
+        self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
+    ) -> dict[str, Any]:
         if not isinstance(node, dict):
             raise self.fail(key, f"expected a mapping, got {kind_of(node)}")
         for k in node:

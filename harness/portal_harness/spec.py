@@ -31,8 +31,15 @@ SNAPSHOT_KEYS: tuple[str, ...] = ("every", "doubling", "every_spp", "doubling_sp
 IMAGE_RENDER_KEYS: frozenset[str] = frozenset({"render.integrator", "render.max_depth", "render.rr_depth"})
 # render.* keys the harness sets itself through flags; an override may not set them.
 HARNESS_RENDER_KEYS: frozenset[str] = frozenset(
-    {"render.output", "render.spp", "render.time", "render.seed", "render.threads", "render.strategy",
-     "render.integrator"}
+    {
+        "render.output",
+        "render.spp",
+        "render.time",
+        "render.seed",
+        "render.threads",
+        "render.strategy",
+        "render.integrator",
+    }
 )
 
 Overrides = tuple[tuple[str, str], ...]
@@ -81,9 +88,7 @@ class RunSpec:
     labels: tuple[tuple[str, float], ...] = field(default=(), compare=False)
 
     def scene_hash(self) -> str:
-        image_overrides = [
-            (k, v) for k, v in self.overrides if not k.startswith("render.") or k in IMAGE_RENDER_KEYS
-        ]
+        image_overrides = [(k, v) for k, v in self.overrides if not k.startswith("render.") or k in IMAGE_RENDER_KEYS]
         return short_hash({"scene": self.scene_sha256, "integrator": self.integrator, "overrides": image_overrides})
 
     def key(self, renderer_version: str) -> str:
@@ -119,10 +124,22 @@ class RunSpec:
     def command(self, renderer: str, scene_path: str, out_dir: str) -> list[str]:
         """The renderer's command line (renderer contract)."""
         cmd = [
-            renderer, scene_path, "--out", out_dir,
-            "--strategy", self.strategy, "--integrator", self.integrator,
-            "--spp", str(self.spp), "--time", format_value(float(self.time_s)),
-            "--seed", str(self.seed), "--threads", str(self.threads),
+            renderer,
+            scene_path,
+            "--out",
+            out_dir,
+            "--strategy",
+            self.strategy,
+            "--integrator",
+            self.integrator,
+            "--spp",
+            str(self.spp),
+            "--time",
+            format_value(float(self.time_s)),
+            "--seed",
+            str(self.seed),
+            "--threads",
+            str(self.threads),
         ]
         for k, v in self.overrides:
             cmd += ["--set", f"{k}={v}"]

@@ -24,7 +24,7 @@ _TINY = 1e-300
 @dataclass(frozen=True)
 class TimeToError:
     time_s: float
-    bound: str          # "", LOWER (speed-up >= the value) or UPPER (speed-up <= the value)
+    bound: str  # "", LOWER (speed-up >= the value) or UPPER (speed-up <= the value)
 
 
 def time_to_error(curve: list[tuple[float, float]], target: float) -> TimeToError | None:

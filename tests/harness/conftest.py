@@ -55,8 +55,9 @@ def fake_renderer(tmp_path_factory: pytest.TempPathFactory) -> Path:
         pytest.skip("renderer/build/render not built yet (the fake renderer asks it for the contract)")
     folder = tmp_path_factory.mktemp("fake-renderer")
     path = folder / "render"
-    path.write_text(f'#!/bin/sh\nFAKE_RENDER_REAL="{REAL_RENDERER}" exec "{sys.executable}" '
-                    f'"{HERE / "fake_render.py"}" "$@"\n')
+    path.write_text(
+        f'#!/bin/sh\nFAKE_RENDER_REAL="{REAL_RENDERER}" exec "{sys.executable}" "{HERE / "fake_render.py"}" "$@"\n'
+    )
     path.chmod(path.stat().st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
     return path
 
@@ -86,8 +87,15 @@ def fake_scene(tmp_path: Path) -> Path:
     accepts (the fake asks it for the effective config)."""
     tree = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
     tree["film"] = {"width": 16, "height": 16}
-    tree["render"] = {"integrator": "direct", "strategy": "light", "spp": 16, "seed": 1, "threads": 1,
-                      "snapshots": {"every": 0.5}, "output": "unused"}
+    tree["render"] = {
+        "integrator": "direct",
+        "strategy": "light",
+        "spp": 16,
+        "seed": 1,
+        "threads": 1,
+        "snapshots": {"every": 0.5},
+        "output": "unused",
+    }
     path = tmp_path / "scenes" / "tiny.yaml"
     path.parent.mkdir(parents=True)
     path.write_text(yaml.safe_dump(tree, sort_keys=False))
@@ -109,8 +117,10 @@ def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
             "fixed": {"params.s_P": 0.3},
             "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
             "reference": {"strategy": "light", "spp": 2000, "seed": 99},
-            "insets": [{"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
-                       {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5}],
+            "insets": [
+                {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
+                {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5},
+            ],
             "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
         }
         for key, value in sections.items():

@@ -33,9 +33,19 @@ def write_snapshot(
     """Writes atomically (temporary name, then rename), like the renderer."""
     rgb = np.asarray(rgb, dtype=np.float32)
     variance = np.asarray(variance, dtype=np.float32)
-    header = exr.SnapshotHeader(width=rgb.shape[1], height=rgb.shape[0], render_time_s=render_time_s, spp=spp,
-                                strategy=strategy, integrator=integrator, seed=seed, config_hash=config_hash,
-                                renderer_version=renderer_version, rays=rays, nonfinite_samples=nonfinite_samples)
+    header = exr.SnapshotHeader(
+        width=rgb.shape[1],
+        height=rgb.shape[0],
+        render_time_s=render_time_s,
+        spp=spp,
+        strategy=strategy,
+        integrator=integrator,
+        seed=seed,
+        config_hash=config_hash,
+        renderer_version=renderer_version,
+        rays=rays,
+        nonfinite_samples=nonfinite_samples,
+    )
     channels = exr.snapshot_channels(exr.Snapshot(path=Path(path), header=header, rgb=rgb, variance=variance))
     channels.update(extra_channels or {})
     attributes = exr.snapshot_attributes(header)

@@ -51,10 +51,15 @@ from exrwrite import write_snapshot  # noqa: E402
 
 VERSION = "0.1.0-fake"
 # The fake's noise model per strategy; a strategy it does not know gets DEFAULT_SIGMA and DEFAULT_COST.
-SIGMA = {"light_area": 1.6, "light": 1.2, "portal": 0.7, "projection": 0.6, "antishadow": 0.45,
-         "antishadow_exact": 0.4}
-COST = {"light_area": 0.008, "light": 0.01, "portal": 0.011, "projection": 0.012, "antishadow": 0.013,
-        "antishadow_exact": 0.016}
+SIGMA = {"light_area": 1.6, "light": 1.2, "portal": 0.7, "projection": 0.6, "antishadow": 0.45, "antishadow_exact": 0.4}
+COST = {
+    "light_area": 0.008,
+    "light": 0.01,
+    "portal": 0.011,
+    "projection": 0.012,
+    "antishadow": 0.013,
+    "antishadow_exact": 0.016,
+}
 DEFAULT_SIGMA, DEFAULT_COST = 1.0, 0.01
 COLOUR = np.array([1.0, 0.8, 0.6])
 
@@ -109,8 +114,10 @@ def main(argv: list[str]) -> int:
         resume_dir = Path(argv[1])
         config_path, rest = str(resume_dir / "config.yaml"), argv[2:]
         if not (resume_dir / "final.state.npz").exists():
-            print(f"render: {resume_dir}/final.state: missing (render with render.resumable: true to resume)",
-                  file=sys.stderr)
+            print(
+                f"render: {resume_dir}/final.state: missing (render with render.resumable: true to resume)",
+                file=sys.stderr,
+            )
             return 2
     else:
         config_path, rest = argv[0], argv[1:]
@@ -132,7 +139,11 @@ def main(argv: list[str]) -> int:
     seed = int(render["seed"])
     integrator = str(render["integrator"])
     snaps = render.get("snapshots", {}) or {}
-    every, doubling, every_spp = float(snaps.get("every", 0)), float(snaps.get("doubling", 0)), int(snaps.get("every_spp", 0))
+    every, doubling, every_spp = (
+        float(snaps.get("every", 0)),
+        float(snaps.get("doubling", 0)),
+        int(snaps.get("every_spp", 0)),
+    )
     doubling_spp = int(snaps.get("doubling_spp", 0))
     if spp_target == 0 and time_target == 0:
         print(f"{config_path}:1:1: spp and time are both 0", file=sys.stderr)
@@ -162,10 +173,22 @@ def main(argv: list[str]) -> int:
         sys.stdout.write(json.dumps(event) + "\n")
         sys.stdout.flush()
 
-    emit({"event": "start", "out": str(out), "width": width, "height": height, "strategy": strategy,
-          "integrator": integrator, "seed": seed, "config_hash": config_hash, "renderer_version": VERSION,
-          "spp_target": spp_target, "time_target_s": time_target,
-          "resumed_from_spp": int(state["passes"]) if state is not None else 0})
+    emit(
+        {
+            "event": "start",
+            "out": str(out),
+            "width": width,
+            "height": height,
+            "strategy": strategy,
+            "integrator": integrator,
+            "seed": seed,
+            "config_hash": config_hash,
+            "renderer_version": VERSION,
+            "spp_target": spp_target,
+            "time_target_s": time_target,
+            "resumed_from_spp": int(state["passes"]) if state is not None else 0,
+        }
+    )
     mean = true_mean(width, height, s_L)
     sigma = SIGMA.get(strategy, DEFAULT_SIGMA)
     cost = COST.get(strategy, DEFAULT_COST)
@@ -190,9 +213,20 @@ def main(argv: list[str]) -> int:
 
     def write(path: Path) -> None:
         var = acc_m2 / max(passes - 1, 1) / max(passes, 1) if passes >= 2 else np.zeros_like(acc_m2)
-        write_snapshot(path, acc_mean, var, render_time_s=t, spp=passes, strategy=strategy, integrator=integrator,
-                       seed=seed, config_hash=config_hash, renderer_version=VERSION, rays=2.0 * passes * width * height,
-                       extra_channels=region_fractions(region_channels, width, height) if aov else None)
+        write_snapshot(
+            path,
+            acc_mean,
+            var,
+            render_time_s=t,
+            spp=passes,
+            strategy=strategy,
+            integrator=integrator,
+            seed=seed,
+            config_hash=config_hash,
+            renderer_version=VERSION,
+            rays=2.0 * passes * width * height,
+            extra_channels=region_fractions(region_channels, width, height) if aov else None,
+        )
 
     while not stop["now"]:
         if spp_target and passes >= spp_target:
@@ -222,8 +256,17 @@ def main(argv: list[str]) -> int:
             index += 1
             path = out / f"snapshot_{index:04d}.exr"
             write(path)
-            emit({"event": "snapshot", "index": index, "path": str(path), "time_s": round(t, 6), "spp": passes,
-                  "rays": 2 * passes * width * height, "nonfinite": 0})
+            emit(
+                {
+                    "event": "snapshot",
+                    "index": index,
+                    "path": str(path),
+                    "time_s": round(t, 6),
+                    "spp": passes,
+                    "rays": 2 * passes * width * height,
+                    "nonfinite": 0,
+                }
+            )
             if crash:
                 print("render: simulated crash in the fake renderer", file=sys.stderr)
                 sys.stderr.flush()
@@ -234,8 +277,17 @@ def main(argv: list[str]) -> int:
         np.savez(tmp, mean=acc_mean, m2=acc_m2, passes=passes, time=t, index=index, s_L=s_L)
         os.replace(tmp, out / "final.state.npz")
     write(final)
-    emit({"event": "final", "path": str(final), "time_s": round(t, 6), "spp": passes,
-          "rays": 2 * passes * width * height, "nonfinite": 0, "interrupted": stop["now"]})
+    emit(
+        {
+            "event": "final",
+            "path": str(final),
+            "time_s": round(t, 6),
+            "spp": passes,
+            "rays": 2 * passes * width * height,
+            "nonfinite": 0,
+            "interrupted": stop["now"],
+        }
+    )
     return 3 if stop["now"] else 0
 
 

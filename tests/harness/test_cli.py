@@ -34,18 +34,21 @@ def test_02_console_script_is_installed() -> None:
 
 
 def test_03_run_shows_progress_and_reports(cli: CliRunner, fake_scene: Path) -> None:
-    status, out, err = cli("run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0",
-                           "--snapshot-every", "0.1")
+    status, out, err = cli(
+        "run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0", "--snapshot-every", "0.1"
+    )
     assert status == 0, err
     assert out.startswith("run ") and ": done" in out and "folder:" in out
     assert "portal 16x16" in err and "snapshot 2" in err and "final" in err  # the live bar's text
-    status, out, err = cli("run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0",
-                           "--snapshot-every", "0.1")
+    status, out, err = cli(
+        "run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0", "--snapshot-every", "0.1"
+    )
     assert status == 0 and "cached: nothing rendered" in out and "16x16" not in err
 
 
-def test_04_failed_run_exits_1_with_renderer_stderr(cli: CliRunner, fake_scene: Path,
-                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_04_failed_run_exits_1_with_renderer_stderr(
+    cli: CliRunner, fake_scene: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "antishadow")
     status, out, err = cli("run", str(fake_scene), "--strategy", "antishadow")
     assert status == 1 and ": failed" in out

@@ -16,8 +16,11 @@ REPO = Path(__file__).resolve().parent.parent.parent
 
 
 def test_01_expands_the_cross_product(write_experiment: Callable[..., Path], real_renderer: Path) -> None:
-    path = write_experiment(sweep={"params.s_L": [0.15, 0.6], "params.s_P": [0.3, 0.6]},
-                            fixed={"film.width": 16}, axis={"param": "params.s_L", "divide_by": "params.s_P"})
+    path = write_experiment(
+        sweep={"params.s_L": [0.15, 0.6], "params.s_P": [0.3, 0.6]},
+        fixed={"film.width": 16},
+        axis={"param": "params.s_L", "divide_by": "params.s_P"},
+    )
     exp = load_experiment(path, str(real_renderer))
     points = exp.points()
     assert [p.id for p in points] == ["s_L=0.15,s_P=0.3", "s_L=0.15,s_P=0.6", "s_L=0.6,s_P=0.3", "s_L=0.6,s_P=0.6"]
@@ -68,14 +71,18 @@ BAD: list[tuple[dict[str, Any], str, str]] = [
     # checked against the renderer: its parameters, and its own messages for what it refuses
     ({"sweep": {"params.s_X": [1, 2]}, "axis": {"param": "params.s_X"}}, "sweep.params.s_X", "no parameter 's_X'"),
     ({"fixed": {"params.s_P": 0.3, "film.width": -3}}, "fixed", "--set film.width=-3: "),
-    ({"sweep": {"params.s_L": [0.15], "film.height": [16, 0]}}, "sweep",
-     "rejects the point params.s_L=0.15,film.height=0: --set film.height=0: "),
+    (
+        {"sweep": {"params.s_L": [0.15], "film.height": [16, 0]}},
+        "sweep",
+        "rejects the point params.s_L=0.15,film.height=0: --set film.height=0: ",
+    ),
 ]
 
 
 @pytest.mark.parametrize("change,key,message", BAD, ids=[b[1] for b in BAD])
-def test_03_bad_configs_name_file_and_key(write_experiment: Callable[..., Path], real_renderer: Path,
-                                          change: dict[str, Any], key: str, message: str) -> None:
+def test_03_bad_configs_name_file_and_key(
+    write_experiment: Callable[..., Path], real_renderer: Path, change: dict[str, Any], key: str, message: str
+) -> None:
     path = write_experiment(**change)
     with pytest.raises(ConfigError) as info:
         load_experiment(path, str(real_renderer))
@@ -100,7 +107,13 @@ def test_05_missing_experiment_file(tmp_path: Path, real_renderer: Path) -> None
 def test_06_run_spec_from_scene_defaults(fake_scene: Path, real_renderer: Path) -> None:
     spec = spec_from_scene(fake_scene, {"params.s_L": "0.3", "render.mis": "balance"}, str(real_renderer))
     assert (spec.strategy, spec.integrator, spec.spp, spec.time_s, spec.seed, spec.threads) == (
-        "light", "direct", 16, 0.0, 1, 1)
+        "light",
+        "direct",
+        16,
+        0.0,
+        1,
+        1,
+    )
     assert dict(spec.overrides) == {"params.s_L": "0.3", "render.mis": "balance"}
     assert dict(spec.snapshots) == {"every": "0.5"}
     with pytest.raises(ConfigError, match="unknown strategy"):
@@ -119,9 +132,12 @@ def test_snapshots_in_spp_are_integers(write_experiment: Callable[..., Path], re
         assert "budget.snapshots.doubling_spp" in str(e.value)
 
 
-
 def test_axis_divisor_is_evaluated_at_each_point(write_experiment: Callable[..., Path], real_renderer: Path) -> None:
     # the lampshade's h is "=s_P / 2": the renderer evaluates it with each point's s_P
-    exp = load_experiment(write_experiment(sweep={"params.s_P": [0.3, 0.6]}, fixed={},
-                                           axis={"param": "params.s_P", "divide_by": "params.h"}), str(real_renderer))
+    exp = load_experiment(
+        write_experiment(
+            sweep={"params.s_P": [0.3, 0.6]}, fixed={}, axis={"param": "params.s_P", "divide_by": "params.h"}
+        ),
+        str(real_renderer),
+    )
     assert [p.axis_value for p in exp.points()] == pytest.approx([2.0, 2.0])

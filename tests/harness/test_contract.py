@@ -39,8 +39,12 @@ def test_02_the_harness_constants_match_the_renderer(real_renderer: Path) -> Non
     header_fields = {f.name for f in dataclasses.fields(exr.SnapshotHeader)} - {"width", "height"}
     assert set(c.exr_attributes) == header_fields
     # runs.py reads its exit statuses
-    assert dict(c.exit_codes) == {"done": renderer.EXIT_OK, "runtime": renderer.EXIT_RUNTIME,
-                                  "usage": renderer.EXIT_USAGE, "interrupted": renderer.EXIT_INTERRUPTED}
+    assert dict(c.exit_codes) == {
+        "done": renderer.EXIT_OK,
+        "runtime": renderer.EXIT_RUNTIME,
+        "usage": renderer.EXIT_USAGE,
+        "interrupted": renderer.EXIT_INTERRUPTED,
+    }
     # the schedules the harness sets are the renderer's
     assert all(c.snapshot_unit(k) in ("s", "spp") for k in SNAPSHOT_KEYS)
     assert {"start", "snapshot", "final"} <= set(c.json_events)

@@ -25,12 +25,14 @@ def layout(results: Path) -> ResultsLayout:
     return ResultsLayout(results)
 
 
-def test_01_run_writes_manifest_snapshots_and_is_cached(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                        render_log: Callable[[], list[str]]) -> None:
+def test_01_run_writes_manifest_snapshots_and_is_cached(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, render_log: Callable[[], list[str]]
+) -> None:
     version = renderer_version(str(fake_renderer))
     assert version == "0.1.0-fake"
-    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2,
-                           snapshots={"every": "0.05"})
+    spec = spec_from_scene(
+        fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"}
+    )
     events: list[str] = []
     m = runs.execute(spec, layout, str(fake_renderer), version, on_event=lambda e: events.append(e["event"]))
     assert m["status"] == "done" and not m["cached"]
@@ -51,12 +53,18 @@ def test_01_run_writes_manifest_snapshots_and_is_cached(fake_scene: Path, fake_r
     assert again["cached"] and len(render_log()) == 1
 
 
-def test_02_crash_is_failed_with_stderr_kept(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                             render_log: Callable[[], list[str]],
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_02_crash_is_failed_with_stderr_kept(
+    fake_scene: Path,
+    fake_renderer: Path,
+    layout: ResultsLayout,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_CRASH", "portal")
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"})
+    spec = spec_from_scene(
+        fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"}
+    )
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["signal"] == "SIGSEGV"
     assert "SIGSEGV" in m["error"]
@@ -71,9 +79,13 @@ def test_02_crash_is_failed_with_stderr_kept(fake_scene: Path, fake_renderer: Pa
     assert len(render_log()) == 2
 
 
-def test_03_unimplemented_strategy_and_config_errors_fail(fake_scene: Path, fake_renderer: Path,
-                                                          layout: ResultsLayout, render_log: Callable[[], list[str]],
-                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+def test_03_unimplemented_strategy_and_config_errors_fail(
+    fake_scene: Path,
+    fake_renderer: Path,
+    layout: ResultsLayout,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "antishadow_exact")
     version = renderer_version(str(fake_renderer))
     spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="antishadow_exact", spp=4)
@@ -88,8 +100,9 @@ def test_03_unimplemented_strategy_and_config_errors_fail(fake_scene: Path, fake
     assert m["status"] == "failed" and m["exit_status"] == 2
 
 
-def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+def test_04_interrupted_attempt_is_never_installed(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, monkeypatch: pytest.MonkeyPatch
+) -> None:
     version = renderer_version(str(fake_renderer))
     spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=8)
     key = spec.key(version)
@@ -107,8 +120,9 @@ def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_render
     assert store.clean_stale_attempts(layout) >= 1 and not dead.exists()
 
 
-def test_05_folder_without_done_manifest_is_redone(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                   render_log: Callable[[], list[str]]) -> None:
+def test_05_folder_without_done_manifest_is_redone(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, render_log: Callable[[], list[str]]
+) -> None:
     version = renderer_version(str(fake_renderer))
     spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=8)
     run = layout.run(spec.key(version))
@@ -120,10 +134,13 @@ def test_05_folder_without_done_manifest_is_redone(fake_scene: Path, fake_render
     assert exr.read_header(run.final).spp == 8
 
 
-def test_06_corrupt_snapshot_is_reported_not_averaged(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                      render_log: Callable[[], list[str]]) -> None:
+def test_06_corrupt_snapshot_is_reported_not_averaged(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, render_log: Callable[[], list[str]]
+) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=0, time_s=0.1, snapshots={"every": "0.02"})
+    spec = spec_from_scene(
+        fake_scene, {}, str(fake_renderer), strategy="light", spp=0, time_s=0.1, snapshots={"every": "0.02"}
+    )
     m = runs.execute(spec, layout, str(fake_renderer), version)
     run = layout.run(m["key"])
     ref = exr.read_snapshot(run.final)
@@ -140,8 +157,7 @@ def test_06_corrupt_snapshot_is_reported_not_averaged(fake_scene: Path, fake_ren
 
 
 def test_07_install_files_writes_manifest_last(layout: ResultsLayout, tmp_path: Path) -> None:
-    files = {"final.exr": b"x", "manifest.json": json.dumps({"status": "done", "key": "k"}).encode(),
-             "stderr.txt": b""}
+    files = {"final.exr": b"x", "manifest.json": json.dumps({"status": "done", "key": "k"}).encode(), "stderr.txt": b""}
     run = store.install_files(layout, "k", False, files)
     assert store.is_done(run) and (run.dir / "final.exr").read_bytes() == b"x"
     with pytest.raises(ValueError):

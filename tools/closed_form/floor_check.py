@@ -113,9 +113,12 @@ def load_config(run: Path) -> dict[str, Any]:
         raise ModelMismatch(f"{run / 'config.yaml'}: not a mapping")
     render = cfg.get("render") or {}
     direct = render.get("integrator") == "direct" or (
-        render.get("integrator") == "path" and int(render.get("max_depth", 0)) == 1)
+        render.get("integrator") == "path" and int(render.get("max_depth", 0)) == 1
+    )
     if not direct:
-        raise ModelMismatch(f"{run}: the closed form is for direct lighting only (integrator {render.get('integrator')})")
+        raise ModelMismatch(
+            f"{run}: the closed form is for direct lighting only (integrator {render.get('integrator')})"
+        )
     return cfg
 
 
@@ -146,8 +149,9 @@ class Comparison:
     z: float
 
 
-def compare(image: np.ndarray, variance: np.ndarray, expected: np.ndarray, select: np.ndarray,
-            time_s: float) -> Comparison:
+def compare(
+    image: np.ndarray, variance: np.ndarray, expected: np.ndarray, select: np.ndarray, time_s: float
+) -> Comparison:
     """relMSE = mean((x - r)^2 / (r^2 + 0.01)) over the set's pixels and
     channels (the harness's definition), and z of the mean difference.
 
@@ -180,8 +184,9 @@ class Row:
     ratio_vs_light: float = math.nan
 
 
-def evaluate(runs: list[Path], n: int, insets: list[Inset], snapshots: bool,
-             skipped: list[str] | None = None) -> tuple[list[Row], dict[str, ClosedForm]]:
+def evaluate(
+    runs: list[Path], n: int, insets: list[Inset], snapshots: bool, skipped: list[str] | None = None
+) -> tuple[list[Row], dict[str, ClosedForm]]:
     """Every run's final.exr (and its snapshots, if asked) against the closed
     form. Runs the model does not describe (another scene, the path
     integrator) raise ModelMismatch, or are listed in `skipped` if given."""
