@@ -37,7 +37,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test test-c test-c-san test-py figures bench fuzz crosscheck clean
+.PHONY: all deps venv test test-c test-c-san test-py lint-py figures bench fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -91,7 +91,15 @@ test-py: $(VENV_STAMP) $(BUILD)/render
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
 	  $(VENV)/bin/python -m pytest -q tests/harness; fi
 
-test: test-c test-c-san test-py
+# Linters of the harness, its tests and tools (configured in harness/pyproject.toml);
+# mypy --strict covers the harness package and tools/closed_form.
+PY_LINT := harness tests/harness tests/crosscheck tools/closed_form tools/crosscheck
+lint-py: $(VENV_STAMP)
+	$(VENV)/bin/ruff check --config harness/pyproject.toml $(PY_LINT)
+	$(VENV)/bin/ruff format --check --config harness/pyproject.toml $(PY_LINT)
+	$(VENV)/bin/mypy --config-file harness/pyproject.toml harness/portal_harness tools/closed_form
+
+test: test-c test-c-san test-py lint-py
 
 figures: $(BUILD)/render $(VENV_STAMP)
 	$(VENV)/bin/portal-harness sweep configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml

@@ -11,19 +11,20 @@ import csv
 import json
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from tqdm import tqdm
 
 from portal_harness import __version__, exr, index, measure, runs, store
 from portal_harness.config import Experiment, load_experiment
-from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
 from portal_harness.metrics import Region
-from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
 from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
+from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
 from portal_harness.renderer import renderer_version
+from portal_harness.scene import spec_from_scene
 from portal_harness.spec import NO_SNAPSHOTS
 from portal_harness.sweep import SweepOptions, sweep
 
@@ -213,7 +214,7 @@ class _RunProgress:
         self.by_time = time_s > 0
         self.total = time_s if self.by_time else float(spp)
         self.enabled = enabled
-        self.bar: tqdm | None = None
+        self.bar: tqdm[Any] | None = None
 
     def __call__(self, event: dict[str, Any]) -> None:
         kind = event.get("event")
@@ -512,5 +513,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         # The reader of our stdout went away (e.g. `| head`): not an error.
-        sys.stdout = open(os.devnull, "w")
+        # Later writes (the flush at exit) go to /dev/null instead, as the
+        # Python documentation of SIGPIPE suggests.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
         return 0

@@ -512,7 +512,7 @@ def _points(
     keys = [k for k, _ in sweep]
     out = []
     for combo in itertools.product(*(values for _, values in sweep)):
-        values = tuple(zip(keys, combo))
+        values = tuple(zip(keys, combo, strict=True))
         name = ",".join(f"{k}={format_value(v)}" for k, v in values)
         try:
             effective = contract.print_config(renderer, scene, point_overrides(fixed, values))

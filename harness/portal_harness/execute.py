@@ -14,13 +14,15 @@ scene file travels with the task.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import ctypes
 import multiprocessing
 import os
 import signal
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from portal_harness import contract, runs, store
 from portal_harness.errors import ConfigError
@@ -58,10 +60,8 @@ class Target:
 
 def _worker_init() -> None:
     """Pool workers die with the harness (and their renders with them)."""
-    try:
+    with contextlib.suppress(OSError):  # not glibc: no parent-death signal
         ctypes.CDLL("libc.so.6").prctl(1, int(signal.SIGTERM), 0, 0, 0)
-    except OSError:  # pragma: no cover - not glibc
-        pass
     # Ctrl-C reaches the whole process group: let the renderer stop itself
     # (it writes final.exr and exits 3) and the main process decide.
     signal.signal(signal.SIGINT, signal.SIG_IGN)

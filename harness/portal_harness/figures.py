@@ -23,32 +23,34 @@ from __future__ import annotations
 import json
 import math
 import sqlite3
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")  # pinned: figures are files, never windows
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
-from matplotlib.axis import Axis as MplAxis  # noqa: E402
-from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axis import Axis as MplAxis
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import (
+    Patch,
+    Rectangle,
+)
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from matplotlib.colors import ListedColormap  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-
-from portal_harness import display, exr, index  # noqa: E402
-from portal_harness.config import Experiment, Point  # noqa: E402
-from portal_harness.errors import CorruptExrError, HarnessError  # noqa: E402
-from portal_harness.index import ROLE_REFERENCE, ROLE_RUN  # noqa: E402
-from portal_harness.metrics import WHOLE_IMAGE, Region, crop  # noqa: E402
-from portal_harness.paths import ResultsLayout, RunLayout  # noqa: E402
-from portal_harness.regions import LIT, class_map  # noqa: E402
+from portal_harness import display, exr, index
+from portal_harness.config import Experiment, Point
+from portal_harness.errors import CorruptExrError, HarnessError
+from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
+from portal_harness.metrics import WHOLE_IMAGE, Region, crop
+from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.regions import LIT, class_map
 
 # Display only: a colour and a label for the strategies drawn so far. The
 # strategies themselves are the renderer's (render --describe); a name not
@@ -226,7 +228,7 @@ def figure_error_curves(
 def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, str]] = ()) -> None:
     handles, labels = [], []
     for ax in axes.flat:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
@@ -391,7 +393,7 @@ def figure_insets(
                 text = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
     fig.legend(
-        handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS)]
+        handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS, strict=True)]
         + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
         loc="lower center",
         ncol=8,

@@ -50,10 +50,7 @@ def check(floors: dict[str, float], smallest: dict[str, float], noise_ratio: flo
         err = smallest.get(region, math.nan)
         if not math.isfinite(err):
             continue
-        if err <= 0:
-            ratio = math.nan if floor <= 0 else math.inf
-        else:
-            ratio = floor / err
+        ratio = floor / err if err > 0 else (math.nan if floor <= 0 else math.inf)
         out.append(RegionCheck(region, floor, err, ratio, not (ratio > noise_ratio)))
     return out
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-
 from portal_harness import exr
 from portal_harness.metrics import rel_variance_floor
 from portal_harness.regions import NamedRegion
@@ -50,7 +49,7 @@ class PilotResult:
 
 
 def region_costs(pilot: exr.Snapshot, regions: list[NamedRegion]) -> dict[str, float]:
-    out = {}
+    out: dict[str, float] = {}
     if pilot.header.spp < 2:
         return out
     for r in regions:

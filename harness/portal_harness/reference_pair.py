@@ -60,10 +60,8 @@ def disagreement(a: exr.Snapshot, b: exr.Snapshot, regions: list[NamedRegion]) -
         d = a.rgb[r.mask] - b.rgb[r.mask]  # (pixels, channels)
         sd_pixel = np.sum(np.sqrt(a.variance[r.mask] + b.variance[r.mask]), axis=-1)
         total, var = float(np.sum(d)), float(np.sum(sd_pixel * sd_pixel))
-        if var > 0:
-            z = total / math.sqrt(var)
-        else:
-            z = 0.0 if total == 0 else math.copysign(math.inf, total)
+        # Without variance no difference is 0 sigma, and any other infinitely many.
+        z = total / math.sqrt(var) if var > 0 else (math.copysign(math.inf, total) if total != 0 else 0.0)
         out.append(RegionDisagreement(r.name, z, float(np.mean(d)) if d.size else 0.0, r.pixels))
     return out
 

@@ -83,7 +83,7 @@ def combined_key(parts: tuple[Part, ...], spps: list[int], region_map_key: str |
         {
             "kind": "combined_reference",
             "scheme": COMBINATION_SCHEME,
-            "parts": [[p.key, n] for p, n in zip(parts, spps)],
+            "parts": [[p.key, n] for p, n in zip(parts, spps, strict=True)],
             "region_map": region_map_key,
         }
     )

@@ -198,7 +198,7 @@ def regress(experiment: Experiment, options: SweepOptions, update: bool, out: Te
                 "schema": BASELINE_SCHEMA,
                 "experiment": experiment.name,
                 "renderer_version": options.renderer_version,
-                "created": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+                "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
                 "statistic": "mean over seeds, pixels and channels of var / (mean^2 + 0.01)",
                 "settings": settings_of(experiment),
                 "entries": good,

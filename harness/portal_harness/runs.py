@@ -25,7 +25,7 @@ from portal_harness.spec import RunSpec
 
 def now() -> str:
     """A manifest's timestamp: UTC, ISO 8601, milliseconds."""
-    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
 
 
 def final_record(file: str, header: exr.SnapshotHeader) -> dict[str, Any]:
@@ -177,11 +177,13 @@ def execute(
     key = spec.key(renderer_version)
     target = layout.run(key, spec.reference)
     existing = store.read_manifest(target)
-    if existing is not None and not force:
-        if existing.get("status") == store.STATUS_DONE or (
-            not retry_failed and existing.get("status") == store.STATUS_FAILED
-        ):
-            return {**existing, "cached": True}
+    status = existing.get("status") if existing is not None else None
+    if (
+        existing is not None
+        and not force
+        and (status == store.STATUS_DONE or (not retry_failed and status == store.STATUS_FAILED))
+    ):
+        return {**existing, "cached": True}
     # An interrupted harness leaves the attempt folder behind; it is never
     # installed, so nothing half-finished is counted as finished.
     attempt = store.new_attempt(layout, key, spec.reference)

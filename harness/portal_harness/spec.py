@@ -21,7 +21,6 @@ import hashlib
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 # The renderer's scalar snapshot schedules (render.snapshots.*), the ones

@@ -24,6 +24,7 @@ never stops the sweep; the exit status is 1 if any run or reference failed.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
@@ -459,10 +460,8 @@ def region_maps(
         key = spec.key(options.renderer_version)
         fractions = None
         if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
-            try:
+            with contextlib.suppress(CorruptExrError):
                 fractions = exr.read_snapshot(options.layout.run(key).final).regions
-            except CorruptExrError:
-                pass
         out[pid] = (key, fractions)
     return out
 
@@ -509,10 +508,8 @@ def choose_reference_strategies(
             key = specs[(p.id, s)].key(options.renderer_version)
             keys[s] = key
             if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
-                try:
+                with contextlib.suppress(CorruptExrError):
                     snaps[s] = exr.read_snapshot(options.layout.run(key).final)
-                except CorruptExrError:
-                    pass
         ranked: list[pilot.PilotResult] = []
         if snaps:
             # The pilots' regions: a light-sampled pilot (or any) stands in for the reference.

@@ -67,7 +67,7 @@ def synthetic(rng, bias: float):
     sigma_ours = 0.05 * truth  # standard error of our pixel mean
     sigma_run = 0.2 * truth  # standard error of one Mitsuba run
     ours = truth * (1.0 + bias) + sigma_ours * rng.standard_normal(truth.shape)
-    runs = truth + sigma_run * rng.standard_normal((k,) + truth.shape)
+    runs = truth + sigma_run * rng.standard_normal((k, *truth.shape))
     return ours, sigma_ours**2, runs
 
 
@@ -86,7 +86,7 @@ def test_2_unbiased_images_agree_and_z_is_standard_normal():
     assert s["max_abs_z"] <= s["bound"]
     # 192 tests: mean z^2 has standard deviation sqrt(2/192) = 0.10.
     assert abs(s["mean_z2"] - 1.0) < 0.5
-    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]):
+    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True):
         assert abs(r - 1.0) < 5 * e
 
 
@@ -101,8 +101,10 @@ def test_3_a_two_percent_bias_is_detected():
     assert s["max_abs_z"] > s["bound"]
     ours, var, runs = synthetic(np.random.default_rng(SEED + 2), 0.02)
     s = xcheck.compare(ours, var, runs, 8, 1e-3)["stats"]
-    assert all(abs(r - 1.02) < 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]))
-    assert all(r - 1.0 > 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]))
+    assert all(
+        abs(r - 1.02) < 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True)
+    )
+    assert all(r - 1.0 > 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True))
 
 
 def test_4_noiseless_blocks_tolerate_float_rounding_only():
@@ -211,7 +213,7 @@ def test_6_small_direct_render_agrees_with_mitsuba(tmp_path):
     s = json.loads((tmp_path / "summary.json").read_text())["stats"]
     assert s["tests"] == 192
     assert proc.returncode == 0, proc.stdout
-    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]):
+    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True):
         assert abs(r - 1.0) < 5 * e
 
 

@@ -47,7 +47,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from exrwrite import write_snapshot  # noqa: E402
+from exrwrite import write_snapshot
 
 VERSION = "0.1.0-fake"
 # The fake's noise model per strategy; a strategy it does not know gets DEFAULT_SIGMA and DEFAULT_COST.
@@ -233,7 +233,7 @@ def main(argv: list[str]) -> int:
             break
         if time_target and t >= time_target - 1e-12:
             break
-        rng = np.random.default_rng([seed, stream, int(round(s_L * 1e6)), passes])
+        rng = np.random.default_rng([seed, stream, round(s_L * 1e6), passes])
         sample = bias * mean * (1.0 + sigma * rng.standard_normal(mean.shape))
         passes += 1
         d = sample - acc_mean

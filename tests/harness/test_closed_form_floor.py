@@ -12,13 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import REPO
 
 sys.path.insert(0, str(REPO / "tools" / "closed_form"))
 
-from floor_check import compare, closed_form_for, load_config  # noqa: E402
-from floor_model import (  # noqa: E402
+from floor_check import closed_form_for, compare, load_config
+from floor_model import (
     BOX_MAX,
     BOX_MIN,
     LIGHT_Y,
@@ -28,7 +27,8 @@ from floor_model import (  # noqa: E402
     frustum_meets_box,
     projected_solid_angle_rect,
 )
-from portal_harness import exr  # noqa: E402
+
+from portal_harness import exr
 
 SCENE = REPO / "configs" / "scenes" / "lampshade.yaml"
 SIZE = 48

@@ -3,14 +3,15 @@ before any render with the file and the key in the message."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 
 from portal_harness.config import load_experiment
-from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError
+from portal_harness.scene import spec_from_scene
 
 REPO = Path(__file__).resolve().parent.parent.parent
 

@@ -234,7 +234,7 @@ def test_07_time_to_error_is_exact_on_a_power_law_and_marks_bounds() -> None:
 def _replicates(error: float, times: list[float], noise: list[float], floor: float) -> list[summary.Replicate]:
     """Replicates with relMSE (error / t) x (1 + noise_j) + floor at t_j, curves c / t."""
     out = []
-    for t, n in zip(times, noise):
+    for t, n in zip(times, noise, strict=True):
         e = error / t * (1 + n) + floor
         curve = tuple((s, error / s * (1 + n) + floor) for s in (t / 8, t / 4, t / 2, t))
         out.append(summary.Replicate(rel_mse=e, time_s=t, spp=100, curve=curve))

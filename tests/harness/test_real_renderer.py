@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import json
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
 import yaml
-
 from conftest import REPO
+
 from portal_harness import exr
 from portal_harness.renderer import renderer_version
 

@@ -4,11 +4,10 @@ when a strategy's variance rises (a config with half the samples)."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
-
 from conftest import REPO
 
 CliRunner = Callable[..., tuple[int, str, str]]

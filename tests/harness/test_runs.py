@@ -6,18 +6,19 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
-from portal_harness.regions import regions_of
 from portal_harness import exr, measure, runs, store
 from portal_harness.errors import ConfigError
-from portal_harness.scene import spec_from_scene
 from portal_harness.metrics import Region
 from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.regions import regions_of
 from portal_harness.renderer import renderer_version
+from portal_harness.scene import spec_from_scene
 
 
 @pytest.fixture
@@ -92,7 +93,7 @@ def test_03_unimplemented_strategy_and_config_errors_fail(
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 1 and "not implemented" in m["stderr_tail"]
     # the renderer checks the schedule before any render: its message, as a ConfigError
-    with pytest.raises(ConfigError, match="render.snapshots.every=-1"):
+    with pytest.raises(ConfigError, match=re.escape("render.snapshots.every=-1")):
         spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=4, snapshots={"every": "-1"})
     # and a render it refuses anyway fails with exit status 2
     bad = dataclasses.replace(spec, strategy="light", snapshots=(("every", "-1"),))

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 import yaml
-
 from floor_model import LampshadeModel, ModelMismatch, PixelModel, expected_pixels
+
 from portal_harness import exr
 from portal_harness.metrics import REL_EPSILON, efficiency
 
@@ -71,7 +71,8 @@ class ClosedForm:
 
     @property
     def mask(self) -> np.ndarray:
-        return self.coarse.mask & self.fine.mask
+        both: np.ndarray = self.coarse.mask & self.fine.mask
+        return both
 
     def pixel_sets(self, insets: list[Inset]) -> dict[str, np.ndarray]:
         h, w = self.mask.shape

@@ -109,7 +109,8 @@ class Camera:
     def directions(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Unit directions, shape px.shape + (3,)."""
         d = self.top_left + px[..., None] * self.dx + py[..., None] * self.dy
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+        unit: np.ndarray = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        return unit
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
@@ -253,7 +254,8 @@ class LampshadeModel:
         """L(p) per channel, shape px.shape + (3,), for unshadowed floor points."""
         x0, x1, z0, z1 = self.visible_rectangle(px, pz)
         e = projected_solid_angle_rect(px, pz, x0, x1, z0, z1, PORTAL_Y)
-        return (self.albedo / math.pi * self.radiance) * e[..., None]
+        radiance: np.ndarray = (self.albedo / math.pi * self.radiance) * e[..., None]
+        return radiance
 
 
 def projected_solid_angle_rect(
@@ -353,7 +355,8 @@ def footprint_corners(model: LampshadeModel) -> tuple[np.ndarray, np.ndarray]:
 def _floor_hit(origin: np.ndarray, d: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(d[..., 1] < 0, -origin[1] / d[..., 1], np.nan)
-    return origin + t[..., None] * d
+    hit: np.ndarray = origin + t[..., None] * d
+    return hit
 
 
 def floor_mask(model: LampshadeModel) -> np.ndarray:
@@ -403,7 +406,8 @@ def floor_mask(model: LampshadeModel) -> np.ndarray:
     box_lo, box_hi = np.array(BOX_MIN) - GROW, np.array(BOX_MAX) + GROW
     shadowed = frustum_meets_box(lo, hi, 0.0, s_lo, s_hi, PORTAL_Y, box_lo, box_hi)
     ok &= ~(lit & shadowed)
-    return ok
+    result: np.ndarray = ok
+    return result
 
 
 def expected_pixels(model: LampshadeModel, n: int = 16) -> PixelModel:

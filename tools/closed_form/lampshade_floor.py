@@ -14,9 +14,11 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TextIO
 
 from floor_check import FLOOR_SET, Inset, Row, evaluate, find_runs
 from floor_model import ModelMismatch
+
 from portal_harness.store import finite_or_none
 
 
@@ -24,7 +26,7 @@ def _fmt(v: float, spec: str = ".4g") -> str:
     return "-" if not math.isfinite(v) else format(v, spec)
 
 
-def print_table(rows: list[Row], out: object = sys.stdout) -> None:
+def print_table(rows: list[Row], out: TextIO = sys.stdout) -> None:
     header = (
         "run",
         "image",
@@ -59,7 +61,9 @@ def print_table(rows: list[Row], out: object = sys.stdout) -> None:
     widths = [max(len(row[i]) for row in table) for i in range(len(header))]
     for row in table:
         print(
-            "  ".join(cell.rjust(w) if i >= 3 else cell.ljust(w) for i, (cell, w) in enumerate(zip(row, widths))),
+            "  ".join(
+                cell.rjust(w) if i >= 3 else cell.ljust(w) for i, (cell, w) in enumerate(zip(row, widths, strict=True))
+            ),
             file=out,
         )
 

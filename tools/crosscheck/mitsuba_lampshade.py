@@ -49,9 +49,8 @@ def ensure_mitsuba() -> None:
         env = dict(os.environ, **{REEXEC_GUARD: "1"})
         os.execve(str(python), [str(python), str(Path(__file__).resolve()), *sys.argv[1:]], env)
     sys.stderr.write(
-        "mitsuba is not importable and %s has no working python with it.\n"
-        "Create it with:  python3 -m venv %s && %s/bin/pip install mitsuba pytest -e harness\n"
-        % (XCHECK_VENV, XCHECK_VENV, XCHECK_VENV)
+        f"mitsuba is not importable and {XCHECK_VENV} has no working python with it.\n"
+        f"Create it with:  python3 -m venv {XCHECK_VENV} && {XCHECK_VENV}/bin/pip install mitsuba pytest -e harness\n"
     )
     sys.exit(2)
 
@@ -138,8 +137,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     if args.max_depth < 1:
         p.error("--max-depth must be >= 1")
     if args.out is None:
-        tag = "scene" if args.s_L is None else "sL%g" % args.s_L
-        args.out = ROOT / "results" / "tmp" / "crosscheck" / ("%s_%s" % (args.integrator, tag))
+        tag = "scene" if args.s_L is None else f"sL{args.s_L:g}"
+        args.out = ROOT / "results" / "tmp" / "crosscheck" / (f"{args.integrator}_{tag}")
     return args
 
 
@@ -171,9 +170,9 @@ def ours_command(args: argparse.Namespace, out_dir: Path) -> list[str]:
         "render.snapshots.every=1e9",
     ]  # no snapshots: 0 is refused
     if args.s_L is not None:
-        cmd += ["--set", "params.s_L=%r" % args.s_L]
+        cmd += ["--set", f"params.s_L={args.s_L!r}"]
     if args.integrator == "path":
-        cmd += ["--set", "render.max_depth=%d" % args.max_depth, "--set", "render.rr_depth=%d" % args.rr_depth]
+        cmd += ["--set", f"render.max_depth={args.max_depth}", "--set", f"render.rr_depth={args.rr_depth}"]
     for s in args.sets:
         cmd += ["--set", s]
     return cmd
@@ -183,15 +182,15 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
     """Renders with our binary; returns its final JSON event plus wall time."""
     if not args.renderer.exists():
         raise SetupError(
-            "renderer binary %s not found (build it: make BUILD=renderer/build-xcheck "
-            "renderer/build-xcheck/render)" % args.renderer
+            f"renderer binary {args.renderer} not found (build it: make BUILD=renderer/build-xcheck "
+            "renderer/build-xcheck/render)"
         )
     cmd = ours_command(args, out_dir)
     t0 = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.monotonic() - t0
     if proc.returncode != 0:
-        raise SetupError("our renderer failed (exit %d): %s\n%s" % (proc.returncode, " ".join(cmd), proc.stderr))
+        raise SetupError(f"our renderer failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr}")
     final = None
     for line in proc.stdout.splitlines():
         ev = json.loads(line)
@@ -241,16 +240,16 @@ def _triangles(vertices: list, quads: list, triangles: list) -> list[tuple[int, 
         tris.append((q[0], q[2], q[3]))
     for t in tris:
         if any(not 0 <= i < len(vertices) for i in t):
-            raise SetupError("face index out of range: %r" % (t,))
+            raise SetupError(f"face index out of range: {t!r}")
     return tris
 
 
 def write_ply(path: Path, vertices: list, tris: list) -> None:
     """Binary little-endian PLY: float xyz, uchar-count int faces."""
     head = (
-        "ply\nformat binary_little_endian 1.0\nelement vertex %d\n"
+        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
         "property float x\nproperty float y\nproperty float z\n"
-        "element face %d\nproperty list uchar int vertex_indices\nend_header\n" % (len(vertices), len(tris))
+        f"element face {len(tris)}\nproperty list uchar int vertex_indices\nend_header\n"
     )
     body = b"".join(struct.pack("<3f", *map(float, v)) for v in vertices)
     body += b"".join(struct.pack("<B3i", 3, *t) for t in tris)
@@ -263,7 +262,7 @@ def _rgb(value) -> dict:
 
 def _bsdf(material: dict, name: str) -> dict:
     if material.get("type") != "diffuse":
-        raise SetupError("material %r: only diffuse is converted (got %r)" % (name, material.get("type")))
+        raise SetupError("material {!r}: only diffuse is converted (got {!r})".format(name, material.get("type")))
     # Our surfaces are two-sided; Mitsuba's diffuse is black from the back.
     return {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb(material["albedo"])}}
 
@@ -324,12 +323,12 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int, offs
     for i, shape in enumerate(cfg.get("shapes") or []):
         if shape.get("type") != "mesh":
             raise SetupError(
-                "shape %r: effective configs hold meshes only (got %r)" % (shape.get("name"), shape.get("type"))
+                "shape {!r}: effective configs hold meshes only (got {!r})".format(shape.get("name"), shape.get("type"))
             )
         tris = _triangles(shape["vertices"], shape.get("quads") or [], shape.get("triangles") or [])
-        ply = mesh_dir / ("shape_%02d.ply" % i)
+        ply = mesh_dir / f"shape_{i:02d}.ply"
         write_ply(ply, moved(shape["vertices"]), tris)
-        scene["shape_%02d_%s" % (i, shape["name"])] = {
+        scene[f"shape_{i:02d}_{shape['name']}"] = {
             "type": "ply",
             "filename": str(ply),
             # Flat shading: without this Mitsuba would smooth the normals of
@@ -340,7 +339,9 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int, offs
     for i, light in enumerate(cfg.get("lights") or []):
         if light.get("two_sided"):
             raise SetupError(
-                "light %r: two-sided lights are not converted (Mitsuba's area emitter is one-sided)" % light["name"]
+                "light {!r}: two-sided lights are not converted (Mitsuba's area emitter is one-sided)".format(
+                    light["name"]
+                )
             )
         verts = light["vertices"]
         # Fan triangulation of the convex polygon keeps its winding. Mitsuba's
@@ -348,9 +349,9 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int, offs
         # vertex order, as our polygon_normal; its area emitter emits on the
         # normal's side, as our one-sided light does.
         tris = [(0, k, k + 1) for k in range(1, len(verts) - 1)]
-        ply = mesh_dir / ("light_%02d.ply" % i)
+        ply = mesh_dir / f"light_{i:02d}.ply"
         write_ply(ply, moved(verts), tris)
-        scene["light_%02d_%s" % (i, light["name"])] = {
+        scene[f"light_{i:02d}_{light['name']}"] = {
             "type": "ply",
             "filename": str(ply),
             "face_normals": True,
@@ -412,7 +413,7 @@ def block_mean(a, b: int):
     """Means over b x b blocks of (..., H, W, C); a partial border is dropped."""
     h, w = a.shape[-3] // b * b, a.shape[-2] // b * b
     a = a[..., :h, :w, :]
-    shape = a.shape[:-3] + (h // b, b, w // b, b, a.shape[-1])
+    shape = (*a.shape[:-3], h // b, b, w // b, b, a.shape[-1])
     return a.reshape(shape).mean(axis=(-4, -2))
 
 
@@ -632,72 +633,50 @@ def write_images(out: Path, ours, mits, z, b: int, bound: float) -> dict:
 
 
 def format_table(s: dict, info: dict) -> str:
-    lines = []
-    lines.append(
-        "cross-check ours vs Mitsuba %s: integrator %s, s_L %s, %s"
-        % (info["mitsuba_version"], info["integrator"], info["s_L"], info["mitsuba_integrator"])
+    def row(label: str, value: str) -> str:
+        return f"  {label:<34} {value}"
+
+    ratios = "  ".join(
+        f"{r:.4f}+-{e:.4f}" for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True)
     )
-    lines.append(
-        "  ours    : %d spp, strategy %s, render %.1f s (wall %.1f s)"
-        % (info["ours_spp"], info["strategy"], info["ours_time_s"], info["ours_wall_s"])
-    )
-    lines.append(
-        "  mitsuba : %d spp = %d runs x %d spp, render %.1f s (+ load %.1f s)"
-        % (
-            info["mitsuba_spp"],
-            info["mitsuba_runs"],
-            info["mitsuba_spp"] // info["mitsuba_runs"],
-            info["mitsuba_render_s"],
-            info["mitsuba_load_s"],
-        )
-    )
-    lines.append(
-        "  %-34s %s"
-        % ("blocks x channels", "%d x 3 = %d (%dx%d px)" % (s["blocks"], s["tests"], s["block_px"], s["block_px"]))
-    )
-    lines.append(
-        "  %-34s %.3f   (bound %.3f: Bonferroni, alpha %g)" % ("max |z|", s["max_abs_z"], s["bound"], s["alpha"])
-    )
-    lines.append("  %-34s %.3f" % ("max |z| (variance from run spread)", s["max_abs_z_runs_variance"]))
-    lines.append("  %-34s %d" % ("tests where one side had no hit", s["zero_hit_tests"]))
-    lines.append("  %-34s %.4f (normal: %.4f)" % ("fraction |z| > 3", s["frac_gt_3"], s["expected_frac_gt_3"]))
-    lines.append("  %-34s %.5f (normal: %.5f)" % ("fraction |z| > 4", s["frac_gt_4"], s["expected_frac_gt_4"]))
-    lines.append("  %-34s %.5f" % ("fraction |z| > 5", s["frac_gt_5"]))
-    lines.append(
-        "  %-34s %+.3f / %.3f (normal: 0 / 1; over %d tests with variance)"
-        % ("mean z / mean z^2", s["mean_z"], s["mean_z2"], s["tests_with_variance"])
-    )
-    lines.append(
-        "  %-34s %s"
-        % (
-            "mean ratio ours/mitsuba R G B",
-            "  ".join("%.4f+-%.4f" % (r, e) for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"])),
-        )
-    )
-    lines.append("  %-34s %.3e (noise alone: %.3e)" % ("relMSE", s["relmse"], s["relmse_expected_from_noise"]))
+    runs = info["mitsuba_runs"]
+    lines = [
+        f"cross-check ours vs Mitsuba {info['mitsuba_version']}: integrator {info['integrator']}, "
+        f"s_L {info['s_L']}, {info['mitsuba_integrator']}",
+        f"  ours    : {info['ours_spp']} spp, strategy {info['strategy']}, render {info['ours_time_s']:.1f} s "
+        f"(wall {info['ours_wall_s']:.1f} s)",
+        f"  mitsuba : {info['mitsuba_spp']} spp = {runs} runs x {info['mitsuba_spp'] // runs} spp, "
+        f"render {info['mitsuba_render_s']:.1f} s (+ load {info['mitsuba_load_s']:.1f} s)",
+        row("blocks x channels", f"{s['blocks']} x 3 = {s['tests']} ({s['block_px']}x{s['block_px']} px)"),
+        row("max |z|", f"{s['max_abs_z']:.3f}   (bound {s['bound']:.3f}: Bonferroni, alpha {s['alpha']:g})"),
+        row("max |z| (variance from run spread)", f"{s['max_abs_z_runs_variance']:.3f}"),
+        row("tests where one side had no hit", f"{s['zero_hit_tests']}"),
+        row("fraction |z| > 3", f"{s['frac_gt_3']:.4f} (normal: {s['expected_frac_gt_3']:.4f})"),
+        row("fraction |z| > 4", f"{s['frac_gt_4']:.5f} (normal: {s['expected_frac_gt_4']:.5f})"),
+        row("fraction |z| > 5", f"{s['frac_gt_5']:.5f}"),
+        row(
+            "mean z / mean z^2",
+            f"{s['mean_z']:+.3f} / {s['mean_z2']:.3f} (normal: 0 / 1; over "
+            f"{s['tests_with_variance']} tests with variance)",
+        ),
+        row("mean ratio ours/mitsuba R G B", ratios),
+        row("relMSE", f"{s['relmse']:.3e} (noise alone: {s['relmse_expected_from_noise']:.3e})"),
+    ]
     if s["median_var_ratio_runs_over_pooled"] is not None:
         lines.append(
-            "  %-34s %.3f (1 if pixels independent)"
-            % ("median var ratio runs/pooled", s["median_var_ratio_runs_over_pooled"])
+            row(
+                "median var ratio runs/pooled",
+                f"{s['median_var_ratio_runs_over_pooled']:.3f} (1 if pixels independent)",
+            )
         )
     lines.append("  largest |z| blocks (x0-x1, y0-y1 pixels, row 0 at the top):")
     for t in s["top_blocks"][:5]:
         lines.append(
-            "    x %3d-%3d y %3d-%3d %s  ours %.5g +- %.2g  mitsuba %.5g +- %.2g  z %+.2f"
-            % (
-                t["pixels_x"][0],
-                t["pixels_x"][1],
-                t["pixels_y"][0],
-                t["pixels_y"][1],
-                t["channel"],
-                t["ours"],
-                t["sigma_ours"],
-                t["mitsuba"],
-                t["sigma_mitsuba"],
-                t["z"],
-            )
+            f"    x {t['pixels_x'][0]:3d}-{t['pixels_x'][1]:3d} y {t['pixels_y'][0]:3d}-{t['pixels_y'][1]:3d} "
+            f"{t['channel']}  ours {t['ours']:.5g} +- {t['sigma_ours']:.2g}  "
+            f"mitsuba {t['mitsuba']:.5g} +- {t['sigma_mitsuba']:.2g}  z {t['z']:+.2f}"
         )
-    lines.append("  result: %s" % ("AGREE within noise" if s["max_abs_z"] <= s["bound"] else "DISAGREE"))
+    lines.append(f"  result: {'AGREE within noise' if s['max_abs_z'] <= s['bound'] else 'DISAGREE'}")
     return "\n".join(lines)
 
 
@@ -718,12 +697,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.reuse_ours and final_exr.exists() and (ours_dir / "ours_run.json").exists():
             ours_run = json.loads((ours_dir / "ours_run.json").read_text())
             if ours_run.get("command") != ours_command(args, ours_dir):
-                print("not reusing %s: rendered with other options" % final_exr, file=sys.stderr)
+                print(f"not reusing {final_exr}: rendered with other options", file=sys.stderr)
                 ours_run = None
             else:
-                print("reusing %s" % final_exr, file=sys.stderr)
+                print(f"reusing {final_exr}", file=sys.stderr)
         if ours_run is None:
-            print("rendering ours: %d spp ..." % args.ours_spp, file=sys.stderr)
+            print(f"rendering ours: {args.ours_spp} spp ...", file=sys.stderr)
             ours_run = run_ours(args, ours_dir)
             (ours_dir / "ours_run.json").write_text(json.dumps(ours_run, indent=1))
         snapshot = read_ours(final_exr)
@@ -756,17 +735,17 @@ def main(argv: list[str] | None = None) -> int:
                     cached = (z["runs"].astype(np.float64), float(z["load_s"]), float(z["render_s"]))
         if cached is not None:
             runs, load_s, render_s = cached
-            print("reusing Mitsuba renders from %s" % cache, file=sys.stderr)
+            print(f"reusing Mitsuba renders from {cache}", file=sys.stderr)
         else:
-            print("rendering Mitsuba: %d runs x %d spp ..." % (args.mitsuba_runs, spp_each), file=sys.stderr)
+            print(f"rendering Mitsuba: {args.mitsuba_runs} runs x {spp_each} spp ...", file=sys.stderr)
             runs, load_s, render_s = render_mitsuba(scene_dict, args.mitsuba_runs, spp_each, args.seed * 1000)
             if cache is not None:
                 cache.parent.mkdir(parents=True, exist_ok=True)
                 np.savez_compressed(cache, key=key, runs=runs.astype(np.float32), load_s=load_s, render_s=render_s)
         if runs.shape[1:] != ours.shape:
-            raise SetupError("image sizes differ: ours %r, Mitsuba %r" % (ours.shape, runs.shape[1:]))
+            raise SetupError(f"image sizes differ: ours {ours.shape!r}, Mitsuba {runs.shape[1:]!r}")
     except SetupError as e:
-        print("error: %s" % e, file=sys.stderr)
+        print(f"error: {e}", file=sys.stderr)
         return 2
 
     result = compare(ours, ours_var, runs, args.block, args.alpha, ours_spp=ours_header.spp, mits_spp=args.mitsuba_spp)
