@@ -46,7 +46,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test test-c test-c-san test-py figures bench bench-ab bench-bins fuzz crosscheck clean
+.PHONY: all deps venv test test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -125,7 +125,15 @@ test-py: $(VENV_STAMP) $(BUILD)/render
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
 	  $(VENV)/bin/python -m pytest -q tests/harness; fi
 
-test: test-c test-c-san test-py
+# Linters of the harness, its tests and tools (configured in harness/pyproject.toml);
+# mypy --strict covers the harness package and tools/closed_form.
+PY_LINT := harness tests/harness tests/crosscheck tools/closed_form tools/crosscheck
+lint-py: $(VENV_STAMP)
+	$(VENV)/bin/ruff check --config harness/pyproject.toml $(PY_LINT)
+	$(VENV)/bin/ruff format --check --config harness/pyproject.toml $(PY_LINT)
+	$(VENV)/bin/mypy --config-file harness/pyproject.toml harness/portal_harness tools/closed_form
+
+test: test-c test-c-san test-py lint-py
 
 figures: $(BUILD)/render $(VENV_STAMP)
 	$(VENV)/bin/portal-harness sweep configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml
@@ -145,7 +153,7 @@ fuzz:
 # Independent-renderer check: the lampshade against Mitsuba 3 (own venv).
 crosscheck: $(BUILD)/render
 	@test -x .venv-xcheck/bin/python || python3 -m venv .venv-xcheck
-	@.venv-xcheck/bin/pip install -q mitsuba numpy openexr PyYAML pytest
+	@.venv-xcheck/bin/pip install -q mitsuba pytest -e harness
 	.venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py
 
 clean:

@@ -11,20 +11,21 @@ import csv
 import json
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from tqdm import tqdm
 
 from portal_harness import __version__, exr, index, measure, runs, store
-from portal_harness.config import load_experiment
-from portal_harness.scene import spec_from_scene
+from portal_harness.config import Experiment, load_experiment
 from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
 from portal_harness.metrics import Region
-from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
 from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
+from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
 from portal_harness.renderer import renderer_version
-from portal_harness.spec import INTEGRATORS, NO_SNAPSHOTS, STRATEGIES
+from portal_harness.scene import spec_from_scene
+from portal_harness.spec import NO_SNAPSHOTS
 from portal_harness.sweep import SweepOptions, sweep
 
 REFERENCE_SPP = 1024
@@ -32,19 +33,31 @@ REFERENCE_SPP = 1024
 
 def _common() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(add_help=False)
-    p.add_argument("--results", type=Path, default=None,
-                   help="results folder (default: $PORTAL_RESULTS or <repo>/results)")
-    p.add_argument("--renderer", type=Path, default=None,
-                   help="renderer binary (default: $PORTAL_RENDERER or <repo>/renderer/build/render)")
+    p.add_argument(
+        "--results", type=Path, default=None, help="results folder (default: $PORTAL_RESULTS or <repo>/results)"
+    )
+    p.add_argument(
+        "--renderer",
+        type=Path,
+        default=None,
+        help="renderer binary (default: $PORTAL_RENDERER or <repo>/renderer/build/render)",
+    )
     return p
 
 
 def _render_options(p: argparse.ArgumentParser, default_strategy: str | None) -> None:
     p.add_argument("config", type=Path, help="scene file (configs/scenes/*.yaml)")
-    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scalar of the scene, e.g. params.s_L=0.075 (repeatable)")
-    p.add_argument("--strategy", choices=STRATEGIES, default=default_strategy)
-    p.add_argument("--integrator", choices=INTEGRATORS)
+    p.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scalar of the scene, e.g. params.s_L=0.075 (repeatable)",
+    )
+    # Names are the renderer's (render --describe): it checks them.
+    p.add_argument("--strategy", default=default_strategy, help="sampling strategy (render --describe lists them)")
+    p.add_argument("--integrator", help="direct or path (render --describe lists them)")
     p.add_argument("--spp", type=int, help="samples per pixel (0: no limit)")
     p.add_argument("--time", type=float, help="render time limit in seconds (0: no limit)")
     p.add_argument("--seed", type=int)
@@ -53,77 +66,123 @@ def _render_options(p: argparse.ArgumentParser, default_strategy: str | None) ->
 
 
 def _execution_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--jobs", type=int, default=None,
-                   help="concurrent renders (default and maximum: cores // renderer threads)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run renders on a Dask distributed cluster (e.g. tcp://host:8786) instead of locally")
+    p.add_argument(
+        "--jobs", type=int, default=None, help="concurrent renders (default and maximum: cores // renderer threads)"
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run renders on a Dask distributed cluster (e.g. tcp://host:8786) instead of locally",
+    )
     p.add_argument("--skip-failed", action="store_true", help="do not retry runs recorded as failed")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def build_parser() -> argparse.ArgumentParser:
     common = _common()
-    parser = argparse.ArgumentParser(prog="portal-harness",
-                                     description="Experiment harness of portal-lights (see harness/README.md).")
+    parser = argparse.ArgumentParser(
+        prog="portal-harness", description="Experiment harness of portal-lights (see harness/README.md)."
+    )
     parser.add_argument("--version", action="version", version=f"portal-harness {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    p = sub.add_parser("run", parents=[common], help="one render with a live progress bar",
-                       description="One render of a scene into results/runs/<key>/, following the renderer's "
-                                   "snapshot stream with a live progress bar. Unset options come from the "
-                                   "scene's render section. A finished run with the same key is not redone.")
+    p = sub.add_parser(
+        "run",
+        parents=[common],
+        help="one render with a live progress bar",
+        description="One render of a scene into results/runs/<key>/, following the renderer's "
+        "snapshot stream with a live progress bar. Unset options come from the "
+        "scene's render section. A finished run with the same key is not redone.",
+    )
     _render_options(p, None)
     p.add_argument("--snapshot-every", type=float, help="snapshot period in seconds")
 
-    p = sub.add_parser("reference", parents=[common], help="a cached high-sample reference render",
-                       description="A high-sample reference render of a scene with an unbiased strategy "
-                                   "(light sampling by default), cached in results/references/ by the hash of "
-                                   "the scene, so a second call is free.")
+    p = sub.add_parser(
+        "reference",
+        parents=[common],
+        help="a cached high-sample reference render",
+        description="A high-sample reference render of a scene with an unbiased strategy "
+        "(light sampling by default), cached in results/references/ by the hash of "
+        "the scene, so a second call is free.",
+    )
     _render_options(p, "light")
 
-    p = sub.add_parser("sweep", parents=[common], help="run an experiment's whole sweep",
-                       description="Expand the experiment's cross product, make each point's reference, run "
-                                   "every point and strategy, compute metrics and write a summary. Resumes: "
-                                   "finished runs are not redone. Exit 1 if any run failed.")
+    p = sub.add_parser(
+        "sweep",
+        parents=[common],
+        help="run an experiment's whole sweep",
+        description="Expand the experiment's cross product, make each point's reference, run "
+        "every point and strategy, compute metrics and write a summary. Resumes: "
+        "finished runs are not redone. Exit 1 if any run failed.",
+    )
     p.add_argument("experiment", type=Path, help="experiment file (configs/experiments/*.yaml)")
     _execution_options(p)
 
-    p = sub.add_parser("metrics", parents=[common], help="MSE and relMSE of runs against a reference",
-                       description="MSE and relMSE (per channel, averaged) of every snapshot of each run "
-                                   "against its reference, for the whole image and named insets; written to "
-                                   "the run folder as metrics.csv/metrics.json, indexed, and printed as CSV.")
+    p = sub.add_parser(
+        "metrics",
+        parents=[common],
+        help="MSE and relMSE of runs against a reference",
+        description="MSE and relMSE (per channel, averaged) of every snapshot of each run "
+        "against its reference, for the whole image and named insets; written to "
+        "the run folder as metrics.csv/metrics.json, indexed, and printed as CSV.",
+    )
     p.add_argument("runs", nargs="+", help="run folders or run keys")
-    p.add_argument("--reference", help="reference run folder or key (default: the run's experiment "
-                                       "reference, else the finished reference of the same scene hash)")
+    p.add_argument(
+        "--reference",
+        help="reference run folder or key (default: the run's experiment "
+        "reference, else the finished reference of the same scene hash)",
+    )
     p.add_argument("--experiment", type=Path, help="take the insets from this experiment file")
-    p.add_argument("--inset", action="append", default=[], metavar="NAME=X,Y,W,H",
-                   help="an inset rectangle in pixels (repeatable)")
+    p.add_argument(
+        "--inset", action="append", default=[], metavar="NAME=X,Y,W,H", help="an inset rectangle in pixels (repeatable)"
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of CSV")
 
-    p = sub.add_parser("figures", parents=[common], help="the experiment's three figures",
-                       description="Error-over-time curves, the inset comparison and the efficiency plot of an "
-                                   "experiment that has been swept, as PNG and PDF in results/figures/.")
+    p = sub.add_parser(
+        "figures",
+        parents=[common],
+        help="the experiment's three figures",
+        description="Error-over-time curves, the inset comparison and the efficiency plot of an "
+        "experiment that has been swept, as PNG and PDF in results/figures/.",
+    )
     p.add_argument("experiment", type=Path)
 
-    p = sub.add_parser("regress", parents=[common], help="variance regression test against a baseline",
-                       description="Fixed-seed, fixed-sample renders of every point and strategy; their "
-                                   "relative variance is compared with the stored baseline; exit 1 with a table "
-                                   "if a strategy's variance rose beyond noise. --update rewrites the baseline.")
+    p = sub.add_parser(
+        "regress",
+        parents=[common],
+        help="variance regression test against a baseline",
+        description="Fixed-seed, fixed-sample renders of every point and strategy; their "
+        "relative variance is compared with the stored baseline; exit 1 with a table "
+        "if a strategy's variance rose beyond noise. --update rewrites the baseline.",
+    )
     p.add_argument("experiment", type=Path)
     p.add_argument("--update", action="store_true", help="rewrite the baseline from this run")
     _execution_options(p)
 
-    p = sub.add_parser("query", parents=[common], help="error curves from the index",
-                       description="Print (key, time_s, value) of every indexed run of a strategy whose "
-                                   "parameters match, e.g. --strategy portal --param ratio=0.25.")
-    p.add_argument("--strategy", required=True, choices=STRATEGIES)
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="e.g. ratio=0.25 or params.s_L=0.075 (repeatable)")
+    p = sub.add_parser(
+        "query",
+        parents=[common],
+        help="error curves from the index",
+        description="Print (key, time_s, value) of every indexed run of a strategy whose "
+        "parameters match, e.g. --strategy portal --param ratio=0.25.",
+    )
+    p.add_argument("--strategy", required=True)
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="e.g. ratio=0.25 or params.s_L=0.075 (repeatable)",
+    )
     p.add_argument("--region", default="image")
     p.add_argument("--metric", default="rel_mse", choices=index.METRIC_COLUMNS)
 
-    sub.add_parser("reindex", parents=[common], help="rebuild the index from the run folders",
-                   description="Re-record every run folder's manifest and metrics in results/index.sqlite.")
+    sub.add_parser(
+        "reindex",
+        parents=[common],
+        help="rebuild the index from the run folders",
+        description="Re-record every run folder's manifest and metrics in results/index.sqlite.",
+    )
     return parser
 
 
@@ -155,14 +214,19 @@ class _RunProgress:
         self.by_time = time_s > 0
         self.total = time_s if self.by_time else float(spp)
         self.enabled = enabled
-        self.bar: tqdm | None = None
+        self.bar: tqdm[Any] | None = None
 
     def __call__(self, event: dict[str, Any]) -> None:
         kind = event.get("event")
         if kind == "start":
-            self.bar = tqdm(total=self.total, unit="s" if self.by_time else "spp", disable=not self.enabled,
-                            file=sys.stderr, dynamic_ncols=True,
-                            bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}{postfix}]")
+            self.bar = tqdm(
+                total=self.total,
+                unit="s" if self.by_time else "spp",
+                disable=not self.enabled,
+                file=sys.stderr,
+                dynamic_ncols=True,
+                bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}{postfix}]",
+            )
             self.bar.set_description(f"{event.get('strategy')} {event.get('width')}x{event.get('height')}")
             return
         if kind not in ("snapshot", "final") or self.bar is None:
@@ -170,8 +234,7 @@ class _RunProgress:
         value = float(event.get("time_s", 0.0)) if self.by_time else float(event.get("spp", 0))
         self.bar.n = min(value, self.total) if kind == "snapshot" else self.total
         snap = f"snapshot {event.get('index')}" if kind == "snapshot" else "final"
-        self.bar.set_postfix_str(f"t={float(event.get('time_s', 0)):.2f}s spp={event.get('spp')} {snap}",
-                                 refresh=False)
+        self.bar.set_postfix_str(f"t={float(event.get('time_s', 0)):.2f}s spp={event.get('spp')} {snap}", refresh=False)
         self.bar.refresh()
 
     def close(self) -> None:
@@ -191,12 +254,21 @@ def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
         # A reference has exactly the limits asked for: 1024 spp unless told otherwise.
         spp = spp if spp is not None else (0 if time_s else REFERENCE_SPP)
         time_s = time_s if time_s is not None else 0.0
+    renderer, version = _renderer(args)
     spec = spec_from_scene(
-        args.config, overrides, strategy=args.strategy, integrator=args.integrator, spp=spp, time_s=time_s,
-        seed=args.seed, threads=args.threads, snapshots=snapshots, reference=reference,
+        args.config,
+        overrides,
+        renderer,
+        strategy=args.strategy,
+        integrator=args.integrator,
+        spp=spp,
+        time_s=time_s,
+        seed=args.seed,
+        threads=args.threads,
+        snapshots=snapshots,
+        reference=reference,
     )
     layout = _layout(args)
-    renderer, version = _renderer(args)
     key = spec.key(version)
     progress = _RunProgress(spec.time_s, spec.spp)
     try:
@@ -227,13 +299,24 @@ def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
 
 def _sweep_options(args: argparse.Namespace) -> SweepOptions:
     renderer, version = _renderer(args)
-    return SweepOptions(layout=_layout(args), renderer=renderer, renderer_version=version, jobs=args.jobs,
-                        scheduler=args.scheduler, retry_failed=not args.skip_failed,
-                        progress=not args.no_progress)
+    return SweepOptions(
+        layout=_layout(args),
+        renderer=renderer,
+        renderer_version=version,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        retry_failed=not args.skip_failed,
+        progress=not args.no_progress,
+    )
+
+
+def _experiment(args: argparse.Namespace, path: Path) -> Experiment:
+    renderer, _ = _renderer(args)
+    return load_experiment(path, renderer)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    experiment = load_experiment(args.experiment)
+    experiment = _experiment(args, args.experiment)
     if experiment.budget is None:
         raise ConfigError(str(args.experiment), "budget", "missing (a sweep needs time_s or spp)")
     return sweep(experiment, _sweep_options(args))
@@ -242,7 +325,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_regress(args: argparse.Namespace) -> int:
     from portal_harness.regress import regress
 
-    experiment = load_experiment(args.experiment)
+    experiment = _experiment(args, args.experiment)
     if experiment.regress is None:
         raise ConfigError(str(args.experiment), "regress", "missing (the regress command needs spp and seeds)")
     return regress(experiment, _sweep_options(args), update=args.update)
@@ -251,7 +334,7 @@ def cmd_regress(args: argparse.Namespace) -> int:
 def cmd_figures(args: argparse.Namespace) -> int:
     from portal_harness.figures import make_all
 
-    experiment = load_experiment(args.experiment)
+    experiment = _experiment(args, args.experiment)
     for path in make_all(experiment, _layout(args)):
         print(path)
     return 0
@@ -284,7 +367,7 @@ def _parse_insets(items: list[str]) -> tuple[Region, ...]:
 
 def cmd_metrics(args: argparse.Namespace) -> int:
     layout = _layout(args)
-    experiment = load_experiment(args.experiment) if args.experiment else None
+    experiment = _experiment(args, args.experiment) if args.experiment else None
     insets = (experiment.insets if experiment else ()) + _parse_insets(args.inset)
     lit_threshold = experiment.lit_threshold if experiment else DEFAULT_LIT_THRESHOLD
     conn = index.connect(layout.index_path)
@@ -295,8 +378,10 @@ def cmd_metrics(args: argparse.Namespace) -> int:
             run = _resolve_run(layout, name)
             manifest = store.read_manifest(run)
             if manifest is None or manifest.get("status") != store.STATUS_DONE:
-                print(f"{run.dir}: not a finished run (status "
-                      f"{(manifest or {}).get('status', 'no manifest')}): skipped", file=sys.stderr)
+                print(
+                    f"{run.dir}: not a finished run (status {(manifest or {}).get('status', 'no manifest')}): skipped",
+                    file=sys.stderr,
+                )
                 status = 1
                 continue
             ref_run = _reference_for(layout, conn, manifest, args.reference)
@@ -308,8 +393,9 @@ def cmd_metrics(args: argparse.Namespace) -> int:
                 raise HarnessError(f"reference unusable: {e}") from None
             for r in insets:
                 if not r.fits(reference.header.width, reference.header.height):
-                    raise ConfigError("--inset", r.name, f"does not fit the {reference.header.width}x"
-                                                         f"{reference.header.height} image")
+                    raise ConfigError(
+                        "--inset", r.name, f"does not fit the {reference.header.width}x{reference.header.height} image"
+                    )
             regions = regions_of(reference, insets, lit_threshold)
             rows = measure.compute(run, manifest, reference, regions)
             measure.write_files(run, manifest["key"], ref_key, regions, rows)
@@ -319,8 +405,14 @@ def cmd_metrics(args: argparse.Namespace) -> int:
                 if row.error:
                     print(f"corrupt: {row.error}", file=sys.stderr)
                     status = 1
-                results.append({"run": manifest["key"], "reference": ref_key, "strategy": manifest["spec"]["strategy"],
-                                **row.__dict__})
+                results.append(
+                    {
+                        "run": manifest["key"],
+                        "reference": ref_key,
+                        "strategy": manifest["spec"]["strategy"],
+                        **row.__dict__,
+                    }
+                )
     finally:
         conn.close()
     if args.json:
@@ -336,14 +428,17 @@ def cmd_metrics(args: argparse.Namespace) -> int:
 def _reference_for(layout: ResultsLayout, conn: Any, manifest: dict[str, Any], given: str | None) -> RunLayout:
     if given:
         return _resolve_run(layout, given)
-    row = conn.execute("SELECT reference_key FROM experiment_runs WHERE key = ? AND reference_key IS NOT NULL",
-                       (manifest["key"],)).fetchone()
+    row = conn.execute(
+        "SELECT reference_key FROM experiment_runs WHERE key = ? AND reference_key IS NOT NULL", (manifest["key"],)
+    ).fetchone()
     if row is not None and store.is_done(layout.run(row["reference_key"], True)):
         return layout.run(row["reference_key"], True)
     found = index.find_reference(conn, manifest["scene_hash"])
     if found is None:
-        raise HarnessError(f"no reference for run {manifest['key']} (scene hash {manifest['scene_hash']}): "
-                           "make one with `portal-harness reference` or pass --reference")
+        raise HarnessError(
+            f"no reference for run {manifest['key']} (scene hash {manifest['scene_hash']}): "
+            "make one with `portal-harness reference` or pass --reference"
+        )
     return RunLayout(Path(found["run_dir"]))
 
 
@@ -357,12 +452,18 @@ def cmd_query(args: argparse.Namespace) -> int:
     conn = index.connect(_layout(args).index_path)
     try:
         found = index.curves(conn, args.strategy, params, region=args.region, metric=args.metric)
+        known = index.strategies(conn)
     finally:
         conn.close()
     print(f"key,time_s,{args.metric}")
     for key, points in found.items():
         for t, v in points:
             print(f"{key},{t},{v}")
+    if args.strategy not in known:
+        # Names are the renderer's; the index knows those it has runs of.
+        print(
+            f"no runs of strategy {args.strategy!r} in the index (it has {', '.join(known) or 'none'})", file=sys.stderr
+        )
     return 0 if found else 1
 
 
@@ -412,5 +513,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         # The reader of our stdout went away (e.g. `| head`): not an error.
-        sys.stdout = open(os.devnull, "w")
+        # Later writes (the flush at exit) go to /dev/null instead, as the
+        # Python documentation of SIGPIPE suggests.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
         return 0

@@ -12,17 +12,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from portal_harness import contract
 from portal_harness.errors import ConfigError
 from portal_harness.exr import REGION_CLASSES
 from portal_harness.metrics import WHOLE_IMAGE, Region
-from portal_harness.schema import Reader, kind_of, parse_threads, read_scene, read_yaml
+from portal_harness.paths import ResultsLayout
+from portal_harness.scene import read_scene
+from portal_harness.schema import Reader, kind_of, parse_threads, read_yaml
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
-    INTEGRATORS,
     NO_SNAPSHOTS,
     SNAPSHOT_KEYS,
-    SNAPSHOT_SPP_KEYS,
-    STRATEGIES,
     Overrides,
     RunSpec,
     format_value,
@@ -65,10 +65,10 @@ class ReferenceSettings:
     time_s: float
     seed: int
     threads: int
-    noise_ratio: float = 0.1      # reference noise / smallest error compared, at most
-    max_time_s: float = 0.0       # cap on one reference's extended render time (0: none)
-    pilot_time_s: float = 0.5     # per candidate strategy
-    bias_z: float = 4.0           # the two references may disagree by at most this many sigma
+    noise_ratio: float = 0.1  # reference noise / smallest error compared, at most
+    max_time_s: float = 0.0  # cap on one reference's extended render time (0: none)
+    pilot_time_s: float = 0.5  # per candidate strategy
+    bias_z: float = 4.0  # the two references may disagree by at most this many sigma
 
 
 @dataclass(frozen=True)
@@ -107,6 +107,8 @@ class Experiment:
     scene: Path
     integrator: str
     strategies: tuple[str, ...]
+    # Every strategy of the renderer, in its order (render --describe): seeds are counted over them.
+    all_strategies: tuple[str, ...]
     sweep: tuple[tuple[str, tuple[Any, ...]], ...]
     fixed: Overrides
     budget: Budget | None
@@ -118,36 +120,17 @@ class Experiment:
     height: int
     equal_time_s: float | None
     curve_metric: str
-    scene_params: tuple[tuple[str, Any], ...]
-    scene_sha256: str               # of the scene and its includes, read once at load
-    lit_threshold: float = 0.001    # regions.lit_threshold: reference radiance above which a pixel is lit
+    scene_sha256: str  # of the scene and its includes, read once at load
+    # The cross product, each point with its axis value from the renderer's
+    # effective config of it (evaluated params).
+    point_list: tuple[Point, ...]
+    lit_threshold: float = 0.001  # regions.lit_threshold: reference radiance above which a pixel is lit
 
     def points(self) -> list[Point]:
-        keys = [k for k, _ in self.sweep]
-        out = []
-        for combo in itertools.product(*(values for _, values in self.sweep)):
-            values = tuple(zip(keys, combo))
-            out.append(Point(values=values, axis_value=self._axis_value(dict(values))))
-        return out
-
-    def _lookup(self, key: str, values: dict[str, Any]) -> Any:
-        if key in values:
-            return values[key]
-        fixed = dict(self.fixed)
-        if key in fixed:
-            return fixed[key]
-        return dict(self.scene_params).get(key)
-
-    def _axis_value(self, values: dict[str, Any]) -> float:
-        x = float(self._lookup(self.axis.param, values))
-        if self.axis.divide_by is not None:
-            x /= float(self._lookup(self.axis.divide_by, values))
-        return x
+        return list(self.point_list)
 
     def _overrides(self, point: Point) -> Overrides:
-        merged = dict(self.fixed)
-        merged.update({k: format_value(v) for k, v in point.values})
-        return tuple(sorted(merged.items()))
+        return point_overrides(self.fixed, point.values)
 
     def _labels(self, point: Point) -> tuple[tuple[str, float], ...]:
         return (("ratio", point.axis_value),) if self.axis.divide_by is not None else ()
@@ -159,79 +142,173 @@ class Experiment:
         then of independent estimates; equal seeds would share, e.g., the
         camera jitter)."""
         assert self.budget is not None
-        return self.budget.seed + replicate * len(STRATEGIES) + STRATEGIES.index(strategy)
+        return self.budget.seed + replicate * len(self.all_strategies) + self.all_strategies.index(strategy)
 
-    def _spec(self, point: Point, strategy: str, spp: int, time_s: float, seed: int, threads: int,
-              snapshots: Overrides = NO_SNAPSHOTS, extra: Overrides = (), reference: bool = False,
-              label: str | None = None) -> RunSpec:
+    def _spec(
+        self,
+        point: Point,
+        strategy: str,
+        spp: int,
+        time_s: float,
+        seed: int,
+        threads: int,
+        snapshots: Overrides = NO_SNAPSHOTS,
+        extra: Overrides = (),
+        reference: bool = False,
+        label: str | None = None,
+    ) -> RunSpec:
         """A render of this experiment's scene at `point`; `label` tags an
         auxiliary render (pilot, region map) in the index."""
         labels = self._labels(point) + (((label, 1.0),) if label else ())
-        return RunSpec(scene=str(self.scene), scene_sha256=self.scene_sha256, strategy=strategy,
-                       integrator=self.integrator, spp=spp, time_s=time_s, seed=seed, threads=threads,
-                       overrides=self._overrides(point) + extra, snapshots=snapshots, reference=reference,
-                       labels=labels)
+        return RunSpec(
+            scene=str(self.scene),
+            scene_sha256=self.scene_sha256,
+            strategy=strategy,
+            integrator=self.integrator,
+            spp=spp,
+            time_s=time_s,
+            seed=seed,
+            threads=threads,
+            overrides=self._overrides(point) + extra,
+            snapshots=snapshots,
+            reference=reference,
+            labels=labels,
+        )
 
-    def run_spec(self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None,
-                 replicate: int = 0) -> RunSpec:
+    def run_spec(
+        self, point: Point, strategy: str, seed: int | None = None, spp: int | None = None, replicate: int = 0
+    ) -> RunSpec:
         if self.budget is None:
             raise ConfigError(str(self.path), "budget", "required to run a sweep")
         if seed is None:
             seed = self.replicate_seed(strategy, replicate)
-        return self._spec(point, strategy, spp=self.budget.spp if spp is None else spp,
-                          time_s=self.budget.time_s if spp is None else 0.0, seed=seed,
-                          threads=self.budget.threads, snapshots=self.budget.snapshots)
+        return self._spec(
+            point,
+            strategy,
+            spp=self.budget.spp if spp is None else spp,
+            time_s=self.budget.time_s if spp is None else 0.0,
+            seed=seed,
+            threads=self.budget.threads,
+            snapshots=self.budget.snapshots,
+        )
 
     def regress_spec(self, point: Point, strategy: str, seed: int) -> RunSpec:
         """A fixed-seed, fixed-sample run of `regress` (no time limit, no snapshots asked for)."""
         if self.regress is None:
             raise ConfigError(str(self.path), "regress", "required by the regress command")
-        return self._spec(point, strategy, spp=self.regress.spp, time_s=0.0, seed=seed,
-                          threads=self.budget.threads if self.budget else 1)
+        return self._spec(
+            point,
+            strategy,
+            spp=self.regress.spp,
+            time_s=0.0,
+            seed=seed,
+            threads=self.budget.threads if self.budget else 1,
+        )
 
-    def baseline_path(self, default_dir: Path) -> Path:
+    def baseline_path(self, layout: ResultsLayout) -> Path:
+        """regress.baseline if given, else results/baselines/<name>.json."""
         if self.regress is not None and self.regress.baseline != Path():
             return self.regress.baseline
-        return default_dir / f"{self.name}.json"
+        return layout.baseline(self.name)
 
     def reference_spec(self, point: Point, strategy: str, part: int = 0, time_s: float | None = None) -> RunSpec:
         """Reference render `part` (0 or 1) of a point with `strategy`: its
         own seed, and resumable, so that it can be extended (references.py).
         `time_s` replaces reference.time_s (the pilot's prediction)."""
         r = self.reference
-        return self._spec(point, strategy, spp=r.spp, time_s=r.time_s if time_s is None else time_s,
-                          seed=r.seed + 7 * part, threads=r.threads, extra=REFERENCE_RENDER_OVERRIDES,
-                          reference=True)
+        return self._spec(
+            point,
+            strategy,
+            spp=r.spp,
+            time_s=r.time_s if time_s is None else time_s,
+            seed=r.seed + 7 * part,
+            threads=r.threads,
+            extra=REFERENCE_RENDER_OVERRIDES,
+            reference=True,
+        )
 
     def pilot_spec(self, point: Point, strategy: str) -> RunSpec:
         """A short render of a candidate reference strategy: its own
         variance layer says how efficient the strategy is here."""
         r = self.reference
-        return self._spec(point, strategy, spp=0, time_s=r.pilot_time_s, seed=r.seed + 1000, threads=r.threads,
-                          label="pilot")
+        return self._spec(
+            point, strategy, spp=0, time_s=r.pilot_time_s, seed=r.seed + 1000, threads=r.threads, label="pilot"
+        )
 
     def region_map_spec(self, point: Point) -> RunSpec:
         """The render whose region AOV gives the point's region classes."""
         r = self.reference
-        return self._spec(point, "light", spp=REGION_MAP_SPP, time_s=0.0, seed=r.seed + 2000, threads=r.threads,
-                          extra=AOV_OVERRIDES, label="region_map")
+        return self._spec(
+            point,
+            "light",
+            spp=REGION_MAP_SPP,
+            time_s=0.0,
+            seed=r.seed + 2000,
+            threads=r.threads,
+            extra=AOV_OVERRIDES,
+            label="region_map",
+        )
 
-def _check_override_key(reader: Reader, key: str, where: str) -> None:
+
+def point_overrides(fixed: Overrides, values: tuple[tuple[str, Any], ...]) -> Overrides:
+    """The --set overrides of a point: the fixed ones and the point's values."""
+    merged = dict(fixed)
+    merged.update({k: format_value(v) for k, v in values})
+    return tuple(sorted(merged.items()))
+
+
+def _check_override_key(reader: Reader, key: str, where: str, params: dict[str, float]) -> None:
+    """Keys the harness sets itself are refused; params.NAME must name a
+    parameter of the scene (the renderer would take an unknown one
+    silently, as a new parameter nothing reads). Any other key is checked
+    by the renderer, with the overrides."""
     if not key or any(not part for part in key.split(".")):
         raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {key!r}")
     if key in HARNESS_RENDER_KEYS or key.startswith("render.snapshots"):
         raise reader.fail(where, f"{key} is set by the harness (use strategies, integrator, budget or reference)")
+    name = key.removeprefix("params.")
+    if key.startswith("params.") and name not in params:
+        raise reader.fail(where, f"the scene has no parameter {name!r} (it has {', '.join(sorted(params))})")
 
 
-def load_experiment(path: Path | str) -> Experiment:
-    """Reads and validates an experiment; raises ConfigError on the first problem."""
+def _numeric(effective: contract.EffectiveConfig, key: str) -> float | None:
+    """The number at `key` of an effective config (params evaluated), or None."""
+    if key.startswith("params.") and key.removeprefix("params.") in effective.params:
+        return effective.params[key.removeprefix("params.")]
+    try:
+        value = effective.get(key)
+    except KeyError:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
+def load_experiment(path: Path | str, renderer: str) -> Experiment:
+    """Reads and validates an experiment against the renderer at `renderer`
+    (its strategies and integrators, and its effective config of the scene
+    at every point); raises ConfigError on the first problem."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
     r = Reader(str(path))
     root = r.mapping(
         read_yaml(p, "experiment file"),
         "",
-        allowed={"name", "scene", "integrator", "strategies", "sweep", "fixed", "budget", "reference", "insets",
-                 "axis", "regress", "figures", "description", "regions"},
+        allowed={
+            "name",
+            "scene",
+            "integrator",
+            "strategies",
+            "sweep",
+            "fixed",
+            "budget",
+            "reference",
+            "insets",
+            "axis",
+            "regress",
+            "figures",
+            "description",
+            "regions",
+        },
         required={"scene", "strategies", "sweep"},
     )
     name = r.string(root.get("name", p.stem), "name")
@@ -241,25 +318,35 @@ def load_experiment(path: Path | str) -> Experiment:
     scene = (p.parent / r.string(root["scene"], "scene")).resolve()
     if not scene.is_file():
         raise r.fail("scene", f"scene file {scene} not found")
-    scene_info = read_scene(scene)
+    names = contract.describe(renderer)
+    scene_info = read_scene(renderer, scene)
+    params = scene_info.effective.params
 
-    integrator = r.choice(root.get("integrator", scene_info.scalars.get("render.integrator", "direct")),
-                          "integrator", INTEGRATORS, "integrator")
+    integrator = r.choice(
+        root.get("integrator", scene_info.effective.render.get("integrator")),
+        "integrator",
+        names.integrators,
+        "integrator",
+    )
 
     strategies_node = r.sequence(root["strategies"], "strategies")
-    strategies = tuple(r.choice(s, f"strategies.{i}", STRATEGIES, "strategy") for i, s in enumerate(strategies_node))
+    strategies = tuple(
+        r.choice(s, f"strategies.{i}", names.strategies, "strategy") for i, s in enumerate(strategies_node)
+    )
     if len(set(strategies)) != len(strategies):
         raise r.fail("strategies", "a strategy is listed twice")
 
     sweep_node = root["sweep"]
     if sweep_node is None or sweep_node == {}:
-        raise r.fail("sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)")
+        raise r.fail(
+            "sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)"
+        )
     if not isinstance(sweep_node, dict):
         raise r.fail("sweep", f"expected a mapping from parameter to list of values, got {kind_of(sweep_node)}")
     sweep: list[tuple[str, tuple[Any, ...]]] = []
     for k, values in sweep_node.items():
         key = str(k)
-        _check_override_key(r, key, f"sweep.{key}")
+        _check_override_key(r, key, f"sweep.{key}", params)
         items = r.sequence(values, f"sweep.{key}")
         sweep.append((key, tuple(r.scalar(v, f"sweep.{key}.{i}") for i, v in enumerate(items))))
         if len(set(map(format_value, sweep[-1][1]))) != len(items):
@@ -271,20 +358,17 @@ def load_experiment(path: Path | str) -> Experiment:
     fixed: dict[str, str] = {}
     for k, v in fixed_node.items():
         key = str(k)
-        _check_override_key(r, key, f"fixed.{key}")
+        _check_override_key(r, key, f"fixed.{key}", params)
         if key in dict(sweep):
             raise r.fail(f"fixed.{key}", "also swept (a parameter is either fixed or swept)")
         fixed[key] = format_value(r.scalar(v, f"fixed.{key}"))
 
-    def size(axis: str) -> int:
-        if f"film.{axis}" in fixed:
-            try:
-                return int(fixed[f"film.{axis}"])
-            except ValueError:
-                raise r.fail(f"fixed.film.{axis}", "expected an integer") from None
-        return int(getattr(scene_info, axis))
-
-    width, height = size("width"), size("height")
+    fixed_overrides = tuple(sorted(fixed.items()))
+    try:
+        base = contract.print_config(renderer, scene, fixed_overrides)
+    except ConfigError as e:
+        raise r.fail("fixed", f"the renderer rejects the scene with these values: {e}") from None
+    width, height = base.width, base.height
 
     budget = None
     if "budget" in root:
@@ -294,16 +378,28 @@ def load_experiment(path: Path | str) -> Experiment:
         if time_s == 0 and spp == 0:
             raise r.fail("budget", "expected time_s > 0 or spp > 0 (a run needs a limit)")
         snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
+        # Counted in samples (integers) or seconds, as the renderer says.
         snapshots = tuple(
-            (k, format_value(r.integer(v, f"budget.snapshots.{k}", minimum=1) if k in SNAPSHOT_SPP_KEYS
-                             else r.number(v, f"budget.snapshots.{k}", positive=True)))
+            (
+                k,
+                format_value(
+                    r.integer(v, f"budget.snapshots.{k}", minimum=1)
+                    if names.snapshot_unit(k) == "spp"
+                    else r.number(v, f"budget.snapshots.{k}", positive=True)
+                ),
+            )
             for k, v in sorted(snaps_node.items())
         )
-        budget = Budget(time_s=time_s, spp=spp, threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
-                        seed=r.integer(b.get("seed", 1), "budget.seed"), snapshots=snapshots,
-                        replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1))
+        budget = Budget(
+            time_s=time_s,
+            spp=spp,
+            threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
+            seed=r.integer(b.get("seed", 1), "budget.seed"),
+            snapshots=snapshots,
+            replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1),
+        )
 
-    reference = _reference_settings(r, root.get("reference", {}) or {}, budget)
+    reference = _reference_settings(r, root.get("reference", {}) or {}, budget, names.strategies)
 
     insets: list[Region] = []
     for i, node in enumerate(r.sequence(root.get("insets", []) or [], "insets", non_empty=False)):
@@ -319,8 +415,11 @@ def load_experiment(path: Path | str) -> Experiment:
         if region.name in RESERVED_REGION_NAMES or region.name in {x.name for x in insets}:
             raise r.fail(f"{key}.name", f"inset name {region.name!r} is reserved or used twice")
         if not region.fits(width, height):
-            raise r.fail(key, f"rectangle x={region.x} y={region.y} {region.width}x{region.height} "
-                              f"does not fit the {width}x{height} image")
+            raise r.fail(
+                key,
+                f"rectangle x={region.x} y={region.y} {region.width}x{region.height} "
+                f"does not fit the {width}x{height} image",
+            )
         insets.append(region)
 
     swept = [k for k, _ in sweep]
@@ -331,22 +430,23 @@ def load_experiment(path: Path | str) -> Experiment:
     divide_by = axis_node.get("divide_by")
     if divide_by is not None:
         divide_by = r.string(divide_by, "axis.divide_by")
-        value: tuple[Any, ...] = dict(sweep).get(divide_by, (fixed.get(divide_by, scene_info.scalars.get(divide_by)),))
-        try:
-            [float(v) for v in value]
-        except (TypeError, ValueError):
-            raise r.fail("axis.divide_by", f"{divide_by!r} has no numeric value in the sweep, fixed or scene") from None
     for i, v in enumerate(dict(sweep)[axis_param]):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {kind_of(v)}")
-    default_label = f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
-    axis = Axis(param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label"))
+    default_label = (
+        f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
+    )
+    axis = Axis(
+        param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label")
+    )
 
     regress = None
     if "regress" in root:
         g = r.mapping(root["regress"], "regress", {"spp", "seeds", "z_max", "baseline"}, {"spp"})
-        seeds = tuple(r.integer(s, f"regress.seeds.{i}")
-                      for i, s in enumerate(r.sequence(g.get("seeds", [1, 2]), "regress.seeds")))
+        seeds = tuple(
+            r.integer(s, f"regress.seeds.{i}")
+            for i, s in enumerate(r.sequence(g.get("seeds", [1, 2]), "regress.seeds"))
+        )
         if len(seeds) < 2 or len(set(seeds)) != len(seeds):
             raise r.fail("regress.seeds", "expected at least two different seeds (the standard error needs them)")
         baseline = g.get("baseline")
@@ -356,6 +456,8 @@ def load_experiment(path: Path | str) -> Experiment:
             z_max=r.number(g.get("z_max", 4.0), "regress.z_max", positive=True),
             baseline=(p.parent / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
         )
+
+    points = _points(r, renderer, scene, tuple(sweep), fixed_overrides, axis)
 
     regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
     lit_threshold = r.number(regions_node.get("lit_threshold", 0.001), "regions.lit_threshold", positive=True)
@@ -368,8 +470,9 @@ def load_experiment(path: Path | str) -> Experiment:
         scene=scene,
         integrator=integrator,
         strategies=strategies,
+        all_strategies=names.strategies,
         sweep=tuple(sweep),
-        fixed=tuple(sorted(fixed.items())),
+        fixed=fixed_overrides,
         budget=budget,
         reference=reference,
         insets=tuple(insets),
@@ -379,28 +482,69 @@ def load_experiment(path: Path | str) -> Experiment:
         height=height,
         equal_time_s=None if equal_time is None else r.number(equal_time, "figures.equal_time_s", positive=True),
         curve_metric=r.choice(fig.get("curve_metric", "rel_mse"), "figures.curve_metric", CURVE_METRICS, "metric"),
-        scene_params=tuple((k, v) for k, v in scene_info.scalars.items() if k.startswith("params.")),
         scene_sha256=scene_info.sha256,
+        point_list=points,
         lit_threshold=lit_threshold,
     )
 
 
-REFERENCE_KEYS = {"strategy", "strategies", "spp", "time_s", "seed", "threads", "noise_ratio", "max_time_s",
-                  "pilot_time_s", "bias_z"}
+REFERENCE_KEYS = {
+    "strategy",
+    "strategies",
+    "spp",
+    "time_s",
+    "seed",
+    "threads",
+    "noise_ratio",
+    "max_time_s",
+    "pilot_time_s",
+    "bias_z",
+}
 
 
-def _reference_settings(r: Reader, node: Any, budget: Budget | None) -> ReferenceSettings:
+def _points(
+    r: Reader, renderer: str, scene: Path, sweep: tuple[tuple[str, tuple[Any, ...]], ...], fixed: Overrides, axis: Axis
+) -> tuple[Point, ...]:
+    """Every point of the cross product, checked by the renderer (its
+    effective config with the point's overrides), with its axis value from
+    that config: a divisor that is an expression of a swept parameter is
+    evaluated at each point."""
+    keys = [k for k, _ in sweep]
+    out = []
+    for combo in itertools.product(*(values for _, values in sweep)):
+        values = tuple(zip(keys, combo, strict=True))
+        name = ",".join(f"{k}={format_value(v)}" for k, v in values)
+        try:
+            effective = contract.print_config(renderer, scene, point_overrides(fixed, values))
+        except ConfigError as e:
+            raise r.fail("sweep", f"the renderer rejects the point {name}: {e}") from None
+        x = _numeric(effective, axis.param)
+        if x is None:
+            raise r.fail("axis.param", f"{axis.param!r} has no numeric value at the point {name}")
+        if axis.divide_by is not None:
+            d = _numeric(effective, axis.divide_by)
+            if d is None or d == 0:
+                raise r.fail(
+                    "axis.divide_by",
+                    f"{axis.divide_by!r} has no non-zero numeric value in the sweep, "
+                    f"fixed or scene (at the point {name})",
+                )
+            x /= d
+        out.append(Point(values=values, axis_value=x))
+    return tuple(out)
+
+
+def _reference_settings(r: Reader, node: Any, budget: Budget | None, known: tuple[str, ...]) -> ReferenceSettings:
     m = r.mapping(node, "reference", REFERENCE_KEYS)
     if "strategy" in m and "strategies" in m:
         raise r.fail("reference", "give strategy (one reference) or strategies (one or two), not both")
     if "strategy" in m:
-        strategies: tuple[str, ...] = (r.choice(m["strategy"], "reference.strategy", STRATEGIES, "strategy"),)
+        strategies: tuple[str, ...] = (r.choice(m["strategy"], "reference.strategy", known, "strategy"),)
     elif m.get("strategies", "auto") == "auto":
         strategies = ()
     else:
         items = r.sequence(m["strategies"], "reference.strategies")
-        strategies = tuple(r.choice(s, f"reference.strategies.{i}", STRATEGIES, "strategy")
-                           for i, s in enumerate(items))
+        strategies = tuple(r.choice(s, f"reference.strategies.{i}", known, "strategy") for i, s in enumerate(items))
         if len(strategies) > 2 or len(set(strategies)) != len(strategies):
             raise r.fail("reference.strategies", "expected auto, or one or two different strategies")
     time_s = r.number(m.get("time_s", 0), "reference.time_s")

@@ -14,17 +14,18 @@ scene file travels with the task.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import ctypes
 import multiprocessing
 import os
 import signal
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from portal_harness import runs, store
+from portal_harness import contract, runs, store
 from portal_harness.errors import ConfigError
-from portal_harness.includes import load_merged
 from portal_harness.paths import ResultsLayout
 from portal_harness.spec import RunSpec
 
@@ -32,6 +33,7 @@ DoneCallback = Callable[[RunSpec, dict[str, Any]], None]
 
 
 def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity), for `auto` threads and the job count."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
@@ -58,24 +60,34 @@ class Target:
 
 def _worker_init() -> None:
     """Pool workers die with the harness (and their renders with them)."""
-    try:
+    with contextlib.suppress(OSError):  # not glibc: no parent-death signal
         ctypes.CDLL("libc.so.6").prctl(1, int(signal.SIGTERM), 0, 0, 0)
-    except OSError:  # pragma: no cover - not glibc
-        pass
     # Ctrl-C reaches the whole process group: let the renderer stop itself
     # (it writes final.exr and exits 3) and the main process decide.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _task(spec: RunSpec, target: Target) -> dict[str, Any]:
-    return runs.execute(spec, target.layout, target.renderer, target.renderer_version,
-                        force=target.force, retry_failed=target.retry_failed)
+    return runs.execute(
+        spec,
+        target.layout,
+        target.renderer,
+        target.renderer_version,
+        force=target.force,
+        retry_failed=target.retry_failed,
+    )
 
 
 def _failure(spec: RunSpec, target: Target, error: BaseException) -> dict[str, Any]:
     """A manifest-like record of a task that failed outside the renderer; not installed."""
-    return {"key": spec.key(target.renderer_version), "status": store.STATUS_FAILED, "cached": False,
-            "error": f"harness error: {type(error).__name__}: {error}", "spec": spec.to_dict(), "installed": False}
+    return {
+        "key": spec.key(target.renderer_version),
+        "status": store.STATUS_FAILED,
+        "cached": False,
+        "error": f"harness error: {type(error).__name__}: {error}",
+        "spec": spec.to_dict(),
+        "installed": False,
+    }
 
 
 def run_local(specs: list[RunSpec], target: Target, jobs: int, on_done: DoneCallback) -> None:
@@ -116,16 +128,27 @@ def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCa
         for spec in specs:
             if spec.scene not in scene_bytes:
                 # Workers get the scene file's bytes, not the files it includes.
-                if len(load_merged(Path(spec.scene))[1]) > 1:
-                    raise ConfigError(spec.scene, "include", "a scene that includes other files cannot be sent to "
-                                      "Dask workers: run it locally, or give the merged config.yaml that a "
-                                      "render writes to its output folder")
+                if len(contract.print_config(target.renderer, Path(spec.scene)).files) > 1:
+                    raise ConfigError(
+                        spec.scene,
+                        "include",
+                        "a scene that includes other files cannot be sent to "
+                        "Dask workers: run it locally, or give the merged config.yaml that a "
+                        "render writes to its output folder",
+                    )
                 scene_bytes[spec.scene] = Path(spec.scene).read_bytes()
             key = spec.key(target.renderer_version)
             final_dir = str(target.layout.run(key, spec.reference).dir)
             future = client.submit(
-                runs.execute_packed, spec, scene_bytes[spec.scene], target.renderer, target.renderer_version,
-                final_dir, key=f"render-{key}-{os.getpid()}", pure=False, retries=0,
+                runs.execute_packed,
+                spec,
+                scene_bytes[spec.scene],
+                target.renderer,
+                target.renderer_version,
+                final_dir,
+                key=f"render-{key}-{os.getpid()}",
+                pure=False,
+                retries=0,
             )
             futures[future] = spec
         for future in as_completed(list(futures)):  # type: ignore[no-untyped-call]

@@ -1,4 +1,5 @@
-"""Reading the renderer's EXR snapshots: the only module that opens EXR files.
+"""Reading and writing the renderer's EXR snapshots: the only module that
+opens EXR files (the tests' writer and tools/ use it too).
 
 The format (renderer contract): float channels R, G, B (running mean of
 radiance) and variance.R/G/B (variance of that mean), with the header
@@ -122,8 +123,11 @@ def read_snapshot(path: Path | str) -> Snapshot:
             header = _header_from(p, raw)
             rgb = _stack(p, channels, RGB_CHANNELS, header.height, header.width)
             variance = _stack(p, channels, VARIANCE_CHANNELS, header.height, header.width)
-            regions = (_stack(p, channels, REGION_CHANNELS, header.height, header.width)
-                       if any(name in channels for name in REGION_CHANNELS) else None)
+            regions = (
+                _stack(p, channels, REGION_CHANNELS, header.height, header.width)
+                if any(name in channels for name in REGION_CHANNELS)
+                else None
+            )
     except CorruptExrError:
         raise
     except (RuntimeError, ValueError, OSError, IndexError, KeyError) as e:
@@ -135,39 +139,56 @@ def read_snapshot(path: Path | str) -> Snapshot:
     return Snapshot(path=p, header=header, rgb=rgb, variance=variance, regions=regions)
 
 
-def write_snapshot(path: Path, snapshot: Snapshot) -> None:
-    """Writes `snapshot` in the renderer's format (used for the combined
-    reference, which no single render produced): float channels, ZIP,
-    header attributes as the renderer writes them; to a temporary name,
-    fsynced, then renamed, so a reader never sees a partial file."""
-    h = snapshot.header
-    channels: dict[str, np.ndarray] = {}
-    for names, planes in ((RGB_CHANNELS, snapshot.rgb), (VARIANCE_CHANNELS, snapshot.variance),
-                          (REGION_CHANNELS, snapshot.regions)):
-        if planes is None:
-            continue
-        for i, name in enumerate(names):
-            channels[name] = np.ascontiguousarray(planes[..., i], dtype=np.float32)
-    header: dict[str, Any] = {
-        "compression": OpenEXR.ZIP_COMPRESSION,
-        "type": OpenEXR.scanlineimage,
-        # C doubles arrive and must leave as one-element float64 arrays.
-        "render_time_s": np.array([h.render_time_s], dtype=np.float64),
-        "spp": int(min(h.spp, 2**31 - 1)),
-        "strategy": h.strategy,
-        "integrator": h.integrator,
-        "seed": str(h.seed),
-        "config_hash": h.config_hash,
-        "renderer_version": h.renderer_version,
-        "rays": np.array([h.rays], dtype=np.float64),
-        "nonfinite_samples": np.array([h.nonfinite_samples], dtype=np.float64),
+def snapshot_attributes(header: SnapshotHeader) -> dict[str, Any]:
+    """The header attributes of a snapshot as the renderer writes them."""
+    return {
+        # C doubles arrive and must leave as one-element float64 arrays (a
+        # Python float would be stored as a 32-bit float).
+        "render_time_s": np.array([header.render_time_s], dtype=np.float64),
+        "spp": int(min(header.spp, 2**31 - 1)),
+        "strategy": header.strategy,
+        "integrator": header.integrator,
+        "seed": str(header.seed),
+        "config_hash": header.config_hash,
+        "renderer_version": header.renderer_version,
+        "rays": np.array([header.rays], dtype=np.float64),
+        "nonfinite_samples": np.array([header.nonfinite_samples], dtype=np.float64),
     }
+
+
+def write_exr(path: Path | str, channels: dict[str, np.ndarray], attributes: dict[str, Any]) -> None:
+    """Writes float channels (2-D arrays, row 0 at the top) and header
+    attributes as a ZIP-compressed scanline EXR: to a temporary name,
+    fsynced, then renamed, so that a reader never sees a partial file."""
+    planes = {name: np.ascontiguousarray(plane, dtype=np.float32) for name, plane in channels.items()}
+    header: dict[str, Any] = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **attributes}
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        OpenEXR.File(header, channels).write(str(tmp))
+        OpenEXR.File(header, planes).write(str(tmp))
         with open(tmp, "rb") as f:
             os.fsync(f.fileno())
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def snapshot_channels(snapshot: Snapshot) -> dict[str, np.ndarray]:
+    """The channels of a snapshot by EXR name: RGB, variance and (if present) the region AOV."""
+    channels: dict[str, np.ndarray] = {}
+    for names, planes in (
+        (RGB_CHANNELS, snapshot.rgb),
+        (VARIANCE_CHANNELS, snapshot.variance),
+        (REGION_CHANNELS, snapshot.regions),
+    ):
+        if planes is None:
+            continue
+        for i, name in enumerate(names):
+            channels[name] = planes[..., i]
+    return channels
+
+
+def write_snapshot(path: Path | str, snapshot: Snapshot) -> None:
+    """Writes `snapshot` in the renderer's format (used for the combined
+    reference, which no single render produced)."""
+    write_exr(path, snapshot_channels(snapshot), snapshot_attributes(snapshot.header))

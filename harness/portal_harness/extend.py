@@ -34,8 +34,7 @@ def extension_timeout(manifest: dict[str, Any], total_spp: int) -> float:
 
 def resume_command(renderer: str, run_dir: str, total_spp: int, threads: int) -> list[str]:
     """The renderer contract's resume call: totals, not increments."""
-    return [renderer, "--resume", run_dir, "--spp", str(total_spp), "--time", "0", "--threads", str(threads),
-            "--quiet"]
+    return [renderer, "--resume", run_dir, "--spp", str(total_spp), "--time", "0", "--threads", str(threads), "--quiet"]
 
 
 def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threads: int) -> dict[str, Any]:
@@ -47,16 +46,22 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
         raise ValueError(f"reference {key} is not a finished run")
     attempt = store.new_attempt(layout, key, True)
     for item in target.dir.iterdir():
-        if item.is_file() and item.name != "manifest.json":
+        if item.is_file() and item.name != target.manifest.name:
             shutil.copy2(item, attempt.dir / item.name)
     before = int(old["final"]["spp"])
     command = resume_command(renderer, str(attempt.dir), total_spp, threads)
     started = now()
     result = render(command, attempt.events, attempt.stderr, timeout_s=extension_timeout(old, total_spp))
-    entry: dict[str, Any] = {"from_spp": before, "to_spp": total_spp,
-                             "from_time_s": float(old["final"]["time_s"]), "started": started, "finished": now(),
-                             "wall_s": round(result.wall_s, 3), "exit_status": result.exit_status,
-                             "command": resume_command(renderer, str(target.dir), total_spp, threads)}
+    entry: dict[str, Any] = {
+        "from_spp": before,
+        "to_spp": total_spp,
+        "from_time_s": float(old["final"]["time_s"]),
+        "started": started,
+        "finished": now(),
+        "wall_s": round(result.wall_s, 3),
+        "exit_status": result.exit_status,
+        "command": resume_command(renderer, str(target.dir), total_spp, threads),
+    }
     error = None
     final = None
     if result.exit_status != EXIT_OK or result.signal_name is not None:
@@ -73,9 +78,12 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
         tail = file_tail(attempt.stderr)
         shutil.rmtree(attempt.dir, ignore_errors=True)
         return {**old, "status": store.STATUS_FAILED, "error": f"extension failed: {error}", "stderr_tail": tail}
-    manifest = {**old, "final": final, "extensions": [*old.get("extensions", []), entry],
-                "timings": {**old.get("timings", {}), "render_time_s": final["time_s"] if final else None}}
+    manifest = {
+        **old,
+        "final": final,
+        "extensions": [*old.get("extensions", []), entry],
+        "timings": {**old.get("timings", {}), "render_time_s": final["time_s"] if final else None},
+    }
     store.write_json_atomic(attempt.manifest, manifest)
     store.install(layout, key, True, attempt)
     return manifest
-

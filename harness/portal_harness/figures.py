@@ -23,39 +23,62 @@ from __future__ import annotations
 import json
 import math
 import sqlite3
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")  # pinned: figures are files, never windows
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
-from matplotlib.axis import Axis as MplAxis  # noqa: E402
-from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axis import Axis as MplAxis
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import (
+    Patch,
+    Rectangle,
+)
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from matplotlib.colors import ListedColormap  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+from portal_harness import display, exr, index
+from portal_harness.config import Experiment, Point
+from portal_harness.errors import CorruptExrError, HarnessError
+from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
+from portal_harness.metrics import WHOLE_IMAGE, Region, crop
+from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.regions import LIT, class_map
 
-from portal_harness import display, exr, index  # noqa: E402
-from portal_harness.config import Experiment, Point  # noqa: E402
-from portal_harness.errors import CorruptExrError, HarnessError  # noqa: E402
-from portal_harness.index import ROLE_REFERENCE, ROLE_RUN  # noqa: E402
-from portal_harness.metrics import WHOLE_IMAGE, Region, crop  # noqa: E402
-from portal_harness.paths import ResultsLayout  # noqa: E402
-from portal_harness.regions import LIT, class_map  # noqa: E402
-from portal_harness.spec import STRATEGIES  # noqa: E402
-
-STRATEGY_COLOURS = dict(zip(STRATEGIES, ("#7f7f7f", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd")))
-STRATEGY_LABELS = {
-    "light_area": "light (area)", "light": "light", "portal": "portal", "projection": "projection",
-    "antishadow": "antishadow", "antishadow_exact": "antishadow (exact)",
+# Display only: a colour and a label for the strategies drawn so far. The
+# strategies themselves are the renderer's (render --describe); a name not
+# listed here is drawn under its own name in a colour of its own.
+STRATEGY_COLOURS = {
+    "light_area": "#7f7f7f",
+    "light": "#1f77b4",
+    "portal": "#ff7f0e",
+    "projection": "#2ca02c",
+    "antishadow": "#d62728",
+    "antishadow_exact": "#9467bd",
 }
+STRATEGY_LABELS = {"light_area": "light (area)", "antishadow_exact": "antishadow (exact)"}
+SPARE_COLOURS = ("#8c564b", "#e377c2", "#bcbd22", "#17becf", "#393b79", "#637939")
+
+
+def strategy_label(strategy: str) -> str:
+    return STRATEGY_LABELS.get(strategy, strategy)
+
+
+def strategy_colour(strategy: str, strategies: Sequence[str]) -> str:
+    """The strategy's colour; unknown ones take the spare colours in the order of `strategies`."""
+    if strategy in STRATEGY_COLOURS:
+        return STRATEGY_COLOURS[strategy]
+    unknown = [s for s in strategies if s not in STRATEGY_COLOURS]
+    return SPARE_COLOURS[unknown.index(strategy) % len(SPARE_COLOURS)] if strategy in unknown else "#000000"
+
+
 INSET_COLOURS = ("#ffd700", "#00e5ff", "#ff4fd8", "#7CFC00")
 METRIC_LABELS = {"rel_mse": "relMSE", "mse": "MSE"}
 # One colour per region class (exr.REGION_CLASSES order), and grey for no majority.
@@ -77,10 +100,10 @@ class Cell:
 @dataclass(frozen=True)
 class ExperimentData:
     points: tuple[Point, ...]
-    runs: dict[tuple[str, str], Cell]                  # replicate 0 of (point, strategy)
-    replicates: dict[tuple[str, str], list[Cell]]      # every replicate
+    runs: dict[tuple[str, str], Cell]  # replicate 0 of (point, strategy)
+    replicates: dict[tuple[str, str], list[Cell]]  # every replicate
     references: dict[str, Cell]
-    summary: list[dict[str, Any]]                      # summary.json's tidy rows
+    summary: list[dict[str, Any]]  # summary.json's tidy rows
 
 
 def load(experiment: Experiment, conn: sqlite3.Connection, layout: ResultsLayout) -> ExperimentData:
@@ -136,13 +159,16 @@ def _done(cell: Cell | None) -> bool:
 
 def _curve(conn: sqlite3.Connection, cell: Cell, region: str, metric: str) -> list[tuple[float, float, float]]:
     """(time_s, metric, reference noise) of a run's images in one region, in time order."""
-    return sorted((m["time_s"], m[metric], m["floor_rel"] or 0.0)
-                  for m in index.metrics_of(conn, cell.key, cell.reference_key)
-                  if m["region"] == region and m["error"] is None and m["time_s"] and m[metric])
+    return sorted(
+        (m["time_s"], m[metric], m["floor_rel"] or 0.0)
+        for m in index.metrics_of(conn, cell.key, cell.reference_key)
+        if m["region"] == region and m["error"] is None and m["time_s"] and m[metric]
+    )
 
 
-def _mean_curve(curves: list[list[tuple[float, float, float]]]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                            np.ndarray]:
+def _mean_curve(
+    curves: list[list[tuple[float, float, float]]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Replicates aligned by image index (the same snapshot schedule): mean
     time, mean value, smallest and largest value."""
     n = min(len(c) for c in curves)
@@ -151,8 +177,9 @@ def _mean_curve(curves: list[list[tuple[float, float, float]]]) -> tuple[np.ndar
     return t.mean(axis=0), v.mean(axis=0), v.min(axis=0), v.max(axis=0)
 
 
-def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
-                        layout: ResultsLayout) -> list[Path]:
+def figure_error_curves(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
     """Error against render time, log-log: one column per sweep point, one
     row per region (lit, each inset, whole image); mean over replicates with
     their range."""
@@ -170,8 +197,8 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
                 if not curves:
                     continue
                 t, v, lo, hi = _mean_curve(curves)
-                colour_ = STRATEGY_COLOURS[strategy]
-                ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=STRATEGY_LABELS[strategy])
+                colour_ = strategy_colour(strategy, experiment.strategies)
+                ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=strategy_label(strategy))
                 if len(curves) > 1:
                     ax.fill_between(t, lo, hi, color=colour_, alpha=0.2, lw=0)
                 floor = curves[0][0][2]
@@ -189,8 +216,11 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
             ax.tick_params(which="both", labelsize=7)
     _legend_below(fig, axes, 2)
     reps = experiment.budget.replicates if experiment.budget else 1
-    fig.suptitle(f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
-                 f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})", fontsize=10)
+    fig.suptitle(
+        f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
+        f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.12 / fig.get_figheight()))  # room for the title
     return _save(fig, layout, experiment, "error_time")
 
@@ -198,15 +228,22 @@ def figure_error_curves(experiment: Experiment, data: ExperimentData, conn: sqli
 def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, str]] = ()) -> None:
     handles, labels = [], []
     for ax in axes.flat:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
     for h, lab in extra:
         handles.append(h)
         labels.append(lab)
-    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 7), fontsize=8, frameon=False,
-               bbox_to_anchor=(0.5, -0.02 - 0.02 * rows))
+    fig.legend(
+        handles,
+        labels,
+        loc="lower center",
+        ncol=min(len(labels), 7),
+        fontsize=8,
+        frameon=False,
+        bbox_to_anchor=(0.5, -0.02 - 0.02 * rows),
+    )
 
 
 def _region_title(region: str) -> str:
@@ -255,12 +292,12 @@ def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: Experimen
     return min(finals) if finals else math.inf
 
 
-def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
-                  layout: ResultsLayout) -> list[Path]:
+def figure_insets(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
     """Per sweep point: the reference with the insets drawn on it, then each
     inset of the reference and of every strategy at equal time, relMSE under it."""
-    regions: tuple[Region, ...] = experiment.insets or (
-        Region(WHOLE_IMAGE, 0, 0, experiment.width, experiment.height),)
+    regions: tuple[Region, ...] = experiment.insets or (Region(WHOLE_IMAGE, 0, 0, experiment.width, experiment.height),)
     n_sub = len(regions)
     columns = ["reference", *experiment.strategies]
     # Sizes in inches: every inset column is cell_in wide; a block (one sweep
@@ -275,9 +312,13 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
     outer = fig.add_gridspec(len(data.points), 1, hspace=0.1, top=1 - 0.55 / height, bottom=0.25 / height)
     for p_i, point in enumerate(data.points):
         ref_cell = data.references.get(point.id)
-        grid = outer[p_i].subgridspec(n_sub, 2 + len(columns),
-                                      width_ratios=[ref_w / cell_in] * 2 + [1] * len(columns),
-                                      wspace=0.06, hspace=label_in / inset_h * 1.1)
+        grid = outer[p_i].subgridspec(
+            n_sub,
+            2 + len(columns),
+            width_ratios=[ref_w / cell_in] * 2 + [1] * len(columns),
+            wspace=0.06,
+            hspace=label_in / inset_h * 1.1,
+        )
         ref_ax = fig.add_subplot(grid[:, 0])
         class_ax = fig.add_subplot(grid[:, 1])
         class_ax.set_xticks([])
@@ -290,7 +331,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
             continue
         assert ref_cell is not None and ref_cell.run_dir is not None
         try:
-            reference = exr.read_snapshot(ref_cell.run_dir / "final.exr")
+            reference = exr.read_snapshot(RunLayout(ref_cell.run_dir).final)
         except CorruptExrError as e:
             ref_ax.text(0.5, 0.5, f"reference\nunreadable\n{e.reason[:40]}", ha="center", va="center", fontsize=6)
             continue
@@ -300,8 +341,11 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
         for r_i, region in enumerate(regions):
             colour_ = INSET_COLOURS[r_i % len(INSET_COLOURS)]
             for ax_ in (ref_ax, class_ax):
-                ax_.add_patch(Rectangle((region.x - 0.5, region.y - 0.5), region.width, region.height,
-                                        fill=False, ec=colour_, lw=1.2))
+                ax_.add_patch(
+                    Rectangle(
+                        (region.x - 0.5, region.y - 0.5), region.width, region.height, fill=False, ec=colour_, lw=1.2
+                    )
+                )
         if p_i == 0:
             ref_ax.set_title("reference", fontsize=8)
             class_ax.set_title("antishadow region classes", fontsize=8)
@@ -330,7 +374,7 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                         except CorruptExrError:
                             label = "unreadable"
                 else:
-                    label = (cell.status if cell and cell.status else "missing")
+                    label = cell.status if cell and cell.status else "missing"
             for r_i, region in enumerate(regions):
                 ax = fig.add_subplot(grid[r_i, 2 + c_i])
                 ax.set_xticks([])
@@ -339,21 +383,25 @@ def figure_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Co
                     spine.set_edgecolor(INSET_COLOURS[r_i % len(INSET_COLOURS)])
                     spine.set_linewidth(1.2)
                 if p_i == 0 and r_i == 0:
-                    ax.set_title(STRATEGY_LABELS.get(column, column), fontsize=8)
+                    ax.set_title(strategy_label(column), fontsize=8)
                 if image is None:
                     ax.set_facecolor("#dddddd")
                     ax.text(0.5, 0.5, label, ha="center", va="center", fontsize=7, transform=ax.transAxes)
                     continue
                 ax.imshow(display.to_display(crop(image, region), exposure), interpolation="nearest")
                 value = values.get(region.name)
-                text = label_time if column == "reference" else (
-                    f"{value:.3g}" if value is not None else "-")
+                text = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
-    fig.legend(handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS)]
-               + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
-               loc="lower center", ncol=8, fontsize=7, frameon=False, bbox_to_anchor=(0.5, -0.01))
-    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10,
-                 y=0.995)
+    fig.legend(
+        handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS, strict=True)]
+        + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
+        loc="lower center",
+        ncol=8,
+        fontsize=7,
+        frameon=False,
+        bbox_to_anchor=(0.5, -0.01),
+    )
+    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10, y=0.995)
     return _save(fig, layout, experiment, "insets")
 
 
@@ -376,41 +424,66 @@ def _summary_regions(data: ExperimentData) -> list[str]:
     return found
 
 
-def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection,
-                      layout: ResultsLayout) -> list[Path]:
+def figure_efficiency(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
     """Efficiency relative to light sampling (top row) and equal-error
     speed-up (bottom row) against the swept axis, one column per region,
     from the tidy summary; error bars of one standard error over replicates,
     open triangles for bounds."""
     regions = _summary_regions(data)
-    measures = (("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
-                ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound",
-                 "speed-up at light's final error"))
-    fig, axes = plt.subplots(len(measures), len(regions), figsize=(3.3 * len(regions), 3.0 * len(measures)),
-                             squeeze=False)
+    measures = (
+        ("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
+        ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up at light's final error"),
+    )
+    fig, axes = plt.subplots(
+        len(measures), len(regions), figsize=(3.3 * len(regions), 3.0 * len(measures)), squeeze=False
+    )
     for m_i, (column, se_column, bound_column, label) in enumerate(measures):
         for r_i, region in enumerate(regions):
             ax = axes[m_i][r_i]
             for strategy in experiment.strategies:
-                rows = sorted((r for r in data.summary if r["region"] == region and r["strategy"] == strategy
-                               and isinstance(r.get(column), (int, float)) and r[column] > 0),
-                              key=lambda r: r["axis"])
+                rows = sorted(
+                    (
+                        r
+                        for r in data.summary
+                        if r["region"] == region
+                        and r["strategy"] == strategy
+                        and isinstance(r.get(column), (int, float))
+                        and r[column] > 0
+                    ),
+                    key=lambda r: r["axis"],
+                )
                 if not rows:
                     continue
                 xs = [r["axis"] for r in rows]
                 ys = [r[column] for r in rows]
-                colour_ = STRATEGY_COLOURS[strategy]
-                ax.plot(xs, ys, lw=1.3, color=colour_, label=STRATEGY_LABELS[strategy])
+                colour_ = strategy_colour(strategy, experiment.strategies)
+                ax.plot(xs, ys, lw=1.3, color=colour_, label=strategy_label(strategy))
                 for r in rows:
                     se = r.get(se_column)
                     bounded = bool(r.get(bound_column))
                     if isinstance(se, (int, float)) and math.isfinite(se) and se > 0:
                         lo = max(r[column] - se, r[column] * 1e-3)
-                        ax.errorbar([r["axis"]], [r[column]], yerr=[[r[column] - lo], [se]], color=colour_,
-                                    lw=0.9, capsize=2, ls="none")
+                        ax.errorbar(
+                            [r["axis"]],
+                            [r[column]],
+                            yerr=[[r[column] - lo], [se]],
+                            color=colour_,
+                            lw=0.9,
+                            capsize=2,
+                            ls="none",
+                        )
                     marker = {"lower": "^", "upper": "v"}.get(r.get(bound_column) or "", "D" if bounded else "o")
-                    ax.plot([r["axis"]], [r[column]], ls="none", marker=marker, ms=5 if bounded else 4,
-                            mfc="white" if bounded else colour_, color=colour_)
+                    ax.plot(
+                        [r["axis"]],
+                        [r[column]],
+                        ls="none",
+                        marker=marker,
+                        ms=5 if bounded else 4,
+                        mfc="white" if bounded else colour_,
+                        color=colour_,
+                    )
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_xlabel(experiment.axis.label, fontsize=8)
@@ -423,13 +496,17 @@ def figure_efficiency(experiment: Experiment, data: ExperimentData, conn: sqlite
             ax.xaxis.set_minor_formatter(NullFormatter())
             ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
             ax.tick_params(which="both", labelsize=7)
-    extra = [(Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
-             (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound")]
+    extra = [
+        (Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
+        (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound"),
+    ]
     _legend_below(fig, axes, len(measures), extra)
     reps = experiment.budget.replicates if experiment.budget else 1
-    fig.suptitle(f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
-                 f"sampling (reference noise removed; bars: one standard error over {reps} replicates)",
-                 fontsize=10)
+    fig.suptitle(
+        f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
+        f"sampling (reference noise removed; bars: one standard error over {reps} replicates)",
+        fontsize=10,
+    )
     fig.tight_layout()
     return _save(fig, layout, experiment, "efficiency")
 

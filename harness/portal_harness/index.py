@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 BUSY_TIMEOUT_S = 60.0
 METRIC_COLUMNS = ("mse", "rel_mse")
@@ -120,29 +121,48 @@ def record_run(conn: sqlite3.Connection, manifest: dict[str, Any], run_dir: Path
             """INSERT OR REPLACE INTO runs VALUES
                (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
             (
-                manifest["key"], manifest["kind"], manifest["status"], spec["strategy"], spec["integrator"],
-                spec["scene"], manifest["scene_hash"], manifest["renderer"]["version"],
-                spec["spp"], spec["time_s"], spec["seed"], spec["threads"],
-                final.get("time_s"), final.get("spp"), manifest.get("exit_status"), manifest.get("error"),
-                timings.get("started"), timings.get("finished"), str(run_dir), json.dumps(params, sort_keys=True),
+                manifest["key"],
+                manifest["kind"],
+                manifest["status"],
+                spec["strategy"],
+                spec["integrator"],
+                spec["scene"],
+                manifest["scene_hash"],
+                manifest["renderer"]["version"],
+                spec["spp"],
+                spec["time_s"],
+                spec["seed"],
+                spec["threads"],
+                final.get("time_s"),
+                final.get("spp"),
+                manifest.get("exit_status"),
+                manifest.get("error"),
+                timings.get("started"),
+                timings.get("finished"),
+                str(run_dir),
+                json.dumps(params, sort_keys=True),
             ),
         )
         conn.executemany(
             "INSERT INTO run_params VALUES (?, ?, ?, ?)",
             [
-                (manifest["key"], name, float(v) if isinstance(v, (int, float)) else None,
-                 None if isinstance(v, (int, float)) else str(v))
+                (
+                    manifest["key"],
+                    name,
+                    float(v) if isinstance(v, (int, float)) else None,
+                    None if isinstance(v, (int, float)) else str(v),
+                )
                 for name, v in params.items()
             ],
         )
 
 
 # Roles of an experiment's renders in experiment_runs.
-ROLE_RUN = "run"                       # replicate k of (point, strategy)
-ROLE_REFERENCE = "reference"           # the point's (combined) reference
+ROLE_RUN = "run"  # replicate k of (point, strategy)
+ROLE_REFERENCE = "reference"  # the point's (combined) reference
 ROLE_REFERENCE_PART = "reference_part"  # one of its independent renders (replicate = part)
-ROLE_PILOT = "pilot"                   # a pilot render choosing the reference strategy
-ROLE_REGION_MAP = "region_map"         # the render whose region AOV gives the point's classes
+ROLE_PILOT = "pilot"  # a pilot render choosing the reference strategy
+ROLE_REGION_MAP = "region_map"  # the render whose region AOV gives the point's classes
 
 MembershipRow = tuple[str, str, str, int, str, str | None, float]
 
@@ -186,8 +206,22 @@ def record_metrics(conn: sqlite3.Connection, key: str, reference_key: str, rows:
         conn.execute("DELETE FROM metrics WHERE key = ? AND reference_key = ?", (key, reference_key))
         conn.executemany(
             "INSERT INTO metrics VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-            [(key, reference_key, r.image, int(r.is_final), r.time_s, r.spp, r.region, r.mse, r.rel_mse,
-              r.floor_rel, r.error) for r in rows],
+            [
+                (
+                    key,
+                    reference_key,
+                    r.image,
+                    int(r.is_final),
+                    r.time_s,
+                    r.spp,
+                    r.region,
+                    r.mse,
+                    r.rel_mse,
+                    r.floor_rel,
+                    r.error,
+                )
+                for r in rows
+            ],
         )
 
 
@@ -221,6 +255,11 @@ def find_reference(conn: sqlite3.Connection, scene_hash: str) -> sqlite3.Row | N
         (scene_hash,),
     ).fetchone()
     return row
+
+
+def strategies(conn: sqlite3.Connection) -> list[str]:
+    """The strategies of the indexed runs, sorted."""
+    return [row[0] for row in conn.execute("SELECT DISTINCT strategy FROM runs ORDER BY strategy")]
 
 
 def curves(

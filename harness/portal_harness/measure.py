@@ -39,25 +39,37 @@ def compute(
         try:
             snap = exr.read_snapshot(run.resolve(file))
             if snap.rgb.shape != reference.rgb.shape:
-                raise CorruptExrError(str(run.resolve(file)),
-                                      f"size {snap.rgb.shape[1]}x{snap.rgb.shape[0]} differs from the reference's "
-                                      f"{reference.rgb.shape[1]}x{reference.rgb.shape[0]}")
+                raise CorruptExrError(
+                    str(run.resolve(file)),
+                    f"size {snap.rgb.shape[1]}x{snap.rgb.shape[0]} differs from the reference's "
+                    f"{reference.rgb.shape[1]}x{reference.rgb.shape[0]}",
+                )
         except CorruptExrError as e:
             rows.append(MetricRow(file, is_final, time_s, spp, WHOLE_IMAGE, None, None, None, str(e)))
             continue
         for name, mask in named:
-            rows.append(MetricRow(
-                image=file, is_final=is_final, time_s=snap.header.render_time_s, spp=snap.header.spp, region=name,
-                mse=metrics.mse(snap.rgb, reference.rgb, mask),
-                rel_mse=metrics.rel_mse(snap.rgb, reference.rgb, mask),
-                floor_rel=floors[name], error=None,
-            ))
+            rows.append(
+                MetricRow(
+                    image=file,
+                    is_final=is_final,
+                    time_s=snap.header.render_time_s,
+                    spp=snap.header.spp,
+                    region=name,
+                    mse=metrics.mse(snap.rgb, reference.rgb, mask),
+                    rel_mse=metrics.rel_mse(snap.rgb, reference.rgb, mask),
+                    floor_rel=floors[name],
+                    error=None,
+                )
+            )
     return rows
 
 
 def _regions_json(regions: list[NamedRegion]) -> dict[str, Any]:
-    return {"names": [r.name for r in regions], "pixels": [r.pixels for r in regions],
-            "fingerprint": fingerprint(regions)}
+    return {
+        "names": [r.name for r in regions],
+        "pixels": [r.pixels for r in regions],
+        "fingerprint": fingerprint(regions),
+    }
 
 
 def up_to_date(run: RunLayout, reference_key: str, regions: list[NamedRegion]) -> bool:
@@ -70,8 +82,9 @@ def up_to_date(run: RunLayout, reference_key: str, regions: list[NamedRegion]) -
     return bool(data.get("reference_key") == reference_key and data.get("regions") == _regions_json(regions))
 
 
-def write_files(run: RunLayout, key: str, reference_key: str, regions: list[NamedRegion],
-                rows: list[MetricRow]) -> None:
+def write_files(
+    run: RunLayout, key: str, reference_key: str, regions: list[NamedRegion], rows: list[MetricRow]
+) -> None:
     """metrics.csv (one line per image and region) and metrics.json (the same plus context)."""
     fields = list(MetricRow.__dataclass_fields__)
     buffer = io.StringIO()
@@ -82,13 +95,16 @@ def write_files(run: RunLayout, key: str, reference_key: str, regions: list[Name
     tmp = run.metrics_csv.with_name(".metrics.csv.tmp")
     tmp.write_text(buffer.getvalue())
     tmp.replace(run.metrics_csv)
-    store.write_json_atomic(run.metrics_json, {
-        "key": key,
-        "reference_key": reference_key,
-        "regions": _regions_json(regions),
-        "epsilon": metrics.REL_EPSILON,
-        "rows": [{k: store.finite_or_none(v) for k, v in asdict(r).items()} for r in rows],
-    })
+    store.write_json_atomic(
+        run.metrics_json,
+        {
+            "key": key,
+            "reference_key": reference_key,
+            "regions": _regions_json(regions),
+            "epsilon": metrics.REL_EPSILON,
+            "rows": [{k: store.finite_or_none(v) for k, v in asdict(r).items()} for r in rows],
+        },
+    )
 
 
 def read_rows(run: RunLayout) -> list[MetricRow]:

@@ -78,9 +78,7 @@ def mse(image: np.ndarray, reference: np.ndarray, region: Selection = None) -> f
     return _mean(d * d)
 
 
-def rel_mse(
-    image: np.ndarray, reference: np.ndarray, region: Selection = None, epsilon: float = REL_EPSILON
-) -> float:
+def rel_mse(image: np.ndarray, reference: np.ndarray, region: Selection = None, epsilon: float = REL_EPSILON) -> float:
     """Relative MSE: (x - r)^2 / (r^2 + epsilon) per pixel and channel, averaged."""
     _check(image, reference)
     x = select(image, region).astype(np.float64)

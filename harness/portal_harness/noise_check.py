@@ -38,9 +38,9 @@ DEFAULT_CAP_FACTOR = 20.0
 @dataclass(frozen=True)
 class RegionCheck:
     region: str
-    floor: float            # the reference's noise in relMSE units
-    smallest_error: float   # smallest mean final relMSE of any strategy (measured, floor included)
-    ratio: float            # floor / smallest_error; nan when both are 0
+    floor: float  # the reference's noise in relMSE units
+    smallest_error: float  # smallest mean final relMSE of any strategy (measured, floor included)
+    ratio: float  # floor / smallest_error; nan when both are 0
     ok: bool
 
 
@@ -50,10 +50,7 @@ def check(floors: dict[str, float], smallest: dict[str, float], noise_ratio: flo
         err = smallest.get(region, math.nan)
         if not math.isfinite(err):
             continue
-        if err <= 0:
-            ratio = math.nan if floor <= 0 else math.inf
-        else:
-            ratio = floor / err
+        ratio = floor / err if err > 0 else (math.nan if floor <= 0 else math.inf)
         out.append(RegionCheck(region, floor, err, ratio, not (ratio > noise_ratio)))
     return out
 
@@ -65,13 +62,18 @@ def pooled_relative_variance(part: exr.Snapshot, mean: np.ndarray, region: Named
 
 @dataclass(frozen=True)
 class Extension:
-    part: int               # index of the reference part to extend
-    factor: float           # its samples are multiplied by this
+    part: int  # index of the reference part to extend
+    factor: float  # its samples are multiplied by this
     regions: tuple[str, ...]
 
 
-def plan_extension(failed: list[RegionCheck], parts: list[exr.Snapshot], mean: np.ndarray,
-                   regions: list[NamedRegion], noise_ratio: float) -> Extension | None:
+def plan_extension(
+    failed: list[RegionCheck],
+    parts: list[exr.Snapshot],
+    mean: np.ndarray,
+    regions: list[NamedRegion],
+    noise_ratio: float,
+) -> Extension | None:
     """The one extension that brings every failed region within the limit."""
     by_name = {r.name: r for r in regions}
     needs: dict[int, float] = {}

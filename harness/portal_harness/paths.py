@@ -3,7 +3,8 @@ and the files inside one run folder. No other module builds a path by hand.
 
 results/
   runs/<key>/            one folder per run (RunLayout below)
-  references/<key>/      reference renders, same layout
+  runs/.attempts/        renders in progress, and folders being removed (store.py)
+  references/<key>/      reference renders, same layout (and references/.attempts/)
   experiments/<name>/    summary.json, summary.csv of the last sweep
   figures/               <experiment>_<figure>.png and .pdf
   baselines/<name>.json  committed variance baselines of `regress`
@@ -74,9 +75,6 @@ class RunLayout:
     def final(self) -> Path:
         return self.dir / "final.exr"
 
-    def snapshot(self, index: int) -> Path:
-        return self.dir / f"snapshot_{index:04d}.exr"
-
     @property
     def metrics_csv(self) -> Path:
         return self.dir / "metrics.csv"
@@ -126,6 +124,10 @@ class ResultsLayout:
 
     def run(self, key: str, reference: bool = False) -> RunLayout:
         return RunLayout((self.references_dir if reference else self.runs_dir) / key)
+
+    def attempts_dir(self, reference: bool = False) -> Path:
+        """Where attempts of runs (or references) render before installation."""
+        return (self.references_dir if reference else self.runs_dir) / ".attempts"
 
     def experiment_dir(self, name: str) -> Path:
         return self.root / "experiments" / name

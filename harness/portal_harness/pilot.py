@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-
 from portal_harness import exr
 from portal_harness.metrics import rel_variance_floor
 from portal_harness.regions import NamedRegion
@@ -45,12 +44,12 @@ BASELINE = "light"
 class PilotResult:
     strategy: str
     time_s: float
-    worst_need: float                 # max over regions of cost / best cost there; lower is better
-    needs: dict[str, float]           # by region
+    worst_need: float  # max over regions of cost / best cost there; lower is better
+    needs: dict[str, float]  # by region
 
 
 def region_costs(pilot: exr.Snapshot, regions: list[NamedRegion]) -> dict[str, float]:
-    out = {}
+    out: dict[str, float] = {}
     if pilot.header.spp < 2:
         return out
     for r in regions:

@@ -50,20 +50,18 @@ from portal_harness.regions import NamedRegion, class_map
 class RegionDisagreement:
     region: str
     z: float
-    mean_difference: float   # mean of a - b over the region's pixel-channels
+    mean_difference: float  # mean of a - b over the region's pixel-channels
     pixels: int
 
 
 def disagreement(a: exr.Snapshot, b: exr.Snapshot, regions: list[NamedRegion]) -> list[RegionDisagreement]:
     out = []
     for r in regions:
-        d = a.rgb[r.mask] - b.rgb[r.mask]                      # (pixels, channels)
+        d = a.rgb[r.mask] - b.rgb[r.mask]  # (pixels, channels)
         sd_pixel = np.sum(np.sqrt(a.variance[r.mask] + b.variance[r.mask]), axis=-1)
         total, var = float(np.sum(d)), float(np.sum(sd_pixel * sd_pixel))
-        if var > 0:
-            z = total / math.sqrt(var)
-        else:
-            z = 0.0 if total == 0 else math.copysign(math.inf, total)
+        # Without variance no difference is 0 sigma, and any other infinitely many.
+        z = total / math.sqrt(var) if var > 0 else (math.copysign(math.inf, total) if total != 0 else 0.0)
         out.append(RegionDisagreement(r.name, z, float(np.mean(d)) if d.size else 0.0, r.pixels))
     return out
 
@@ -93,8 +91,9 @@ def weights(a: exr.Snapshot, b: exr.Snapshot, fractions: np.ndarray | None) -> n
     return w
 
 
-def combine(a: exr.Snapshot, b: exr.Snapshot, strategy_label: str, config_hash: str,
-            fractions: np.ndarray | None) -> exr.Snapshot:
+def combine(
+    a: exr.Snapshot, b: exr.Snapshot, strategy_label: str, config_hash: str, fractions: np.ndarray | None
+) -> exr.Snapshot:
     """The combined reference (carrying the region AOV `fractions`, if any);
     its header sums the two renders' samples and time."""
     w = weights(a, b, fractions)[..., None]

@@ -47,23 +47,28 @@ class PointReference:
 
     point: Point
     parts: tuple[Part, ...]
-    key: str | None = None                 # of the image the metrics use (combined, or the only part)
+    key: str | None = None  # of the image the metrics use (combined, or the only part)
     snapshot: exr.Snapshot | None = None
     part_snapshots: list[exr.Snapshot] = field(default_factory=list)
     regions: list[NamedRegion] = field(default_factory=list)
     disagreements: list[RegionDisagreement] = field(default_factory=list)
     error: str | None = None
-    capped: bool = False                   # an extension was cut at reference.max_time_s
-    fractions: np.ndarray | None = None    # the point's region AOV (config.region_map_spec)
-    region_map_key: str | None = None      # of the render it comes from
+    capped: bool = False  # an extension was cut at reference.max_time_s
+    fractions: np.ndarray | None = None  # the point's region AOV (config.region_map_spec)
+    region_map_key: str | None = None  # of the render it comes from
 
     @property
     def strategies(self) -> tuple[str, ...]:
         return tuple(p.spec.strategy for p in self.parts)
 
 
-def plan(experiment: Experiment, point: Point, strategies: tuple[str, ...], renderer_version: str,
-         first_time_s: float | None = None) -> PointReference:
+def plan(
+    experiment: Experiment,
+    point: Point,
+    strategies: tuple[str, ...],
+    renderer_version: str,
+    first_time_s: float | None = None,
+) -> PointReference:
     """The parts; the first renders for `first_time_s` when given (pilot.first_time)."""
     parts = []
     for i, strategy in enumerate(strategies):
@@ -74,31 +79,65 @@ def plan(experiment: Experiment, point: Point, strategies: tuple[str, ...], rend
 
 def combined_key(parts: tuple[Part, ...], spps: list[int], region_map_key: str | None) -> str:
     """Changes with the parts' sample counts and with the region map (the weights' groups)."""
-    return short_hash({"kind": "combined_reference", "scheme": COMBINATION_SCHEME,
-                       "parts": [[p.key, n] for p, n in zip(parts, spps)], "region_map": region_map_key})
+    return short_hash(
+        {
+            "kind": "combined_reference",
+            "scheme": COMBINATION_SCHEME,
+            "parts": [[p.key, n] for p, n in zip(parts, spps, strict=True)],
+            "region_map": region_map_key,
+        }
+    )
 
 
-def _combined_manifest(ref: PointReference, key: str, snapshot: exr.Snapshot, renderer_version: str,
-                       manifests: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def _combined_manifest(
+    ref: PointReference,
+    key: str,
+    snapshot: exr.Snapshot,
+    final_file: str,
+    renderer_version: str,
+    manifests: dict[str, dict[str, Any]],
+) -> dict[str, Any]:
     first = ref.parts[0].spec
-    spec = {**first.to_dict(), "strategy": snapshot.header.strategy, "spp": snapshot.header.spp,
-            "time_s": snapshot.header.render_time_s}
+    spec = {
+        **first.to_dict(),
+        "strategy": snapshot.header.strategy,
+        "spp": snapshot.header.spp,
+        "time_s": snapshot.header.render_time_s,
+    }
     made = now()
     return {
-        "schema": store.MANIFEST_SCHEMA, "key": key, "kind": "reference", "status": store.STATUS_DONE,
-        "error": None, "spec": spec, "params": first.params(), "scene_hash": first.scene_hash(),
+        "schema": store.MANIFEST_SCHEMA,
+        "key": key,
+        "kind": "reference",
+        "status": store.STATUS_DONE,
+        "error": None,
+        "spec": spec,
+        "params": first.params(),
+        "scene_hash": first.scene_hash(),
         "renderer": {"path": None, "version": renderer_version, "config_hash": snapshot.header.config_hash},
         "timings": {"started": made, "finished": made, "render_time_s": snapshot.header.render_time_s},
-        "final": final_record("final.exr", snapshot.header),
+        "final": final_record(final_file, snapshot.header),
         "snapshots": [],
-        "parts": [{"key": p.key, "strategy": p.spec.strategy, "spp": manifests[p.key]["final"]["spp"],
-                   "time_s": manifests[p.key]["final"]["time_s"]} for p in ref.parts],
+        "parts": [
+            {
+                "key": p.key,
+                "strategy": p.spec.strategy,
+                "spp": manifests[p.key]["final"]["spp"],
+                "time_s": manifests[p.key]["final"]["time_s"],
+            }
+            for p in ref.parts
+        ],
         "combination": "inverse pooled relative variance per region class (reference_pair.py)",
     }
 
 
-def build(ref: PointReference, experiment: Experiment, layout: ResultsLayout, renderer_version: str,
-          manifests: dict[str, dict[str, Any]]) -> None:
+def build(
+    ref: PointReference,
+    experiment: Experiment,
+    layout: ResultsLayout,
+    renderer_version: str,
+    manifests: dict[str, dict[str, Any]],
+) -> None:
     """Reads the parts, tests them against each other, and makes (or finds)
     the image the metrics use. Fills ref in place; ref.error on failure."""
     ref.error = None
@@ -124,8 +163,15 @@ def build(ref: PointReference, experiment: Experiment, layout: ResultsLayout, re
     ref.disagreements = disagreement(snaps[0], snaps[1], ref.regions) if len(snaps) == 2 else []
 
 
-def _combined(ref: PointReference, key: str, a: exr.Snapshot, b: exr.Snapshot, layout: ResultsLayout,
-              renderer_version: str, manifests: dict[str, dict[str, Any]]) -> exr.Snapshot:
+def _combined(
+    ref: PointReference,
+    key: str,
+    a: exr.Snapshot,
+    b: exr.Snapshot,
+    layout: ResultsLayout,
+    renderer_version: str,
+    manifests: dict[str, dict[str, Any]],
+) -> exr.Snapshot:
     """The combined reference `key`: read when it was made before, else
     made and installed. Either way it is read back from its file, so that
     the metrics see the same float image whether it was cached or not. Its
@@ -143,7 +189,8 @@ def _combined(ref: PointReference, key: str, a: exr.Snapshot, b: exr.Snapshot, l
     combined = combine(a, b, label, short_hash([a.header.config_hash, b.header.config_hash]), ref.fractions)
     attempt = store.new_attempt(layout, key, True)
     exr.write_snapshot(attempt.final, combined)
-    store.write_json_atomic(attempt.manifest, _combined_manifest(ref, key, combined, renderer_version, manifests))
+    manifest = _combined_manifest(ref, key, combined, attempt.relative(attempt.final), renderer_version, manifests)
+    store.write_json_atomic(attempt.manifest, manifest)
     store.install(layout, key, True, attempt)
     manifests[key] = store.read_manifest(target) or {}
     return exr.read_snapshot(target.final)
@@ -154,9 +201,11 @@ def format_disagreement(ref: PointReference, z_max: float) -> list[str]:
     out = []
     for d in ref.disagreements:
         if abs(d.z) > z_max:
-            out.append(f"{ref.point.id}: references {a} and {b} disagree in region {d.region} "
-                       f"({d.pixels} pixels): z = {d.z:+.1f} (limit {z_max:g}), mean difference "
-                       f"{d.mean_difference:+.4g}; one of the two strategies is biased there")
+            out.append(
+                f"{ref.point.id}: references {a} and {b} disagree in region {d.region} "
+                f"({d.pixels} pixels): z = {d.z:+.1f} (limit {z_max:g}), mean difference "
+                f"{d.mean_difference:+.4g}; one of the two strategies is biased there"
+            )
     return out
 
 

@@ -45,8 +45,8 @@ KIND_IMAGE, KIND_LIT, KIND_INSET, KIND_CLASS = "image", "lit", "inset", "class"
 @dataclass(frozen=True, eq=False)
 class NamedRegion:
     name: str
-    kind: str           # KIND_IMAGE | KIND_LIT | KIND_INSET | KIND_CLASS
-    mask: np.ndarray    # bool, (height, width)
+    kind: str  # KIND_IMAGE | KIND_LIT | KIND_INSET | KIND_CLASS
+    mask: np.ndarray  # bool, (height, width)
 
     @property
     def pixels(self) -> int:
@@ -74,12 +74,16 @@ def pure_class_map(regions: np.ndarray) -> np.ndarray:
 
 def inset_mask(region: Region, height: int, width: int) -> np.ndarray:
     mask = np.zeros((height, width), dtype=bool)
-    mask[region.y:region.y + region.height, region.x:region.x + region.width] = True
+    mask[region.y : region.y + region.height, region.x : region.x + region.width] = True
     return mask
 
 
-def regions_of(reference: Snapshot, insets: tuple[Region, ...], lit_threshold: float = DEFAULT_LIT_THRESHOLD,
-               fractions: np.ndarray | None = None) -> list[NamedRegion]:
+def regions_of(
+    reference: Snapshot,
+    insets: tuple[Region, ...],
+    lit_threshold: float = DEFAULT_LIT_THRESHOLD,
+    fractions: np.ndarray | None = None,
+) -> list[NamedRegion]:
     """Every region of the experiment, in report order: image, lit, insets,
     classes. `fractions` is a region AOV (the reference's own if None)."""
     height, width = reference.rgb.shape[:2]

@@ -51,8 +51,9 @@ def _estimate(d: dict[str, Any]) -> VarianceEstimate:
     return VarianceEstimate(float(d["value"]), float(d["standard_error"]), int(d["replicates"]), int(d["pixels"]))
 
 
-def judge(name: str, current: VarianceEstimate | None, baseline: VarianceEstimate | None, z_max: float,
-          error: str = "") -> Verdict:
+def judge(
+    name: str, current: VarianceEstimate | None, baseline: VarianceEstimate | None, z_max: float, error: str = ""
+) -> Verdict:
     if current is None:
         return Verdict(name, "FAILED", None, baseline, None, None, error)
     if baseline is None:
@@ -78,14 +79,19 @@ def read_baseline(path: Path) -> dict[str, Any] | None:
 
 def settings_of(experiment: Experiment) -> dict[str, Any]:
     assert experiment.regress is not None
-    return {"spp": experiment.regress.spp, "seeds": list(experiment.regress.seeds), "width": experiment.width,
-            "height": experiment.height, "integrator": experiment.integrator, "fixed": dict(experiment.fixed),
-            "regions": [[r.name, r.x, r.y, r.width, r.height] for r in experiment.insets]}
+    return {
+        "spp": experiment.regress.spp,
+        "seeds": list(experiment.regress.seeds),
+        "width": experiment.width,
+        "height": experiment.height,
+        "integrator": experiment.integrator,
+        "fixed": dict(experiment.fixed),
+        "regions": [[r.name, r.x, r.y, r.width, r.height] for r in experiment.insets],
+    }
 
 
 def print_table(verdicts: list[Verdict], z_max: float, out: TextIO) -> None:
-    header = (f"{'point/strategy':<36} {'baseline':>11} {'current':>11} {'ratio':>7} {'bound':>7} "
-              f"{'z':>7}  verdict")
+    header = f"{'point/strategy':<36} {'baseline':>11} {'current':>11} {'ratio':>7} {'bound':>7} {'z':>7}  verdict"
     print(header, file=out)
     print("-" * len(header), file=out)
 
@@ -94,13 +100,14 @@ def print_table(verdicts: list[Verdict], z_max: float, out: TextIO) -> None:
         return format(v, spec) if v is not None and math.isfinite(v) else "-".rjust(width)
 
     for v in verdicts:
-        ratio = (v.current.value / v.baseline.value
-                 if v.current and v.baseline and v.baseline.value > 0 else None)
-        print(f"{v.name:<36} {num(v.baseline.value if v.baseline else None, '11.4e')} "
-              f"{num(v.current.value if v.current else None, '11.4e')} {num(ratio, '7.3f')} "
-              f"{num(v.bound, '7.3f')} {num(v.z, '7.2f')}  {v.status}{'  ' + v.note if v.note else ''}", file=out)
-    print(f"(relative variance mean(var / (mean^2 + 0.01)); fails when z > {z_max:g}, "
-          f"i.e. ratio > bound)", file=out)
+        ratio = v.current.value / v.baseline.value if v.current and v.baseline and v.baseline.value > 0 else None
+        print(
+            f"{v.name:<36} {num(v.baseline.value if v.baseline else None, '11.4e')} "
+            f"{num(v.current.value if v.current else None, '11.4e')} {num(ratio, '7.3f')} "
+            f"{num(v.bound, '7.3f')} {num(v.z, '7.2f')}  {v.status}{'  ' + v.note if v.note else ''}",
+            file=out,
+        )
+    print(f"(relative variance mean(var / (mean^2 + 0.01)); fails when z > {z_max:g}, i.e. ratio > bound)", file=out)
 
 
 def regress(experiment: Experiment, options: SweepOptions, update: bool, out: TextIO | None = None) -> int:
@@ -109,7 +116,7 @@ def regress(experiment: Experiment, options: SweepOptions, update: bool, out: Te
     settings = experiment.regress
     if settings is None:
         raise ConfigError(str(experiment.path), "regress", "missing (the regress command needs spp and seeds)")
-    baseline_path = experiment.baseline_path(options.layout.baselines_dir)
+    baseline_path = experiment.baseline_path(options.layout)
     baseline = None if update else read_baseline(baseline_path)
 
     groups: dict[str, list[str]] = {}
@@ -144,22 +151,39 @@ def regress(experiment: Experiment, options: SweepOptions, update: bool, out: Te
                 errors[name] = str(e)
                 break
             w = metrics.relative_variance(snap.rgb, snap.variance)
-            replicates.append(np.concatenate([metrics.crop(w, r).reshape(-1) for r in experiment.insets])
-                              if experiment.insets else w)
+            replicates.append(
+                np.concatenate([metrics.crop(w, r).reshape(-1) for r in experiment.insets]) if experiment.insets else w
+            )
         estimates[name] = metrics.pooled_estimate(replicates) if name not in errors else None
 
     entries = (baseline or {}).get("entries", {})
-    verdicts = [judge(name, estimates[name], _estimate(entries[name]) if name in entries else None,
-                      settings.z_max, errors.get(name, "")) for name in groups]
+    verdicts = [
+        judge(
+            name,
+            estimates[name],
+            _estimate(entries[name]) if name in entries else None,
+            settings.z_max,
+            errors.get(name, ""),
+        )
+        for name in groups
+    ]
     if baseline is not None:
-        verdicts += [Verdict(name, "missing", None, _estimate(entries[name]), None, None, "not in this config")
-                     for name in entries if name not in groups]
+        verdicts += [
+            Verdict(name, "missing", None, _estimate(entries[name]), None, None, "not in this config")
+            for name in entries
+            if name not in groups
+        ]
         if baseline.get("settings") != settings_of(experiment):
-            print(f"note: settings differ from the baseline's: baseline {baseline.get('settings')}, "
-                  f"now {settings_of(experiment)}", file=out)
+            print(
+                f"note: settings differ from the baseline's: baseline {baseline.get('settings')}, "
+                f"now {settings_of(experiment)}",
+                file=out,
+            )
         if baseline.get("renderer_version") != options.renderer_version:
-            print(f"note: baseline made with renderer {baseline.get('renderer_version')}, "
-                  f"now {options.renderer_version}", file=out)
+            print(
+                f"note: baseline made with renderer {baseline.get('renderer_version')}, now {options.renderer_version}",
+                file=out,
+            )
     elif not update:
         print(f"no baseline at {baseline_path}: run `portal-harness regress --update` to create it", file=out)
 
@@ -168,15 +192,18 @@ def regress(experiment: Experiment, options: SweepOptions, update: bool, out: Te
     if update:
         good = {v.name: asdict(v.current) for v in verdicts if v.current is not None}
         baseline_path.parent.mkdir(parents=True, exist_ok=True)
-        store.write_json_atomic(baseline_path, {
-            "schema": BASELINE_SCHEMA,
-            "experiment": experiment.name,
-            "renderer_version": options.renderer_version,
-            "created": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
-            "statistic": "mean over seeds, pixels and channels of var / (mean^2 + 0.01)",
-            "settings": settings_of(experiment),
-            "entries": good,
-        })
+        store.write_json_atomic(
+            baseline_path,
+            {
+                "schema": BASELINE_SCHEMA,
+                "experiment": experiment.name,
+                "renderer_version": options.renderer_version,
+                "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+                "statistic": "mean over seeds, pixels and channels of var / (mean^2 + 0.01)",
+                "settings": settings_of(experiment),
+                "entries": good,
+            },
+        )
         print(f"baseline written: {baseline_path} ({len(good)} entries)", file=out)
     if failed:
         print(f"regress FAILED: {', '.join(v.name + ' ' + v.status for v in failed)}", file=out)

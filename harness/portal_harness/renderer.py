@@ -9,10 +9,11 @@ import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from portal_harness.errors import RendererError
 
@@ -87,8 +88,13 @@ def render(
     with open(stderr_path, "wb") as err_file, open(events_path, "w") as events_file:
         try:
             proc = subprocess.Popen(
-                command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=err_file,
-                text=True, bufsize=1, preexec_fn=_die_with_parent(),
+                command,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE,
+                stderr=err_file,
+                text=True,
+                bufsize=1,
+                preexec_fn=_die_with_parent(),
             )
         except OSError as e:
             err_file.write(f"cannot start {command[0]}: {e.strerror}\n".encode())
@@ -146,6 +152,10 @@ def render(
         except ValueError:
             signal_name = f"signal {-code}"
     return RenderResult(
-        exit_status=code, signal_name=signal_name, wall_s=time.monotonic() - start,
-        events=events, malformed_lines=malformed, timed_out=timed_out.is_set(),
+        exit_status=code,
+        signal_name=signal_name,
+        wall_s=time.monotonic() - start,
+        events=events,
+        malformed_lines=malformed,
+        timed_out=timed_out.is_set(),
     )

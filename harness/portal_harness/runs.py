@@ -25,13 +25,18 @@ from portal_harness.spec import RunSpec
 
 def now() -> str:
     """A manifest's timestamp: UTC, ISO 8601, milliseconds."""
-    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
+    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
 
 
 def final_record(file: str, header: exr.SnapshotHeader) -> dict[str, Any]:
     """A manifest's `final` entry for a final image with this header."""
-    return {"file": file, "time_s": header.render_time_s, "spp": header.spp, "rays": header.rays,
-            "nonfinite": header.nonfinite_samples}
+    return {
+        "file": file,
+        "time_s": header.render_time_s,
+        "spp": header.spp,
+        "rays": header.rays,
+        "nonfinite": header.nonfinite_samples,
+    }
 
 
 def _host() -> dict[str, Any]:
@@ -80,9 +85,14 @@ def execute_in(
     start_event = next((e for e in result.events if e.get("event") == "start"), {})
     final_event = next((e for e in result.events if e.get("event") == "final"), None)
     snapshots: list[dict[str, Any]] = [
-        {"index": int(e.get("index", 0)), "file": run.relative(str(e.get("path", ""))),
-         "time_s": float(e.get("time_s", 0.0)), "spp": int(e.get("spp", 0))}
-        for e in result.events if e.get("event") == "snapshot"
+        {
+            "index": int(e.get("index", 0)),
+            "file": run.relative(str(e.get("path", ""))),
+            "time_s": float(e.get("time_s", 0.0)),
+            "spp": int(e.get("spp", 0)),
+        }
+        for e in result.events
+        if e.get("event") == "snapshot"
     ]
 
     error: str | None = None
@@ -102,9 +112,13 @@ def execute_in(
             snap = exr.read_snapshot(run.final)
             final = final_record(run.relative(run.final), snap.header)
             if snap.header.strategy != spec.strategy or snap.header.integrator != spec.integrator:
-                status, error = store.STATUS_FAILED, (
-                    f"final.exr says strategy={snap.header.strategy} integrator={snap.header.integrator}, "
-                    f"expected {spec.strategy}/{spec.integrator}")
+                status, error = (
+                    store.STATUS_FAILED,
+                    (
+                        f"final.exr says strategy={snap.header.strategy} integrator={snap.header.integrator}, "
+                        f"expected {spec.strategy}/{spec.integrator}"
+                    ),
+                )
         except CorruptExrError as e:
             status, error = store.STATUS_FAILED, str(e)
         if status == store.STATUS_DONE and final_event is None:
@@ -128,11 +142,14 @@ def execute_in(
         "params": spec.params(),
         "scene_hash": spec.scene_hash(),
         "command": spec.command(renderer, spec.scene, out_dir),
-        "renderer": {"path": renderer, "version": renderer_version,
-                     "config_hash": start_event.get("config_hash")},
+        "renderer": {"path": renderer, "version": renderer_version, "config_hash": start_event.get("config_hash")},
         "host": _host(),
-        "timings": {"started": started, "finished": finished, "wall_s": round(result.wall_s, 3),
-                    "render_time_s": final["time_s"] if final else None},
+        "timings": {
+            "started": started,
+            "finished": finished,
+            "wall_s": round(result.wall_s, 3),
+            "render_time_s": final["time_s"] if final else None,
+        },
         "exit_status": result.exit_status,
         "signal": result.signal_name,
         "snapshots": snapshots,
@@ -160,16 +177,17 @@ def execute(
     key = spec.key(renderer_version)
     target = layout.run(key, spec.reference)
     existing = store.read_manifest(target)
-    if existing is not None and not force:
-        if existing.get("status") == store.STATUS_DONE or (
-            not retry_failed and existing.get("status") == store.STATUS_FAILED
-        ):
-            return {**existing, "cached": True}
+    status = existing.get("status") if existing is not None else None
+    if (
+        existing is not None
+        and not force
+        and (status == store.STATUS_DONE or (not retry_failed and status == store.STATUS_FAILED))
+    ):
+        return {**existing, "cached": True}
     # An interrupted harness leaves the attempt folder behind; it is never
     # installed, so nothing half-finished is counted as finished.
     attempt = store.new_attempt(layout, key, spec.reference)
-    manifest = execute_in(spec, attempt, renderer, renderer_version, key, on_event=on_event,
-                          final_dir=str(target.dir))
+    manifest = execute_in(spec, attempt, renderer, renderer_version, key, on_event=on_event, final_dir=str(target.dir))
     store.install(layout, key, spec.reference, attempt)
     return {**manifest, "cached": False}
 

@@ -1,17 +1,15 @@
 """Validation primitives for YAML configs: typed access with file- and
-key-qualified errors, YAML reading with line:column, and what the harness
-reads of a scene file."""
+key-qualified errors, and YAML reading with line:column."""
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from portal_harness.errors import ConfigError
+from portal_harness.execute import available_cores
 
 
 class Reader:
@@ -23,8 +21,9 @@ class Reader:
     def fail(self, key: str, message: str) -> ConfigError:
         return ConfigError(self.file, key, message)
 
-    def mapping(self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
-                ) -> dict[str, Any]:
+    def mapping(
+        self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
+    ) -> dict[str, Any]:
         if not isinstance(node, dict):
             raise self.fail(key, f"expected a mapping, got {kind_of(node)}")
         for k in node:
@@ -110,57 +109,8 @@ def read_yaml(path: Path, what: str) -> Any:
         raise ConfigError(str(path), "", f"YAML error: {e}") from None
 
 
-def flatten(node: Any, prefix: str = "") -> dict[str, Any]:
-    """Dotted keys of every scalar in a YAML tree (sequence items by index)."""
-    out: dict[str, Any] = {}
-    if isinstance(node, dict):
-        for k, v in node.items():
-            out.update(flatten(v, join_key(prefix, str(k))))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out.update(flatten(v, join_key(prefix, str(i))))
-    else:
-        out[prefix] = node
-    return out
-
-
-@dataclass(frozen=True)
-class SceneInfo:
-    """What the harness needs to know of a scene file: its scalars and render
-    defaults (after includes), and the digest of every file it was built
-    from (the scene part of run keys)."""
-
-    path: Path
-    scalars: dict[str, Any]
-    sha256: str
-
-    @property
-    def width(self) -> int:
-        return int(self.scalars.get("film.width", 256))
-
-    @property
-    def height(self) -> int:
-        return int(self.scalars.get("film.height", 256))
-
-
-def read_scene(path: Path) -> SceneInfo:
-    # includes.py builds on read_yaml, hence the import here.
-    from portal_harness.includes import files_sha256, load_merged
-
-    tree, files = load_merged(path)
-    if not isinstance(tree, dict):
-        raise ConfigError(str(path), "", f"expected a mapping at the top of the scene, got {kind_of(tree)}")
-    return SceneInfo(path=path, scalars=flatten(tree), sha256=files_sha256(files))
-
-
-def available_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 def parse_threads(node: Any, reader: Reader, key: str) -> int:
+    """A thread count, or `auto`: the cores this process may run on."""
     if node == "auto":
         return available_cores()
     return reader.integer(node, key, minimum=1)

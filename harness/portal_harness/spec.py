@@ -1,12 +1,13 @@
 """RunSpec: everything that determines one render, its command line and its keys.
 
 Keys (16 hex digits of SHA-256 over canonical JSON):
-- run key: the scene file's bytes, every --set override, strategy,
+- run key: the bytes of the scene file and of every file it includes
+  (scene.files_sha256), every --set override, strategy,
   integrator, spp, time, seed, threads, snapshot schedule and the renderer
   version. These inputs determine the renderer's effective config
   (DIR/config.yaml) completely, so the key can be known before the render
   starts, which is what resuming needs.
-- scene hash: the scene file's bytes, the integrator and the overrides
+- scene hash: the scene's files' bytes, the integrator and the overrides
   outside render.* plus render.max_depth and render.rr_depth: what changes
   the expected image, not how it is sampled.
 - reference key: the scene hash, the reference strategy, spp, time, seed
@@ -20,27 +21,33 @@ import hashlib
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
-STRATEGIES: tuple[str, ...] = ("light_area", "light", "portal", "projection", "antishadow", "antishadow_exact")
-INTEGRATORS: tuple[str, ...] = ("direct", "path")
+# The renderer's scalar snapshot schedules (render.snapshots.*), the ones
+# --set can reach; their units come from `render --describe`.
 SNAPSHOT_KEYS: tuple[str, ...] = ("every", "doubling", "every_spp", "doubling_spp")
-# Snapshot keys counted in samples per pixel (integers), the others in seconds.
-SNAPSHOT_SPP_KEYS: frozenset[str] = frozenset({"every_spp", "doubling_spp"})
 # render.* keys that change the expected image (all others only change the noise).
 IMAGE_RENDER_KEYS: frozenset[str] = frozenset({"render.integrator", "render.max_depth", "render.rr_depth"})
 # render.* keys the harness sets itself through flags; an override may not set them.
 HARNESS_RENDER_KEYS: frozenset[str] = frozenset(
-    {"render.output", "render.spp", "render.time", "render.seed", "render.threads", "render.strategy",
-     "render.integrator"}
+    {
+        "render.output",
+        "render.spp",
+        "render.time",
+        "render.seed",
+        "render.threads",
+        "render.strategy",
+        "render.integrator",
+    }
 )
 
 Overrides = tuple[tuple[str, str], ...]
-# The renderer has no "off" for its snapshot period (it wants every > 0):
-# runs that need only final.exr (references, regress) ask for one snapshot
-# per million seconds instead.
-NO_SNAPSHOTS: Overrides = (("every", "1000000"),)
+# Runs that need only final.exr (references, pilots, region maps, regress):
+# 0 turns each of the renderer's scalar schedules off (renderer/src/config.c,
+# load_snapshots; render.c: a period of 0 never comes due), whatever the
+# scene sets. A scene's `times:` or `spp:` lists cannot be overridden by
+# --set and still apply.
+NO_SNAPSHOTS: Overrides = tuple((k, "0") for k in SNAPSHOT_KEYS)
 
 
 def format_value(value: Any) -> str:
@@ -55,10 +62,6 @@ def format_value(value: Any) -> str:
             return str(int(value)) if not math.isnan(value) else "nan"
         return repr(value)
     return str(value)
-
-
-def sha256_file(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def short_hash(payload: Any) -> str:
@@ -84,9 +87,7 @@ class RunSpec:
     labels: tuple[tuple[str, float], ...] = field(default=(), compare=False)
 
     def scene_hash(self) -> str:
-        image_overrides = [
-            (k, v) for k, v in self.overrides if not k.startswith("render.") or k in IMAGE_RENDER_KEYS
-        ]
+        image_overrides = [(k, v) for k, v in self.overrides if not k.startswith("render.") or k in IMAGE_RENDER_KEYS]
         return short_hash({"scene": self.scene_sha256, "integrator": self.integrator, "overrides": image_overrides})
 
     def key(self, renderer_version: str) -> str:
@@ -122,10 +123,22 @@ class RunSpec:
     def command(self, renderer: str, scene_path: str, out_dir: str) -> list[str]:
         """The renderer's command line (renderer contract)."""
         cmd = [
-            renderer, scene_path, "--out", out_dir,
-            "--strategy", self.strategy, "--integrator", self.integrator,
-            "--spp", str(self.spp), "--time", format_value(float(self.time_s)),
-            "--seed", str(self.seed), "--threads", str(self.threads),
+            renderer,
+            scene_path,
+            "--out",
+            out_dir,
+            "--strategy",
+            self.strategy,
+            "--integrator",
+            self.integrator,
+            "--spp",
+            str(self.spp),
+            "--time",
+            format_value(float(self.time_s)),
+            "--seed",
+            str(self.seed),
+            "--threads",
+            str(self.threads),
         ]
         for k, v in self.overrides:
             cmd += ["--set", f"{k}={v}"]

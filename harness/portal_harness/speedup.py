@@ -13,6 +13,7 @@ from below (the speed-up is an upper bound).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -24,7 +25,7 @@ _TINY = 1e-300
 @dataclass(frozen=True)
 class TimeToError:
     time_s: float
-    bound: str          # "", LOWER (speed-up >= the value) or UPPER (speed-up <= the value)
+    bound: str  # "", LOWER (speed-up >= the value) or UPPER (speed-up <= the value)
 
 
 def time_to_error(curve: list[tuple[float, float]], target: float) -> TimeToError | None:
@@ -34,7 +35,7 @@ def time_to_error(curve: list[tuple[float, float]], target: float) -> TimeToErro
         return None
     if points[0][1] <= target:
         return TimeToError(points[0][0], LOWER)
-    for (t0, e0), (t1, e1) in zip(points, points[1:]):
+    for (t0, e0), (t1, e1) in itertools.pairwise(points):
         if e1 <= target:
             l0, l1 = math.log(max(e0, _TINY)), math.log(max(e1, _TINY))
             lt = math.log(target)

@@ -26,7 +26,6 @@ STATUS_DONE = "done"
 STATUS_FAILED = "failed"
 STATUS_INTERRUPTED = "interrupted"
 MANIFEST_SCHEMA = 1
-ATTEMPTS = ".attempts"
 _counter = itertools.count()
 
 
@@ -61,12 +60,8 @@ def is_done(run: RunLayout) -> bool:
     return m is not None and m.get("status") == STATUS_DONE
 
 
-def attempts_dir(layout: ResultsLayout, reference: bool) -> Path:
-    return (layout.references_dir if reference else layout.runs_dir) / ATTEMPTS
-
-
 def new_attempt(layout: ResultsLayout, key: str, reference: bool) -> RunLayout:
-    parent = attempts_dir(layout, reference)
+    parent = layout.attempts_dir(reference)
     parent.mkdir(parents=True, exist_ok=True)
     folder = parent / f"{key}-{os.getpid()}-{next(_counter)}-{time.time_ns() % 10**9}"
     folder.mkdir()
@@ -79,7 +74,7 @@ def install(layout: ResultsLayout, key: str, reference: bool, attempt: RunLayout
     target = layout.run(key, reference)
     target.dir.parent.mkdir(parents=True, exist_ok=True)
     if target.dir.exists():
-        trash = attempts_dir(layout, reference) / f"trash-{key}-{os.getpid()}-{next(_counter)}"
+        trash = layout.attempts_dir(reference) / f"trash-{key}-{os.getpid()}-{next(_counter)}"
         os.replace(target.dir, trash)
         os.replace(attempt.dir, target.dir)
         shutil.rmtree(trash, ignore_errors=True)
@@ -93,7 +88,7 @@ def remove_run(layout: ResultsLayout, key: str, reference: bool) -> None:
     target = layout.run(key, reference)
     if not target.dir.exists():
         return
-    trash = attempts_dir(layout, reference) / f"trash-{key}-{os.getpid()}-{next(_counter)}"
+    trash = layout.attempts_dir(reference) / f"trash-{key}-{os.getpid()}-{next(_counter)}"
     trash.parent.mkdir(parents=True, exist_ok=True)
     os.replace(target.dir, trash)
     shutil.rmtree(trash, ignore_errors=True)
@@ -103,16 +98,17 @@ def install_files(layout: ResultsLayout, key: str, reference: bool, files: dict[
     """Installs a run folder shipped back as bytes (the Dask path): every file
     is written to a fresh attempt, the manifest last, then installed."""
     attempt = new_attempt(layout, key, reference)
+    manifest_name = attempt.manifest.name
     for name, data in sorted(files.items()):
-        if name == "manifest.json":
+        if name == manifest_name:
             continue
         dest = attempt.dir / name
         if dest.resolve().parent != attempt.dir.resolve():
             raise ValueError(f"refusing to write {name!r} outside the run folder")
         dest.write_bytes(data)
-    if "manifest.json" in files:
-        tmp = attempt.dir / ".manifest.json.tmp"
-        tmp.write_bytes(files["manifest.json"])
+    if manifest_name in files:
+        tmp = attempt.manifest.with_name(f".{manifest_name}.tmp")
+        tmp.write_bytes(files[manifest_name])
         os.replace(tmp, attempt.manifest)
     return install(layout, key, reference, attempt)
 
@@ -136,7 +132,7 @@ def clean_stale_attempts(layout: ResultsLayout) -> int:
     """Removes attempt folders whose harness process is gone; returns how many."""
     removed = 0
     for reference in (False, True):
-        parent = attempts_dir(layout, reference)
+        parent = layout.attempts_dir(reference)
         if not parent.is_dir():
             continue
         for folder in parent.iterdir():

@@ -39,10 +39,30 @@ BASELINE = "light"
 
 # Column order of summary.csv (the tidy table).
 COLUMNS = (
-    "point", "axis", "strategy", "status", "region", "region_kind", "pixels", "replicates", "time_s", "spp",
-    "rel_mse", "rel_mse_stderr", "rel_mse_measured", "reference_noise", "reference_noise_ratio",
-    "efficiency", "efficiency_stderr", "efficiency_vs_light", "efficiency_vs_light_stderr",
-    "speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "time_to_light_error_s", "bound",
+    "point",
+    "axis",
+    "strategy",
+    "status",
+    "region",
+    "region_kind",
+    "pixels",
+    "replicates",
+    "time_s",
+    "spp",
+    "rel_mse",
+    "rel_mse_stderr",
+    "rel_mse_measured",
+    "reference_noise",
+    "reference_noise_ratio",
+    "efficiency",
+    "efficiency_stderr",
+    "efficiency_vs_light",
+    "efficiency_vs_light_stderr",
+    "speedup_equal_error",
+    "speedup_equal_error_stderr",
+    "speedup_bound",
+    "time_to_light_error_s",
+    "bound",
 )
 
 
@@ -50,10 +70,10 @@ COLUMNS = (
 class Replicate:
     """One finished run's final values and curve in one region."""
 
-    rel_mse: float          # measured, reference noise included
+    rel_mse: float  # measured, reference noise included
     time_s: float
     spp: int
-    curve: tuple[tuple[float, float], ...]   # (time_s, measured relMSE) of every image
+    curve: tuple[tuple[float, float], ...]  # (time_s, measured relMSE) of every image
 
 
 def _mean_se(values: list[float]) -> tuple[float, float]:
@@ -76,15 +96,22 @@ def replicates_of(conn: sqlite3.Connection, keys: list[str], reference_key: str)
     """By region, the replicates of one (point, strategy) with a final image."""
     out: dict[str, list[Replicate]] = {}
     for key in keys:
-        rows = [m for m in index.metrics_of(conn, key, reference_key) if m["error"] is None and m["rel_mse"] is not None]
+        rows = [
+            m for m in index.metrics_of(conn, key, reference_key) if m["error"] is None and m["rel_mse"] is not None
+        ]
         for region in {m["region"] for m in rows}:
             mine = [m for m in rows if m["region"] == region]
             final = next((m for m in mine if m["is_final"]), None)
             if final is None or not final["time_s"]:
                 continue
-            out.setdefault(region, []).append(Replicate(
-                rel_mse=float(final["rel_mse"]), time_s=float(final["time_s"]), spp=int(final["spp"] or 0),
-                curve=tuple((float(m["time_s"]), float(m["rel_mse"])) for m in mine if m["time_s"])))
+            out.setdefault(region, []).append(
+                Replicate(
+                    rel_mse=float(final["rel_mse"]),
+                    time_s=float(final["time_s"]),
+                    spp=int(final["spp"] or 0),
+                    curve=tuple((float(m["time_s"]), float(m["rel_mse"])) for m in mine if m["time_s"]),
+                )
+            )
     return out
 
 
@@ -99,9 +126,15 @@ class RegionInfo:
     floor: float
 
 
-def rows_for_point(point: str, axis: float, strategies: tuple[str, ...],
-                   reps: dict[str, dict[str, list[Replicate]]], regions: dict[str, RegionInfo],
-                   noise_ratio: float, status: dict[str, str]) -> list[dict[str, Any]]:
+def rows_for_point(
+    point: str,
+    axis: float,
+    strategies: tuple[str, ...],
+    reps: dict[str, dict[str, list[Replicate]]],
+    regions: dict[str, RegionInfo],
+    noise_ratio: float,
+    status: dict[str, str],
+) -> list[dict[str, Any]]:
     """reps: strategy -> region -> replicates; status: strategy -> "done"
     when every replicate is, else the status of the first that is not."""
     out: list[dict[str, Any]] = []
@@ -113,10 +146,17 @@ def rows_for_point(point: str, axis: float, strategies: tuple[str, ...],
         base_time = statistics.fmean([r.time_s for r in base]) if base else math.nan
         for strategy in strategies:
             mine = reps.get(strategy, {}).get(region, [])
-            row: dict[str, Any] = {"point": point, "axis": axis, "strategy": strategy,
-                                   "status": status.get(strategy, "missing"), "region": region,
-                                   "region_kind": info.kind, "pixels": info.pixels, "replicates": len(mine),
-                                   "reference_noise": floor}
+            row: dict[str, Any] = {
+                "point": point,
+                "axis": axis,
+                "strategy": strategy,
+                "status": status.get(strategy, "missing"),
+                "region": region,
+                "region_kind": info.kind,
+                "pixels": info.pixels,
+                "replicates": len(mine),
+                "reference_noise": floor,
+            }
             if not mine:
                 out.append(row)
                 continue
@@ -128,15 +168,21 @@ def rows_for_point(point: str, axis: float, strategies: tuple[str, ...],
             eff = 1.0 / cost[0] if cost[0] > 0 else math.nan
             eff_se = eff * cost[1] / cost[0] if cost[0] > 0 else math.nan
             vs, vs_se = _ratio_se(base_cost, cost)
-            row.update({
-                "time_s": statistics.fmean([r.time_s for r in mine]),
-                "spp": statistics.fmean([r.spp for r in mine]),
-                "rel_mse": rel, "rel_mse_stderr": rel_se, "rel_mse_measured": measured,
-                "reference_noise_ratio": ratio,
-                "efficiency": eff, "efficiency_stderr": eff_se,
-                "efficiency_vs_light": vs, "efficiency_vs_light_stderr": vs_se,
-                "bound": "" if resolved else "lower",
-            })
+            row.update(
+                {
+                    "time_s": statistics.fmean([r.time_s for r in mine]),
+                    "spp": statistics.fmean([r.spp for r in mine]),
+                    "rel_mse": rel,
+                    "rel_mse_stderr": rel_se,
+                    "rel_mse_measured": measured,
+                    "reference_noise_ratio": ratio,
+                    "efficiency": eff,
+                    "efficiency_stderr": eff_se,
+                    "efficiency_vs_light": vs,
+                    "efficiency_vs_light_stderr": vs_se,
+                    "bound": "" if resolved else "lower",
+                }
+            )
             row.update(_speedup(strategy, mine, floor, base_error, base_time))
             out.append(row)
     return out
@@ -145,16 +191,24 @@ def rows_for_point(point: str, axis: float, strategies: tuple[str, ...],
 def _speedup(strategy: str, mine: list[Replicate], floor: float, target: float, t_light: float) -> dict[str, Any]:
     if strategy == BASELINE and math.isfinite(t_light):
         # By definition: light reaches its own final error at the end of its budget.
-        return {"speedup_equal_error": 1.0, "speedup_equal_error_stderr": 0.0, "speedup_bound": "",
-                "time_to_light_error_s": t_light}
+        return {
+            "speedup_equal_error": 1.0,
+            "speedup_equal_error_stderr": 0.0,
+            "speedup_bound": "",
+            "time_to_light_error_s": t_light,
+        }
     found = [time_to_error([(t, e - floor) for t, e in r.curve], target) for r in mine]
     times = [f for f in found if f is not None]
     if not times or not math.isfinite(t_light):
         return {"speedup_bound": ""}
     speed, speed_se = _mean_se([t_light / f.time_s for f in times])
     bound = combined_bound([f.bound for f in times])
-    return {"speedup_equal_error": speed, "speedup_equal_error_stderr": speed_se, "speedup_bound": bound,
-            "time_to_light_error_s": statistics.fmean([f.time_s for f in times])}
+    return {
+        "speedup_equal_error": speed,
+        "speedup_equal_error_stderr": speed_se,
+        "speedup_bound": bound,
+        "time_to_light_error_s": statistics.fmean([f.time_s for f in times]),
+    }
 
 
 def wide(rows: list[dict[str, Any]], region: str) -> list[dict[str, Any]]:

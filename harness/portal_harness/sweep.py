@@ -24,6 +24,7 @@ never stops the sweep; the exit status is 1 if any run or reference failed.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
@@ -68,22 +69,30 @@ def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]
     return out
 
 
-def record_plan(conn: sqlite3.Connection, experiment: Experiment, runs: list[PlannedRun],
-                refs: dict[str, PointReference], pilots: dict[str, dict[str, str]]) -> None:
+def record_plan(
+    conn: sqlite3.Connection,
+    experiment: Experiment,
+    runs: list[PlannedRun],
+    refs: dict[str, PointReference],
+    pilots: dict[str, dict[str, str]],
+) -> None:
     rows: list[index.MembershipRow] = []
     for point_id, ref in refs.items():
         axis = ref.point.axis_value
         if ref.key is not None:
             label = "+".join(ref.strategies)
             rows.append((point_id, label, ROLE_REFERENCE, 0, ref.key, None, axis))
-        rows += [(point_id, p.spec.strategy, ROLE_REFERENCE_PART, i, p.key, None, axis)
-                 for i, p in enumerate(ref.parts)]
+        rows += [
+            (point_id, p.spec.strategy, ROLE_REFERENCE_PART, i, p.key, None, axis) for i, p in enumerate(ref.parts)
+        ]
         rows += [(point_id, s, ROLE_PILOT, 0, key, None, axis) for s, key in pilots.get(point_id, {}).items()]
         if ref.region_map_key is not None:
             rows.append((point_id, "light", ROLE_REGION_MAP, 0, ref.region_map_key, None, axis))
-    rows += [(r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.point.id].key, r.point.axis_value)
-             for r in runs]
+    rows += [
+        (r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.point.id].key, r.point.axis_value) for r in runs
+    ]
     index.record_membership(conn, experiment.name, rows)
+
 
 @dataclass(frozen=True)
 class SweepOptions:
@@ -96,8 +105,9 @@ class SweepOptions:
     progress: bool = True
 
 
-def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Connection,
-                  desc: str = "renders", force: bool = False) -> dict[str, dict[str, Any]]:
+def execute_specs(
+    specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Connection, desc: str = "renders", force: bool = False
+) -> dict[str, dict[str, Any]]:
     """Runs every spec not already finished (all of them if `force`), indexing
     each as it ends. Returns the manifests by key (cached ones included)."""
     manifests: dict[str, dict[str, Any]] = {}
@@ -111,7 +121,8 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
         existing = store.read_manifest(run)
         finished = existing is not None and (
             existing.get("status") == store.STATUS_DONE
-            or (not options.retry_failed and existing.get("status") == store.STATUS_FAILED))
+            or (not options.retry_failed and existing.get("status") == store.STATUS_FAILED)
+        )
         if existing is not None and finished and not force:
             manifests[key] = {**existing, "cached": True}
             index.record_run(conn, existing, run.dir)
@@ -120,8 +131,9 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
             queued.add(key)
     if not todo:
         return manifests
-    bar = tqdm(total=len(todo), desc=desc, unit="render", disable=not options.progress, file=sys.stderr,
-               dynamic_ncols=True)
+    bar = tqdm(
+        total=len(todo), desc=desc, unit="render", disable=not options.progress, file=sys.stderr, dynamic_ncols=True
+    )
 
     def done(spec: RunSpec, manifest: dict[str, Any]) -> None:
         key = manifest["key"]
@@ -144,9 +156,14 @@ def execute_specs(specs: list[RunSpec], options: SweepOptions, conn: sqlite3.Con
     return manifests
 
 
-def compute_metrics(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference],
-                    options: SweepOptions, conn: sqlite3.Connection,
-                    manifests: dict[str, dict[str, Any]]) -> list[str]:
+def compute_metrics(
+    experiment: Experiment,
+    runs: list[PlannedRun],
+    refs: dict[str, PointReference],
+    options: SweepOptions,
+    conn: sqlite3.Connection,
+    manifests: dict[str, dict[str, Any]],
+) -> list[str]:
     """Metrics of every finished run against its point's reference, on the
     point's regions; returns the problems found."""
     problems: list[str] = []
@@ -192,15 +209,24 @@ def floors_of(ref: PointReference) -> dict[str, float]:
     return {r.name: rel_variance_floor(ref.snapshot.rgb, ref.snapshot.variance, r.mask) for r in ref.regions}
 
 
-def check_references(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference],
-                     conn: sqlite3.Connection) -> dict[str, list[noise_check.RegionCheck]]:
-    return {pid: noise_check.check(floors_of(ref), _final_errors(conn, runs, ref), experiment.reference.noise_ratio)
-            for pid, ref in refs.items() if ref.snapshot is not None}
+def check_references(
+    experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference], conn: sqlite3.Connection
+) -> dict[str, list[noise_check.RegionCheck]]:
+    return {
+        pid: noise_check.check(floors_of(ref), _final_errors(conn, runs, ref), experiment.reference.noise_ratio)
+        for pid, ref in refs.items()
+        if ref.snapshot is not None
+    }
 
 
-def extend_references(experiment: Experiment, refs: dict[str, PointReference],
-                      checks: dict[str, list[noise_check.RegionCheck]], options: SweepOptions,
-                      manifests: dict[str, dict[str, Any]], out: TextIO) -> list[str]:
+def extend_references(
+    experiment: Experiment,
+    refs: dict[str, PointReference],
+    checks: dict[str, list[noise_check.RegionCheck]],
+    options: SweepOptions,
+    manifests: dict[str, dict[str, Any]],
+    out: TextIO,
+) -> list[str]:
     """One round of extensions; returns the points extended."""
     extended = []
     for pid, found in checks.items():
@@ -208,8 +234,9 @@ def extend_references(experiment: Experiment, refs: dict[str, PointReference],
         failed = [c for c in found if not c.ok]
         if not failed or ref.snapshot is None:
             continue
-        plan = noise_check.plan_extension(failed, ref.part_snapshots, ref.snapshot.rgb, ref.regions,
-                                          experiment.reference.noise_ratio)
+        plan = noise_check.plan_extension(
+            failed, ref.part_snapshots, ref.snapshot.rgb, ref.regions, experiment.reference.noise_ratio
+        )
         if plan is None:
             continue
         part = ref.parts[plan.part]
@@ -224,8 +251,11 @@ def extend_references(experiment: Experiment, refs: dict[str, PointReference],
             if factor < 1.05:
                 continue
         total = max(snap.header.spp + 1, math.ceil(snap.header.spp * factor))
-        print(f"extending reference {pid} {part.spec.strategy} from {snap.header.spp} to {total} spp "
-              f"(regions {', '.join(plan.regions)})", file=out)
+        print(
+            f"extending reference {pid} {part.spec.strategy} from {snap.header.spp} to {total} spp "
+            f"(regions {', '.join(plan.regions)})",
+            file=out,
+        )
         manifest = extend.extend(options.layout, part.key, total, options.renderer, part.spec.threads)
         if manifest.get("status") != store.STATUS_DONE:
             print(f"  failed: {manifest.get('error')}", file=out)
@@ -244,8 +274,13 @@ def _status(runs: list[PlannedRun], manifests: dict[str, dict[str, Any]], point:
     return store.STATUS_DONE
 
 
-def summarize(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference],
-              conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+def summarize(
+    experiment: Experiment,
+    runs: list[PlannedRun],
+    refs: dict[str, PointReference],
+    conn: sqlite3.Connection,
+    manifests: dict[str, dict[str, Any]],
+) -> list[dict[str, Any]]:
     """The tidy rows (summary.py) of every point, region and strategy."""
     rows: list[dict[str, Any]] = []
     for pid, ref in refs.items():
@@ -253,24 +288,40 @@ def summarize(experiment: Experiment, runs: list[PlannedRun], refs: dict[str, Po
             continue
         floors = floors_of(ref)
         regions = {r.name: summary.RegionInfo(r.kind, r.pixels, floors[r.name]) for r in ref.regions}
-        reps = {s: summary.replicates_of(conn, [r.key for r in runs if r.point.id == pid and r.strategy == s],
-                                         ref.key)
-                for s in experiment.strategies}
+        reps = {
+            s: summary.replicates_of(conn, [r.key for r in runs if r.point.id == pid and r.strategy == s], ref.key)
+            for s in experiment.strategies
+        }
         status = {s: _status(runs, manifests, pid, s) for s in experiment.strategies}
-        rows += summary.rows_for_point(pid, ref.point.axis_value, experiment.strategies, reps, regions,
-                                       experiment.reference.noise_ratio, status)
+        rows += summary.rows_for_point(
+            pid, ref.point.axis_value, experiment.strategies, reps, regions, experiment.reference.noise_ratio, status
+        )
     return rows
 
 
-def write_summary(experiment: Experiment, layout: ResultsLayout, rows: list[dict[str, Any]],
-                  references_info: list[dict[str, Any]], failures: list[str], problems: list[str]) -> None:
+def write_summary(
+    experiment: Experiment,
+    layout: ResultsLayout,
+    rows: list[dict[str, Any]],
+    references_info: list[dict[str, Any]],
+    failures: list[str],
+    problems: list[str],
+) -> None:
     folder = layout.experiment_dir(experiment.name)
     folder.mkdir(parents=True, exist_ok=True)
     clean = [{k: store.finite_or_none(r.get(k)) for k in summary.COLUMNS} for r in rows]
-    store.write_json_atomic(layout.summary_json(experiment.name), {
-        "experiment": experiment.name, "file": str(experiment.path), "columns": list(summary.COLUMNS),
-        "rows": clean, "references": references_info, "failures": failures, "problems": problems,
-    })
+    store.write_json_atomic(
+        layout.summary_json(experiment.name),
+        {
+            "experiment": experiment.name,
+            "file": str(experiment.path),
+            "columns": list(summary.COLUMNS),
+            "rows": clean,
+            "references": references_info,
+            "failures": failures,
+            "problems": problems,
+        },
+    )
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(summary.COLUMNS), lineterminator="\n")
     writer.writeheader()
@@ -281,23 +332,40 @@ def write_summary(experiment: Experiment, layout: ResultsLayout, rows: list[dict
     tmp.replace(layout.summary_csv(experiment.name))
 
 
-def references_info(refs: dict[str, PointReference], checks: dict[str, list[noise_check.RegionCheck]],
-                    manifests: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+def references_info(
+    refs: dict[str, PointReference],
+    checks: dict[str, list[noise_check.RegionCheck]],
+    manifests: dict[str, dict[str, Any]],
+) -> list[dict[str, Any]]:
     out = []
     for pid, ref in refs.items():
         parts = []
         for p in ref.parts:
             final = (manifests.get(p.key) or {}).get("final") or {}
-            parts.append({"strategy": p.spec.strategy, "key": p.key, "spp": final.get("spp"),
-                          "time_s": final.get("time_s")})
-        out.append({
-            # Capped: an extension was cut at the cap and some region is still unresolved.
-            "point": pid, "key": ref.key, "parts": parts, "error": ref.error,
-            "capped": ref.capped and any(not c.ok for c in checks.get(pid, [])),
-            "bias_max_abs_z": store.finite_or_none(references.max_abs_z(ref)),
-            "noise": [{"region": c.region, "floor": c.floor, "smallest_error": c.smallest_error,
-                       "ratio": store.finite_or_none(c.ratio), "ok": c.ok} for c in checks.get(pid, [])],
-        })
+            parts.append(
+                {"strategy": p.spec.strategy, "key": p.key, "spp": final.get("spp"), "time_s": final.get("time_s")}
+            )
+        out.append(
+            {
+                # Capped: an extension was cut at the cap and some region is still unresolved.
+                "point": pid,
+                "key": ref.key,
+                "parts": parts,
+                "error": ref.error,
+                "capped": ref.capped and any(not c.ok for c in checks.get(pid, [])),
+                "bias_max_abs_z": store.finite_or_none(references.max_abs_z(ref)),
+                "noise": [
+                    {
+                        "region": c.region,
+                        "floor": c.floor,
+                        "smallest_error": c.smallest_error,
+                        "ratio": store.finite_or_none(c.ratio),
+                        "ok": c.ok,
+                    }
+                    for c in checks.get(pid, [])
+                ],
+            }
+        )
     return out
 
 
@@ -308,8 +376,10 @@ def _fmt(v: Any, spec: str) -> str:
 def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
     """The tidy summary's `lit` region (the whole image if there is none), one line per (point, strategy)."""
     region = LIT if any(r["region"] == LIT for r in rows) else WHOLE_IMAGE
-    header = (f"{'point':<22} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
-              f"{'speed-up':>10} {'ref/err':>7}")
+    header = (
+        f"{'point':<22} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
+        f"{'speed-up':>10} {'ref/err':>7}"
+    )
     print(f"region {region}:", file=out)
     print(header, file=out)
     print("-" * len(header), file=out)
@@ -319,27 +389,36 @@ def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
         if se != "-":
             eff += f" ±{se}"
         mark = {"lower": ">", "upper": "<", "mixed": "~"}.get(r.get("speedup_bound") or "", " ")
-        print(f"{r['point']:<22} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
-              f"{_fmt(r.get('rel_mse'), '10.3e'):>10} {eff:>16} {mark}{_fmt(r.get('speedup_equal_error'), '.3g'):>9} "
-              f"{_fmt(r.get('reference_noise_ratio'), '7.3f'):>7}", file=out)
-    print("(eff/light: efficiency relative to light sampling, reference noise removed, ± a standard error over "
-          "replicates; '>' a lower bound where the reference does not resolve the error; speed-up: light's time "
-          "over the time to reach light's final error, '>'/'<' where the curve only bounds it; ref/err: reference "
-          "noise over the run's error)", file=out)
+        print(
+            f"{r['point']:<22} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
+            f"{_fmt(r.get('rel_mse'), '10.3e'):>10} {eff:>16} {mark}{_fmt(r.get('speedup_equal_error'), '.3g'):>9} "
+            f"{_fmt(r.get('reference_noise_ratio'), '7.3f'):>7}",
+            file=out,
+        )
+    print(
+        "(eff/light: efficiency relative to light sampling, reference noise removed, ± a standard error over "
+        "replicates; '>' a lower bound where the reference does not resolve the error; speed-up: light's time "
+        "over the time to reach light's final error, '>'/'<' where the curve only bounds it; ref/err: reference "
+        "noise over the run's error)",
+        file=out,
+    )
 
 
 def print_references(info: list[dict[str, Any]], out: TextIO) -> None:
     for ref in info:
         parts = ", ".join(f"{p['strategy']} {_fmt(p['time_s'], '.1f')} s/{p['spp']} spp" for p in ref["parts"])
         worst = max((c for c in ref["noise"] if c["ratio"] is not None), key=lambda c: c["ratio"], default=None)
-        noise = (f"worst noise ratio {worst['ratio']:.3f} ({worst['region']})" if worst else "noise ratio -")
+        noise = f"worst noise ratio {worst['ratio']:.3f} ({worst['region']})" if worst else "noise ratio -"
         capped = ", capped: values there are bounds" if ref["capped"] else ""
-        print(f"reference {ref['point']}: {parts}; bias |z| max {_fmt(ref['bias_max_abs_z'], '.2f')}; "
-              f"{noise}{capped}", file=out)
+        print(
+            f"reference {ref['point']}: {parts}; bias |z| max {_fmt(ref['bias_max_abs_z'], '.2f')}; {noise}{capped}",
+            file=out,
+        )
 
 
-def failures_of(runs: list[PlannedRun], refs: dict[str, PointReference],
-                manifests: dict[str, dict[str, Any]]) -> list[str]:
+def failures_of(
+    runs: list[PlannedRun], refs: dict[str, PointReference], manifests: dict[str, dict[str, Any]]
+) -> list[str]:
     """Every render that did not finish, and every reference that could not
     be made from finished parts (an unreadable image): each once."""
     out = []
@@ -349,15 +428,19 @@ def failures_of(runs: list[PlannedRun], refs: dict[str, PointReference],
             m = manifests.get(p.key)
             if m is None or m.get("status") != store.STATUS_DONE:
                 unfinished = True
-                out.append(f"reference {pid} {p.spec.strategy} [{p.key}]: {(m or {}).get('status', 'missing')}: "
-                           f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip())
+                out.append(
+                    f"reference {pid} {p.spec.strategy} [{p.key}]: {(m or {}).get('status', 'missing')}: "
+                    f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip()
+                )
         if ref.error and not unfinished:
             out.append(f"reference {pid}: {ref.error}")
     for r in runs:
         m = manifests.get(r.key)
         if m is None or m.get("status") != store.STATUS_DONE:
-            out.append(f"{r.strategy} {r.point.id} #{r.replicate} [{r.key}]: {(m or {}).get('status', 'missing')}: "
-                       f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip())
+            out.append(
+                f"{r.strategy} {r.point.id} #{r.replicate} [{r.key}]: {(m or {}).get('status', 'missing')}: "
+                f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip()
+            )
     return out
 
 
@@ -366,8 +449,9 @@ def _last_line(text: str | None) -> str:
     return f"(stderr: {lines[-1][:160]})" if lines else ""
 
 
-def region_maps(experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection,
-                manifests: dict[str, dict[str, Any]]) -> dict[str, tuple[str, Any]]:
+def region_maps(
+    experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]
+) -> dict[str, tuple[str, Any]]:
     """Per point, (key, fractions) of its region-map render (fractions None if it failed)."""
     specs = {p.id: experiment.region_map_spec(p) for p in experiment.points()}
     manifests.update(execute_specs(list(specs.values()), options, conn, desc="region maps"))
@@ -376,10 +460,8 @@ def region_maps(experiment: Experiment, options: SweepOptions, conn: sqlite3.Con
         key = spec.key(options.renderer_version)
         fractions = None
         if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
-            try:
+            with contextlib.suppress(CorruptExrError):
                 fractions = exr.read_snapshot(options.layout.run(key).final).regions
-            except CorruptExrError:
-                pass
         out[pid] = (key, fractions)
     return out
 
@@ -387,8 +469,8 @@ def region_maps(experiment: Experiment, options: SweepOptions, conn: sqlite3.Con
 @dataclass(frozen=True)
 class ReferenceChoice:
     strategies: tuple[str, ...]
-    first_time_s: float | None      # the first part's render time, predicted by the pilot
-    pilot_keys: dict[str, str]      # by strategy
+    first_time_s: float | None  # the first part's render time, predicted by the pilot
+    pilot_keys: dict[str, str]  # by strategy
 
 
 def _first_time(experiment: Experiment, ranked: list[pilot.PilotResult]) -> float | None:
@@ -404,9 +486,13 @@ def _first_time(experiment: Experiment, ranked: list[pilot.PilotResult]) -> floa
     return float(min(max(math.ceil(predicted), r.time_s), cap))
 
 
-def choose_reference_strategies(experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection,
-                                manifests: dict[str, dict[str, Any]], maps: dict[str, tuple[str, Any]]
-                                ) -> dict[str, ReferenceChoice]:
+def choose_reference_strategies(
+    experiment: Experiment,
+    options: SweepOptions,
+    conn: sqlite3.Connection,
+    manifests: dict[str, dict[str, Any]],
+    maps: dict[str, tuple[str, Any]],
+) -> dict[str, ReferenceChoice]:
     """Per point, the reference strategies (given, or by pilot) and the first part's time."""
     points = experiment.points()
     given = experiment.reference.strategies
@@ -422,16 +508,15 @@ def choose_reference_strategies(experiment: Experiment, options: SweepOptions, c
             key = specs[(p.id, s)].key(options.renderer_version)
             keys[s] = key
             if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
-                try:
+                with contextlib.suppress(CorruptExrError):
                     snaps[s] = exr.read_snapshot(options.layout.run(key).final)
-                except CorruptExrError:
-                    pass
         ranked: list[pilot.PilotResult] = []
         if snaps:
             # The pilots' regions: a light-sampled pilot (or any) stands in for the reference.
             stand_in = snaps.get(pilot.BASELINE) or next(iter(snaps.values()))
-            ranked = pilot.score(snaps, regions_of(stand_in, experiment.insets, experiment.lit_threshold,
-                                                   maps[p.id][1]))
+            ranked = pilot.score(
+                snaps, regions_of(stand_in, experiment.insets, experiment.lit_threshold, maps[p.id][1])
+            )
         chosen[p.id] = ReferenceChoice(pilot.choose(ranked), _first_time(experiment, ranked), keys)
     return chosen
 
@@ -449,9 +534,12 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         maps = region_maps(experiment, options, conn, manifests)
         chosen = choose_reference_strategies(experiment, options, conn, manifests, maps)
         pilot_keys = {pid: c.pilot_keys for pid, c in chosen.items()}
-        refs = {p.id: references.plan(experiment, p, chosen[p.id].strategies, options.renderer_version,
-                                      chosen[p.id].first_time_s)
-                for p in experiment.points()}
+        refs = {
+            p.id: references.plan(
+                experiment, p, chosen[p.id].strategies, options.renderer_version, chosen[p.id].first_time_s
+            )
+            for p in experiment.points()
+        }
         for pid, ref in refs.items():
             ref.region_map_key, ref.fractions = maps[pid]
         record_plan(conn, experiment, runs, refs, pilot_keys)
@@ -459,8 +547,9 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         manifests.update(execute_specs(part_specs, options, conn, desc="references"))
         biased = build_references(experiment, refs, options, conn, manifests)
         if biased:
-            return _stop_biased(experiment, biased, "no run was measured against them", conn, runs, refs,
-                                pilot_keys, out)
+            return _stop_biased(
+                experiment, biased, "no run was measured against them", conn, runs, refs, pilot_keys, out
+            )
         manifests.update(execute_specs([r.spec for r in runs], options, conn, desc="runs"))
         problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
         checks = check_references(experiment, runs, refs, conn)
@@ -473,8 +562,9 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
                     index.record_run(conn, manifests[part.key], layout.run(part.key, True).dir)
             biased = build_references(experiment, {pid: refs[pid] for pid in extended}, options, conn, manifests)
             if biased:
-                return _stop_biased(experiment, biased, "found after extending references", conn, runs, refs,
-                                    pilot_keys, out)
+                return _stop_biased(
+                    experiment, biased, "found after extending references", conn, runs, refs, pilot_keys, out
+                )
             problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
             checks = check_references(experiment, runs, refs, conn)
         record_plan(conn, experiment, runs, refs, pilot_keys)
@@ -487,12 +577,16 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
     # Combined references are computed, not rendered: they have no command.
     rendered = sum(1 for m in manifests.values() if not m.get("cached") and m.get("command"))
     cached = sum(1 for m in manifests.values() if m.get("cached") and m.get("command"))
-    print(f"sweep {experiment.name}: {len(runs)} runs, {sum(len(r.parts) for r in refs.values())} reference "
-          f"renders, {rendered} rendered now, {cached} cached", file=out)
+    print(
+        f"sweep {experiment.name}: {len(runs)} runs, {sum(len(r.parts) for r in refs.values())} reference "
+        f"renders, {rendered} rendered now, {cached} cached",
+        file=out,
+    )
     print_references(info, out)
     print_table(rows, out)
-    print(f"summary: {layout.summary_json(experiment.name)} (and .csv: one row per point, strategy and region)",
-          file=out)
+    print(
+        f"summary: {layout.summary_json(experiment.name)} (and .csv: one row per point, strategy and region)", file=out
+    )
     for p in problems:
         print(f"problem: {p}", file=out)
     if failures:
@@ -502,20 +596,35 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
     return 1 if failures or problems else 0
 
 
-def _stop_biased(experiment: Experiment, biased: list[str], when: str, conn: sqlite3.Connection,
-                 runs: list[PlannedRun], refs: dict[str, PointReference], pilot_keys: dict[str, dict[str, str]],
-                 out: TextIO) -> int:
+def _stop_biased(
+    experiment: Experiment,
+    biased: list[str],
+    when: str,
+    conn: sqlite3.Connection,
+    runs: list[PlannedRun],
+    refs: dict[str, PointReference],
+    pilot_keys: dict[str, dict[str, str]],
+    out: TextIO,
+) -> int:
     """Reports a failed bias test; the sweep stops with exit status 1."""
     record_plan(conn, experiment, runs, refs, pilot_keys)
     for line in biased:
         print(f"bias: {line}", file=out)
-    print(f"sweep {experiment.name}: stopped: the two references of a point disagree, so one of their "
-          f"strategies is biased ({when})", file=out)
+    print(
+        f"sweep {experiment.name}: stopped: the two references of a point disagree, so one of their "
+        f"strategies is biased ({when})",
+        file=out,
+    )
     return 1
 
 
-def build_references(experiment: Experiment, refs: dict[str, PointReference], options: SweepOptions,
-                     conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]) -> list[str]:
+def build_references(
+    experiment: Experiment,
+    refs: dict[str, PointReference],
+    options: SweepOptions,
+    conn: sqlite3.Connection,
+    manifests: dict[str, dict[str, Any]],
+) -> list[str]:
     """Builds each point's reference; returns the bias-test failures, as messages."""
     biased: list[str] = []
     for ref in refs.values():

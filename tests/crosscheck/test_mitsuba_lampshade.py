@@ -37,7 +37,7 @@ def mitsuba_python() -> str | None:
         return sys.executable
     venv = REPO / ".venv-xcheck" / "bin" / "python"
     if venv.exists():
-        ok = subprocess.run([str(venv), "-c", "import mitsuba, OpenEXR, yaml"], capture_output=True)
+        ok = subprocess.run([str(venv), "-c", "import mitsuba, OpenEXR, yaml, portal_harness.exr"], capture_output=True)
         if ok.returncode == 0:
             return str(venv)
     return None
@@ -51,8 +51,9 @@ def renderer() -> Path | None:
     return None
 
 
-needs_mitsuba = pytest.mark.skipif(mitsuba_python() is None, reason="mitsuba is not importable "
-                                   "(create .venv-xcheck: see tools/crosscheck/README.md)")
+needs_mitsuba = pytest.mark.skipif(
+    mitsuba_python() is None, reason="mitsuba is not importable (create .venv-xcheck: see tools/crosscheck/README.md)"
+)
 
 
 # --- 1. The statistic ------------------------------------------------------
@@ -63,11 +64,11 @@ def synthetic(rng, bias: float):
     h = w = 64
     k = 16
     truth = rng.uniform(0.1, 1.0, size=(h, w, 3))
-    sigma_ours = 0.05 * truth           # standard error of our pixel mean
-    sigma_run = 0.2 * truth             # standard error of one Mitsuba run
+    sigma_ours = 0.05 * truth  # standard error of our pixel mean
+    sigma_run = 0.2 * truth  # standard error of one Mitsuba run
     ours = truth * (1.0 + bias) + sigma_ours * rng.standard_normal(truth.shape)
-    runs = truth + sigma_run * rng.standard_normal((k,) + truth.shape)
-    return ours, sigma_ours ** 2, runs
+    runs = truth + sigma_run * rng.standard_normal((k, *truth.shape))
+    return ours, sigma_ours**2, runs
 
 
 def test_1_bound_is_the_bonferroni_quantile():
@@ -85,7 +86,7 @@ def test_2_unbiased_images_agree_and_z_is_standard_normal():
     assert s["max_abs_z"] <= s["bound"]
     # 192 tests: mean z^2 has standard deviation sqrt(2/192) = 0.10.
     assert abs(s["mean_z2"] - 1.0) < 0.5
-    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]):
+    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True):
         assert abs(r - 1.0) < 5 * e
 
 
@@ -100,8 +101,10 @@ def test_3_a_two_percent_bias_is_detected():
     assert s["max_abs_z"] > s["bound"]
     ours, var, runs = synthetic(np.random.default_rng(SEED + 2), 0.02)
     s = xcheck.compare(ours, var, runs, 8, 1e-3)["stats"]
-    assert all(abs(r - 1.02) < 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]))
-    assert all(r - 1.0 > 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]))
+    assert all(
+        abs(r - 1.02) < 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True)
+    )
+    assert all(r - 1.0 > 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True))
 
 
 def test_4_noiseless_blocks_tolerate_float_rounding_only():
@@ -165,8 +168,9 @@ print(json.dumps(out))
 
 @needs_mitsuba
 def test_5_light_emits_towards_our_normal_and_reflects_nothing(tmp_path):
-    proc = subprocess.run([mitsuba_python(), "-c", PROBE, str(TOOL_DIR), str(tmp_path)],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [mitsuba_python(), "-c", PROBE, str(TOOL_DIR), str(tmp_path)], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out["from_below"]["t"] == pytest.approx(0.6, abs=1e-5)
@@ -184,15 +188,32 @@ def test_5_light_emits_towards_our_normal_and_reflects_nothing(tmp_path):
 @pytest.mark.skipif(renderer() is None, reason="our render binary is not built")
 def test_6_small_direct_render_agrees_with_mitsuba(tmp_path):
     # 64 x 64, 256 spp each: 64 blocks x 3 channels; a few seconds each.
-    cmd = [mitsuba_python(), str(SCRIPT), "--renderer", str(renderer()), "--integrator", "direct",
-           "--ours-spp", "256", "--mitsuba-spp", "256", "--mitsuba-runs", "16",
-           "--set", "film.width=64", "--set", "film.height=64", "--out", str(tmp_path)]
+    cmd = [
+        mitsuba_python(),
+        str(SCRIPT),
+        "--renderer",
+        str(renderer()),
+        "--integrator",
+        "direct",
+        "--ours-spp",
+        "256",
+        "--mitsuba-spp",
+        "256",
+        "--mitsuba-runs",
+        "16",
+        "--set",
+        "film.width=64",
+        "--set",
+        "film.height=64",
+        "--out",
+        str(tmp_path),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert proc.returncode in (0, 1), proc.stderr
     s = json.loads((tmp_path / "summary.json").read_text())["stats"]
     assert s["tests"] == 192
     assert proc.returncode == 0, proc.stdout
-    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]):
+    for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True):
         assert abs(r - 1.0) < 5 * e
 
 
@@ -204,11 +225,11 @@ def test_7_a_block_without_hits_tolerates_a_few_hits_worth_only():
     ours, var, runs = synthetic(rng, 0.0)
     runs[:, :8, :8] = 0.0
     ours[:8, :8] = 0.0
-    ours[0, 0] = 64 * 2.0 / (64 * 256)        # block mean: 2 hits' worth
+    ours[0, 0] = 64 * 2.0 / (64 * 256)  # block mean: 2 hits' worth
     var[:8, :8] = 0.0
     var[0, 0] = (ours[0, 0] / 100) ** 2
     without = xcheck.compare(ours, var, runs, 8, 1e-3)["stats"]
-    assert without["max_abs_z"] > 50             # the zero variance is not credible
+    assert without["max_abs_z"] > 50  # the zero variance is not credible
     s = xcheck.compare(ours, var, runs, 8, 1e-3, ours_spp=256, mits_spp=256)["stats"]
     assert s["zero_hit_tests"] == 3
     assert s["max_abs_z"] <= s["bound"]

@@ -10,8 +10,9 @@ from __future__ import annotations
 import os
 import stat
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -42,12 +43,22 @@ def write_exr() -> Callable[..., None]:
     return write_snapshot
 
 
+def _real_renderer_built() -> bool:
+    return REAL_RENDERER.is_file() and os.access(REAL_RENDERER, os.X_OK)
+
+
 @pytest.fixture(scope="session")
 def fake_renderer(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An executable that runs fake_render.py with this interpreter."""
+    """An executable that runs fake_render.py with this interpreter; it
+    forwards --describe and --print-config to the real renderer, so the
+    contract under test is the real one."""
+    if not _real_renderer_built():
+        pytest.skip("renderer/build/render not built yet (the fake renderer asks it for the contract)")
     folder = tmp_path_factory.mktemp("fake-renderer")
     path = folder / "render"
-    path.write_text(f'#!/bin/sh\nexec "{sys.executable}" "{HERE / "fake_render.py"}" "$@"\n')
+    path.write_text(
+        f'#!/bin/sh\nFAKE_RENDER_REAL="{REAL_RENDERER}" exec "{sys.executable}" "{HERE / "fake_render.py"}" "$@"\n'
+    )
     path.chmod(path.stat().st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
     return path
 
@@ -73,15 +84,22 @@ def results(tmp_path: Path) -> Path:
 
 @pytest.fixture
 def fake_scene(tmp_path: Path) -> Path:
-    """A scene file the fake renderer understands (16x16)."""
+    """The lampshade at 16x16, self-contained: a scene the real renderer
+    accepts (the fake asks it for the effective config)."""
+    tree = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
+    tree["film"] = {"width": 16, "height": 16}
+    tree["render"] = {
+        "integrator": "direct",
+        "strategy": "light",
+        "spp": 16,
+        "seed": 1,
+        "threads": 1,
+        "snapshots": {"every": 0.5},
+        "output": "unused",
+    }
     path = tmp_path / "scenes" / "tiny.yaml"
     path.parent.mkdir(parents=True)
-    path.write_text(yaml.safe_dump({
-        "params": {"s_L": 0.6, "s_P": 0.3},
-        "film": {"width": 16, "height": 16},
-        "render": {"integrator": "direct", "strategy": "light", "spp": 16, "seed": 1, "threads": 1,
-                   "snapshots": {"every": 0.5}, "output": "unused"},
-    }))
+    path.write_text(yaml.safe_dump(tree, sort_keys=False))
     return path
 
 
@@ -100,8 +118,10 @@ def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
             "fixed": {"params.s_P": 0.3},
             "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
             "reference": {"strategy": "light", "spp": 2000, "seed": 99},
-            "insets": [{"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
-                       {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5}],
+            "insets": [
+                {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
+                {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5},
+            ],
             "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
         }
         for key, value in sections.items():
@@ -119,7 +139,7 @@ def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
 
 @pytest.fixture(scope="session")
 def real_renderer() -> Path:
-    if not (REAL_RENDERER.is_file() and os.access(REAL_RENDERER, os.X_OK)):
+    if not _real_renderer_built():
         pytest.skip("renderer/build/render not built yet")
     return REAL_RENDERER
 

@@ -1,15 +1,17 @@
-"""Writes EXRs in the renderer's exact format (renderer contract), for the
-tests and the fake renderer. Independent of portal_harness.exr on purpose:
-the reader is tested against this writer and against the real renderer."""
+"""Writes snapshots in the renderer's format for the tests and the fake
+renderer, through portal_harness.exr (the one EXR writer). The reader is
+checked against the real renderer's files in test_real_renderer.py and
+against --describe's channel and attribute lists in test_contract.py; this
+helper only adds the knobs the tests need: any header values, omitted
+channels or attributes, extra channels."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import OpenEXR
+
+from portal_harness import exr
 
 
 def write_snapshot(
@@ -31,31 +33,23 @@ def write_snapshot(
     """Writes atomically (temporary name, then rename), like the renderer."""
     rgb = np.asarray(rgb, dtype=np.float32)
     variance = np.asarray(variance, dtype=np.float32)
-    channels = {
-        "R": rgb[..., 0].copy(), "G": rgb[..., 1].copy(), "B": rgb[..., 2].copy(),
-        "variance.R": variance[..., 0].copy(), "variance.G": variance[..., 1].copy(),
-        "variance.B": variance[..., 2].copy(),
-    }
-    for name, plane in (extra_channels or {}).items():
-        channels[name] = np.asarray(plane, dtype=np.float32).copy()
-    header: dict[str, Any] = {
-        "compression": OpenEXR.ZIP_COMPRESSION,
-        "type": OpenEXR.scanlineimage,
-        # C doubles: one-element float64 arrays (a Python float would be stored as a 32-bit float).
-        "render_time_s": np.array([render_time_s], dtype=np.float64),
-        "spp": int(spp),
-        "strategy": strategy,
-        "integrator": integrator,
-        "seed": str(seed),
-        "config_hash": config_hash,
-        "renderer_version": renderer_version,
-        "rays": np.array([rays], dtype=np.float64),
-        "nonfinite_samples": np.array([nonfinite_samples], dtype=np.float64),
-    }
+    header = exr.SnapshotHeader(
+        width=rgb.shape[1],
+        height=rgb.shape[0],
+        render_time_s=render_time_s,
+        spp=spp,
+        strategy=strategy,
+        integrator=integrator,
+        seed=seed,
+        config_hash=config_hash,
+        renderer_version=renderer_version,
+        rays=rays,
+        nonfinite_samples=nonfinite_samples,
+    )
+    channels = exr.snapshot_channels(exr.Snapshot(path=Path(path), header=header, rgb=rgb, variance=variance))
+    channels.update(extra_channels or {})
+    attributes = exr.snapshot_attributes(header)
     for name in omit:
         channels.pop(name, None)
-        header.pop(name, None)
-    p = Path(path)
-    tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
-    OpenEXR.File(header, channels).write(str(tmp))
-    os.replace(tmp, p)
+        attributes.pop(name, None)
+    exr.write_exr(path, channels, attributes)

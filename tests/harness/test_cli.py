@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -34,18 +34,21 @@ def test_02_console_script_is_installed() -> None:
 
 
 def test_03_run_shows_progress_and_reports(cli: CliRunner, fake_scene: Path) -> None:
-    status, out, err = cli("run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0",
-                           "--snapshot-every", "0.1")
+    status, out, err = cli(
+        "run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0", "--snapshot-every", "0.1"
+    )
     assert status == 0, err
     assert out.startswith("run ") and ": done" in out and "folder:" in out
     assert "portal 16x16" in err and "snapshot 2" in err and "final" in err  # the live bar's text
-    status, out, err = cli("run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0",
-                           "--snapshot-every", "0.1")
+    status, out, err = cli(
+        "run", str(fake_scene), "--strategy", "portal", "--time", "0.3", "--spp", "0", "--snapshot-every", "0.1"
+    )
     assert status == 0 and "cached: nothing rendered" in out and "16x16" not in err
 
 
-def test_04_failed_run_exits_1_with_renderer_stderr(cli: CliRunner, fake_scene: Path,
-                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_04_failed_run_exits_1_with_renderer_stderr(
+    cli: CliRunner, fake_scene: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "antishadow")
     status, out, err = cli("run", str(fake_scene), "--strategy", "antishadow")
     assert status == 1 and ": failed" in out
@@ -57,8 +60,9 @@ def test_05_missing_renderer_and_bad_arguments_exit_2(cli: CliRunner, fake_scene
     assert status == 2 and "renderer not found" in err
     status, _, err = cli("run", str(fake_scene), "--set", "params.s_L")
     assert status == 2 and "expected KEY=VALUE" in err
+    # the renderer reads the scene, and its message is the error
     status, _, err = cli("run", str(tmp_path / "nope.yaml"))
-    assert status == 2 and "scene file not found" in err
+    assert status == 2 and f"{tmp_path / 'nope.yaml'}: No such file or directory" in err
     status, _, err = cli("figures", str(tmp_path / "nope.yaml"))
     assert status == 2
 

@@ -12,16 +12,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import REPO
 
 sys.path.insert(0, str(REPO / "tools" / "closed_form"))
 
-from floor_check import compare, closed_form_for, load_config  # noqa: E402
-from floor_model import (  # noqa: E402
-    BOX_MAX, BOX_MIN, LIGHT_Y, PORTAL_Y, Camera, LampshadeModel, frustum_meets_box, projected_solid_angle_rect,
+from floor_check import closed_form_for, compare, load_config
+from floor_model import (
+    BOX_MAX,
+    BOX_MIN,
+    LIGHT_Y,
+    PORTAL_Y,
+    Camera,
+    LampshadeModel,
+    frustum_meets_box,
+    projected_solid_angle_rect,
 )
-from portal_harness import exr  # noqa: E402
+
+from portal_harness import exr
 
 SCENE = REPO / "configs" / "scenes" / "lampshade.yaml"
 SIZE = 48
@@ -33,17 +40,25 @@ MASK_PIXELS_48 = 428
 def _config(s_light: float, size: int) -> dict:
     """The effective config of the lampshade, as a render writes it (only the keys the model reads)."""
     a, h = max(s_light, 0.3) / 2 + 0.05, 0.15
+
     def quad(lo: tuple[float, float, float], hi: tuple[float, float, float]) -> list[list[float]]:
         return [list(lo), list(hi), list(hi), list(lo)]  # only its bounds matter to the model
+
     shapes = {
-        "floor": ((-3, 0, -3), (3, 0, 3)), "ceiling": ((-3, 4, -3), (3, 4, 3)),
-        "back_wall": ((-3, 0, -3), (3, 4, -3)), "left_wall": ((-3, 0, -3), (-3, 4, 3)),
+        "floor": ((-3, 0, -3), (3, 0, 3)),
+        "ceiling": ((-3, 4, -3), (3, 4, 3)),
+        "back_wall": ((-3, 0, -3), (3, 4, -3)),
+        "left_wall": ((-3, 0, -3), (-3, 4, 3)),
         "right_wall": ((3, 0, -3), (3, 4, 3)),
-        "shade_left": ((-a, 2.2, -a), (-a, 2.65, a)), "shade_right": ((a, 2.2, -a), (a, 2.65, a)),
-        "shade_back": ((-a, 2.2, -a), (a, 2.65, -a)), "shade_front": ((-a, 2.2, a), (a, 2.65, a)),
+        "shade_left": ((-a, 2.2, -a), (-a, 2.65, a)),
+        "shade_right": ((a, 2.2, -a), (a, 2.65, a)),
+        "shade_back": ((-a, 2.2, -a), (a, 2.65, -a)),
+        "shade_front": ((-a, 2.2, a), (a, 2.65, a)),
         "shade_top": ((-a, 2.65, -a), (a, 2.65, a)),
-        "shade_bottom_back": ((-a, 2.2, -a), (a, 2.2, -h)), "shade_bottom_front": ((-a, 2.2, h), (a, 2.2, a)),
-        "shade_bottom_left": ((-a, 2.2, -h), (-h, 2.2, h)), "shade_bottom_right": ((h, 2.2, -h), (a, 2.2, h)),
+        "shade_bottom_back": ((-a, 2.2, -a), (a, 2.2, -h)),
+        "shade_bottom_front": ((-a, 2.2, h), (a, 2.2, a)),
+        "shade_bottom_left": ((-a, 2.2, -h), (-h, 2.2, h)),
+        "shade_bottom_right": ((h, 2.2, -h), (a, 2.2, h)),
     }
     s = s_light / 2
     return {
@@ -52,11 +67,17 @@ def _config(s_light: float, size: int) -> dict:
         "materials": {"white": {"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}},
         "shapes": [{"name": n, "material": "white", "vertices": quad(lo, hi)} for n, (lo, hi) in shapes.items()]
         + [{"name": "box", "type": "box", "material": "white", "min": list(BOX_MIN), "max": list(BOX_MAX)}],
-        "lights": [{"name": "lamp", "two_sided": False,
-                    "vertices": [[-s, 2.6, -s], [s, 2.6, -s], [s, 2.6, s], [-s, 2.6, s]],
-                    "radiance": [c * (0.5 / s_light) ** 2 for c in (40, 34, 24)]}],
-        "portals": [{"name": "opening", "light": "lamp",
-                     "vertices": [[-h, 2.2, -h], [h, 2.2, -h], [h, 2.2, h], [-h, 2.2, h]]}],
+        "lights": [
+            {
+                "name": "lamp",
+                "two_sided": False,
+                "vertices": [[-s, 2.6, -s], [s, 2.6, -s], [s, 2.6, s], [-s, 2.6, s]],
+                "radiance": [c * (0.5 / s_light) ** 2 for c in (40, 34, 24)],
+            }
+        ],
+        "portals": [
+            {"name": "opening", "light": "lamp", "vertices": [[-h, 2.2, -h], [h, 2.2, -h], [h, 2.2, h], [-h, 2.2, h]]}
+        ],
         "render": {"integrator": "direct"},
     }
 
@@ -79,10 +100,15 @@ def test_lambert_rectangle_against_the_corner_form_factor() -> None:
     exact = corner(u1, w1) - corner(u0, w1) - corner(u1, w0) + corner(u0, w0)
     got = projected_solid_angle_rect(px, pz, x0, x1, z0, z1, h)
     np.testing.assert_allclose(got, exact, rtol=1e-10, atol=1e-14)
-    assert projected_solid_angle_rect(np.array(0.0), np.array(0.0), np.array(-1e5), np.array(1e5),
-                                      np.array(-1e5), np.array(1e5), h) == pytest.approx(math.pi, rel=1e-4)
-    assert projected_solid_angle_rect(np.array(0.0), np.array(0.0), np.array(0.1), np.array(0.1),
-                                      np.array(0.0), np.array(1.0), h) == 0.0
+    assert projected_solid_angle_rect(
+        np.array(0.0), np.array(0.0), np.array(-1e5), np.array(1e5), np.array(-1e5), np.array(1e5), h
+    ) == pytest.approx(math.pi, rel=1e-4)
+    assert (
+        projected_solid_angle_rect(
+            np.array(0.0), np.array(0.0), np.array(0.1), np.array(0.1), np.array(0.0), np.array(1.0), h
+        )
+        == 0.0
+    )
 
 
 def test_visible_rectangle_by_brute_force() -> None:
@@ -115,8 +141,13 @@ def test_frustum_test_against_sampled_segments() -> None:
         t = rng.random((4000, 1)) * (1.0 / PORTAL_Y)  # heights 0..1: the box's
         xz = pa + t * (pb - pa)
         y = t[:, 0] * PORTAL_Y
-        hit = np.any((xz[:, 0] >= box_lo[0]) & (xz[:, 0] <= box_hi[0]) & (xz[:, 1] >= box_lo[2])
-                     & (xz[:, 1] <= box_hi[2]) & (y <= box_hi[1]))
+        hit = np.any(
+            (xz[:, 0] >= box_lo[0])
+            & (xz[:, 0] <= box_hi[0])
+            & (xz[:, 1] >= box_lo[2])
+            & (xz[:, 1] <= box_hi[2])
+            & (y <= box_hi[1])
+        )
         assert meets or not hit  # a sampled hit is always found
 
 
@@ -163,10 +194,33 @@ def test_film_position_inverts_the_camera() -> None:
 @pytest.mark.real
 def test_render_agrees_with_the_closed_form(real_renderer: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = subprocess.run([str(real_renderer), str(SCENE), "--set", "params.s_L=0.6", "--set", f"film.width={SIZE}",
-                           "--set", f"film.height={SIZE}", "--strategy", "antishadow_exact", "--spp", "400",
-                           "--time", "0", "--seed", "21", "--threads", "2", "--out", str(out)],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            str(real_renderer),
+            str(SCENE),
+            "--set",
+            "params.s_L=0.6",
+            "--set",
+            f"film.width={SIZE}",
+            "--set",
+            f"film.height={SIZE}",
+            "--strategy",
+            "antishadow_exact",
+            "--spp",
+            "400",
+            "--time",
+            "0",
+            "--seed",
+            "21",
+            "--threads",
+            "2",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     form = closed_form_for(load_config(out), 16)
     mask = form.mask

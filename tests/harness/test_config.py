@@ -3,22 +3,26 @@ before any render with the file and the key in the message."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 
 from portal_harness.config import load_experiment
-from portal_harness.scene import spec_from_scene
 from portal_harness.errors import ConfigError
+from portal_harness.scene import spec_from_scene
 
 REPO = Path(__file__).resolve().parent.parent.parent
 
 
-def test_01_expands_the_cross_product(write_experiment: Callable[..., Path]) -> None:
-    path = write_experiment(sweep={"params.s_L": [0.15, 0.6], "params.s_P": [0.3, 0.6]},
-                            fixed={"film.width": 16}, axis={"param": "params.s_L", "divide_by": "params.s_P"})
-    exp = load_experiment(path)
+def test_01_expands_the_cross_product(write_experiment: Callable[..., Path], real_renderer: Path) -> None:
+    path = write_experiment(
+        sweep={"params.s_L": [0.15, 0.6], "params.s_P": [0.3, 0.6]},
+        fixed={"film.width": 16},
+        axis={"param": "params.s_L", "divide_by": "params.s_P"},
+    )
+    exp = load_experiment(path, str(real_renderer))
     points = exp.points()
     assert [p.id for p in points] == ["s_L=0.15,s_P=0.3", "s_L=0.15,s_P=0.6", "s_L=0.6,s_P=0.3", "s_L=0.6,s_P=0.6"]
     assert [p.axis_value for p in points] == pytest.approx([0.5, 0.25, 2.0, 1.0])
@@ -38,12 +42,12 @@ def test_01_expands_the_cross_product(write_experiment: Callable[..., Path]) -> 
     assert len(seeds) == 6
 
 
-def test_02_shipped_experiments_load() -> None:
+def test_02_shipped_experiments_load(real_renderer: Path) -> None:
     for name in ("lampshade_ratio", "lampshade_ratio_full", "lampshade_regress"):
-        exp = load_experiment(REPO / "configs" / "experiments" / f"{name}.yaml")
+        exp = load_experiment(REPO / "configs" / "experiments" / f"{name}.yaml", str(real_renderer))
         assert len(exp.points()) >= 1
         assert exp.scene == (REPO / "configs" / "scenes" / "lampshade.yaml").resolve()
-    ratio = load_experiment(REPO / "configs" / "experiments" / "lampshade_ratio.yaml")
+    ratio = load_experiment(REPO / "configs" / "experiments" / "lampshade_ratio.yaml", str(real_renderer))
     assert [p.axis_value for p in ratio.points()] == pytest.approx([0.25, 0.5, 1, 2, 4])
 
 
@@ -65,51 +69,76 @@ BAD: list[tuple[dict[str, Any], str, str]] = [
     ({"axis": {"param": "params.s_P"}}, "axis.param", "not swept"),
     ({"regress": {"spp": 8, "seeds": [1]}}, "regress.seeds", "two different seeds"),
     ({"colour": "blue"}, "colour", "unknown key"),
+    # checked against the renderer: its parameters, and its own messages for what it refuses
+    ({"sweep": {"params.s_X": [1, 2]}, "axis": {"param": "params.s_X"}}, "sweep.params.s_X", "no parameter 's_X'"),
+    ({"fixed": {"params.s_P": 0.3, "film.width": -3}}, "fixed", "--set film.width=-3: "),
+    (
+        {"sweep": {"params.s_L": [0.15], "film.height": [16, 0]}},
+        "sweep",
+        "rejects the point params.s_L=0.15,film.height=0: --set film.height=0: ",
+    ),
 ]
 
 
 @pytest.mark.parametrize("change,key,message", BAD, ids=[b[1] for b in BAD])
-def test_03_bad_configs_name_file_and_key(write_experiment: Callable[..., Path], change: dict[str, Any], key: str,
-                                          message: str) -> None:
+def test_03_bad_configs_name_file_and_key(
+    write_experiment: Callable[..., Path], real_renderer: Path, change: dict[str, Any], key: str, message: str
+) -> None:
     path = write_experiment(**change)
     with pytest.raises(ConfigError) as info:
-        load_experiment(path)
+        load_experiment(path, str(real_renderer))
     assert info.value.file == str(path)
     assert info.value.key == key
     assert message in info.value.message
     assert str(path) in str(info.value) and key in str(info.value)
 
 
-def test_04_yaml_syntax_error_has_line_and_column(tmp_path: Path) -> None:
+def test_04_yaml_syntax_error_has_line_and_column(tmp_path: Path, real_renderer: Path) -> None:
     path = tmp_path / "broken.yaml"
     path.write_text("name: x\nsweep: {params.s_L: [1, 2}\n")
     with pytest.raises(ConfigError, match=r"broken\.yaml:2:\d+: .*YAML syntax error"):
-        load_experiment(path)
+        load_experiment(path, str(real_renderer))
 
 
-def test_05_missing_experiment_file(tmp_path: Path) -> None:
+def test_05_missing_experiment_file(tmp_path: Path, real_renderer: Path) -> None:
     with pytest.raises(ConfigError, match="experiment file not found"):
-        load_experiment(tmp_path / "nothing.yaml")
+        load_experiment(tmp_path / "nothing.yaml", str(real_renderer))
 
 
-def test_06_run_spec_from_scene_defaults(fake_scene: Path) -> None:
-    spec = spec_from_scene(fake_scene, {"params.s_L": "0.3", "render.mis": "balance"})
+def test_06_run_spec_from_scene_defaults(fake_scene: Path, real_renderer: Path) -> None:
+    spec = spec_from_scene(fake_scene, {"params.s_L": "0.3", "render.mis": "balance"}, str(real_renderer))
     assert (spec.strategy, spec.integrator, spec.spp, spec.time_s, spec.seed, spec.threads) == (
-        "light", "direct", 16, 0.0, 1, 1)
+        "light",
+        "direct",
+        16,
+        0.0,
+        1,
+        1,
+    )
     assert dict(spec.overrides) == {"params.s_L": "0.3", "render.mis": "balance"}
     assert dict(spec.snapshots) == {"every": "0.5"}
     with pytest.raises(ConfigError, match="unknown strategy"):
-        spec_from_scene(fake_scene, {"render.strategy": "nope"})
+        spec_from_scene(fake_scene, {"render.strategy": "nope"}, str(real_renderer))
 
 
-def test_snapshots_in_spp_are_integers(write_experiment: Callable[..., Path]) -> None:
+def test_snapshots_in_spp_are_integers(write_experiment: Callable[..., Path], real_renderer: Path) -> None:
     budget = {"time_s": 1, "threads": 1, "snapshots": {"doubling_spp": 1, "every": 0.5}}
-    exp = load_experiment(write_experiment(budget=budget))
+    exp = load_experiment(write_experiment(budget=budget), str(real_renderer))
     spec = exp.run_spec(exp.points()[0], "light")
     assert ("doubling_spp", "1") in spec.snapshots
     assert "render.snapshots.doubling_spp=1" in spec.command("render", "scene.yaml", "out")
     for bad in (0, 1.5):
         with pytest.raises(ConfigError) as e:
-            load_experiment(write_experiment(budget={**budget, "snapshots": {"doubling_spp": bad}}))
+            load_experiment(write_experiment(budget={**budget, "snapshots": {"doubling_spp": bad}}), str(real_renderer))
         assert "budget.snapshots.doubling_spp" in str(e.value)
 
+
+def test_axis_divisor_is_evaluated_at_each_point(write_experiment: Callable[..., Path], real_renderer: Path) -> None:
+    # the lampshade's h is "=s_P / 2": the renderer evaluates it with each point's s_P
+    exp = load_experiment(
+        write_experiment(
+            sweep={"params.s_P": [0.3, 0.6]}, fixed={}, axis={"param": "params.s_P", "divide_by": "params.h"}
+        ),
+        str(real_renderer),
+    )
+    assert [p.axis_value for p in exp.points()] == pytest.approx([2.0, 2.0])

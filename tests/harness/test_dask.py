@@ -5,22 +5,27 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
 CliRunner = Callable[..., tuple[int, str, str]]
 
 
-def test_01_two_point_sweep_on_a_local_cluster(cli: CliRunner, write_experiment: Callable[..., Path], results: Path,
-                                               render_log: Callable[[], list[str]],
-                                               monkeypatch: pytest.MonkeyPatch) -> None:
+def test_01_two_point_sweep_on_a_local_cluster(
+    cli: CliRunner,
+    write_experiment: Callable[..., Path],
+    results: Path,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     distributed = pytest.importorskip("distributed")
     monkeypatch.setenv("FAKE_RENDER_CRASH", "projection")  # a task whose render fails must not stop the sweep
     exp = write_experiment(strategies=["light", "portal", "projection"])
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None, silence_logs=40) as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None, silence_logs=40
+    ) as cluster:
         status, out, err = cli("sweep", str(exp), "--scheduler", cluster.scheduler_address, "--no-progress")
     assert status == 1, out + err  # the two projection runs failed
     assert "2 failed:" in out and "SIGSEGV" in out
@@ -31,8 +36,9 @@ def test_01_two_point_sweep_on_a_local_cluster(cli: CliRunner, write_experiment:
     assert len(render_log()) == 2 + 2 + 6  # region maps, references, runs
     # the files came back over the wire into this results folder; nothing left on the workers' side here
     conn = sqlite3.connect(results / "index.sqlite")
-    members = conn.execute("SELECT e.key, e.strategy, r.status FROM experiment_runs e JOIN runs r ON r.key = e.key "
-                           "WHERE e.role = 'run'").fetchall()
+    members = conn.execute(
+        "SELECT e.key, e.strategy, r.status FROM experiment_runs e JOIN runs r ON r.key = e.key WHERE e.role = 'run'"
+    ).fetchall()
     assert len(members) == 6
     for key, strategy, run_status in members:
         run = results / "runs" / key

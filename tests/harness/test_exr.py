@@ -3,8 +3,8 @@ anything incomplete."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
@@ -13,14 +13,26 @@ from portal_harness import exr
 from portal_harness.errors import CorruptExrError
 
 
-def test_01_reads_channels_by_name_and_typed_header(tmp_path: Path, rng: np.random.Generator,
-                                                     write_exr: Callable[..., None]) -> None:
+def test_01_reads_channels_by_name_and_typed_header(
+    tmp_path: Path, rng: np.random.Generator, write_exr: Callable[..., None]
+) -> None:
     rgb = rng.random((5, 7, 3)).astype(np.float32)
     var = rng.random((5, 7, 3)).astype(np.float32) * 1e-3
     path = tmp_path / "s.exr"
-    write_exr(path, rgb, var, render_time_s=1.234567890123, spp=48, strategy="portal", integrator="path",
-              seed=18446744073709551615, config_hash="00ff00ff00ff00ff", renderer_version="9.9.9",
-              rays=12345678901.0, nonfinite_samples=3.0)
+    write_exr(
+        path,
+        rgb,
+        var,
+        render_time_s=1.234567890123,
+        spp=48,
+        strategy="portal",
+        integrator="path",
+        seed=18446744073709551615,
+        config_hash="00ff00ff00ff00ff",
+        renderer_version="9.9.9",
+        rays=12345678901.0,
+        nonfinite_samples=3.0,
+    )
     snap = exr.read_snapshot(path)
     np.testing.assert_array_equal(snap.rgb, rgb.astype(np.float64))
     np.testing.assert_array_equal(snap.variance, var.astype(np.float64))
@@ -43,8 +55,9 @@ def test_02_row_zero_is_the_top_of_the_image(tmp_path: Path, write_exr: Callable
 
 
 @pytest.mark.parametrize("keep_fraction", [0.05, 0.5, 0.97])
-def test_03_truncated_file_is_corrupt(tmp_path: Path, rng: np.random.Generator, write_exr: Callable[..., None],
-                                      keep_fraction: float) -> None:
+def test_03_truncated_file_is_corrupt(
+    tmp_path: Path, rng: np.random.Generator, write_exr: Callable[..., None], keep_fraction: float
+) -> None:
     rgb = rng.random((64, 64, 3)).astype(np.float32)
     path = tmp_path / "full.exr"
     write_exr(path, rgb, rgb * 0.01)
@@ -57,8 +70,9 @@ def test_03_truncated_file_is_corrupt(tmp_path: Path, rng: np.random.Generator, 
 
 
 @pytest.mark.parametrize("missing", ["variance.G", "R", "render_time_s", "spp", "config_hash"])
-def test_04_missing_channel_or_attribute_is_reported(tmp_path: Path, write_exr: Callable[..., None],
-                                                     missing: str) -> None:
+def test_04_missing_channel_or_attribute_is_reported(
+    tmp_path: Path, write_exr: Callable[..., None], missing: str
+) -> None:
     rgb = np.ones((2, 2, 3), np.float32)
     write_exr(tmp_path / "m.exr", rgb, rgb, omit=(missing,))
     with pytest.raises(CorruptExrError, match=missing.replace(".", r"\.")):

@@ -12,17 +12,33 @@ from portal_harness.index import MetricRow
 
 def _manifest(key: str, strategy: str, s_l: float, ratio: float) -> dict[str, Any]:
     return {
-        "key": key, "kind": "run", "status": "done", "scene_hash": "h" * 16,
-        "spec": {"strategy": strategy, "integrator": "direct", "scene": "/s.yaml", "spp": 0, "time_s": 1.0,
-                 "seed": 1, "threads": 1},
-        "renderer": {"version": "v"}, "final": {"time_s": 1.0, "spp": 10}, "timings": {}, "exit_status": 0,
+        "key": key,
+        "kind": "run",
+        "status": "done",
+        "scene_hash": "h" * 16,
+        "spec": {
+            "strategy": strategy,
+            "integrator": "direct",
+            "scene": "/s.yaml",
+            "spp": 0,
+            "time_s": 1.0,
+            "seed": 1,
+            "threads": 1,
+        },
+        "renderer": {"version": "v"},
+        "final": {"time_s": 1.0, "spp": 10},
+        "timings": {},
+        "exit_status": 0,
         "params": {"params.s_L": s_l, "params.s_P": 0.3, "ratio": ratio},
     }
 
 
 def _rows(scale: float) -> list[MetricRow]:
-    return [MetricRow(f"snapshot_{i:04d}.exr", False, 0.1 * i, i, region, scale / i, 2 * scale / i, 0.0, None)
-            for i in (1, 2, 3) for region in ("image", "inset")]
+    return [
+        MetricRow(f"snapshot_{i:04d}.exr", False, 0.1 * i, i, region, scale / i, 2 * scale / i, 0.0, None)
+        for i in (1, 2, 3)
+        for region in ("image", "inset")
+    ]
 
 
 def test_01_wal_mode_and_curves(tmp_path: Path) -> None:

@@ -20,13 +20,29 @@ H, W = 24, 32
 
 
 def _header(spp: int = 100, time_s: float = 1.0, strategy: str = "light") -> SnapshotHeader:
-    return SnapshotHeader(width=W, height=H, render_time_s=time_s, spp=spp, strategy=strategy, integrator="direct",
-                          seed=1, config_hash="0" * 16, renderer_version="test", rays=0.0, nonfinite_samples=0.0)
+    return SnapshotHeader(
+        width=W,
+        height=H,
+        render_time_s=time_s,
+        spp=spp,
+        strategy=strategy,
+        integrator="direct",
+        seed=1,
+        config_hash="0" * 16,
+        renderer_version="test",
+        rays=0.0,
+        nonfinite_samples=0.0,
+    )
 
 
 def _snap(rgb: np.ndarray, var: np.ndarray, fractions: np.ndarray | None = None, **header: object) -> Snapshot:
-    return Snapshot(path=Path("x.exr"), header=_header(**header), rgb=rgb, variance=var,  # type: ignore[arg-type]
-                    regions=fractions)
+    return Snapshot(
+        path=Path("x.exr"),
+        header=_header(**header),
+        rgb=rgb,
+        variance=var,  # type: ignore[arg-type]
+        regions=fractions,
+    )
 
 
 def _fractions(classes: np.ndarray) -> np.ndarray:
@@ -48,8 +64,8 @@ def _classes() -> np.ndarray:
 
 def test_01_class_map_takes_the_majority_only() -> None:
     f = np.zeros((1, 3, len(REGION_CLASSES)))
-    f[0, 0, 1] = 1.0                      # all anti_umbra
-    f[0, 1, 1], f[0, 1, 2] = 0.6, 0.4     # majority anti_umbra
+    f[0, 0, 1] = 1.0  # all anti_umbra
+    f[0, 1, 1], f[0, 1, 2] = 0.6, 0.4  # majority anti_umbra
     f[0, 2, 1], f[0, 2, 2], f[0, 2, 3] = 0.5, 0.25, 0.25  # no class above half
     assert regions.class_map(f).tolist() == [[1, 1, -1]]
 
@@ -85,9 +101,11 @@ def test_03_pilot_minimises_the_worst_region_and_predicts_the_first_time() -> No
     var_portal[left] = 5e-4
     var_anti = np.full_like(mean, 2e-5)
     var_anti[left] = 1e-5
-    pilots = {"light": _snap(mean, np.full_like(mean, 1e-3), time_s=0.5),
-              "portal": _snap(mean, var_portal, time_s=0.5),
-              "antishadow": _snap(mean, var_anti, time_s=0.5)}
+    pilots = {
+        "light": _snap(mean, np.full_like(mean, 1e-3), time_s=0.5),
+        "portal": _snap(mean, var_portal, time_s=0.5),
+        "antishadow": _snap(mean, var_anti, time_s=0.5),
+    }
     found = regions.regions_of(pilots["light"], (Region("corner", 0, 5, 4, 4),), fractions=fr)
     ranked = pilot.score(pilots, found)
     assert [r.strategy for r in ranked] == ["antishadow", "portal", "light"]
@@ -106,16 +124,19 @@ def test_03_pilot_minimises_the_worst_region_and_predicts_the_first_time() -> No
 # ---- the two references ----------------------------------------------------
 
 
-def _noisy_pair(rng: np.random.Generator, mean: np.ndarray, sd_a: float, sd_b: float,
-                bias_b: float = 1.0) -> tuple[Snapshot, Snapshot]:
+def _noisy_pair(
+    rng: np.random.Generator, mean: np.ndarray, sd_a: float, sd_b: float, bias_b: float = 1.0
+) -> tuple[Snapshot, Snapshot]:
     """Two renders whose channels share each pixel's noise, as the renderer's
     do (a sample's R, G, B come from one path)."""
     shape = (*mean.shape[:2], 1)
     a = mean + sd_a * rng.standard_normal(shape)
     b = bias_b * mean + sd_b * rng.standard_normal(shape)
     fr = _fractions(_classes())
-    return (_snap(a, np.full_like(mean, sd_a**2), fr, strategy="antishadow_exact"),
-            _snap(b, np.full_like(mean, sd_b**2), fr))
+    return (
+        _snap(a, np.full_like(mean, sd_a**2), fr, strategy="antishadow_exact"),
+        _snap(b, np.full_like(mean, sd_b**2), fr),
+    )
 
 
 def test_04_bias_test_is_standard_normal_for_unbiased_parts_and_catches_a_bias(rng: np.random.Generator) -> None:
@@ -131,13 +152,16 @@ def test_04_bias_test_is_standard_normal_for_unbiased_parts_and_catches_a_bias(r
     assert abs(z.var() - 1) < 5 * math.sqrt(2 / z.size)
     # the channels' variances alone would ignore their correlation: z with sd sqrt(3)
     a, b = _noisy_pair(rng, mean, 0.01, 0.05)
-    naive = [float(np.sum(a.rgb - b.rgb)) / math.sqrt(float(np.sum(a.variance + b.variance)))
-             for a, b in (_noisy_pair(rng, mean, 0.01, 0.05) for _ in range(200))]
+    naive = [
+        float(np.sum(a.rgb - b.rgb)) / math.sqrt(float(np.sum(a.variance + b.variance)))
+        for a, b in (_noisy_pair(rng, mean, 0.01, 0.05) for _ in range(200))
+    ]
     assert abs(np.var(naive) - 3) < 5 * 3 * math.sqrt(2 / 200)
     # a 5% bias of one part in every pixel: about 11 sigma over the image, 7 over each half
     a, b = _noisy_pair(rng, mean, 0.01, 0.05, bias_b=1.05)
     found = reference_pair.failures(
-        reference_pair.disagreement(a, b, regions.regions_of(a, (), fractions=a.regions)), 4.0)
+        reference_pair.disagreement(a, b, regions.regions_of(a, (), fractions=a.regions)), 4.0
+    )
     assert {d.region for d in found} >= {"image", "anti_umbra", "anti_penumbra"}
     assert all(d.mean_difference < 0 for d in found)
 
@@ -150,7 +174,7 @@ def test_05_combination_weights_by_region_and_stays_unbiased(rng: np.random.Gene
     b.variance[right] = 0.0025**2
     b.rgb[right] = mean[right] + 0.0025 * rng.standard_normal(mean[right].shape)
     w = reference_pair.weights(a, b, a.regions)
-    assert w[~right & (_classes() == 1)] == pytest.approx(0.9)      # 1/0.01^2 vs 1/0.03^2
+    assert w[~right & (_classes() == 1)] == pytest.approx(0.9)  # 1/0.01^2 vs 1/0.03^2
     assert w[right] == pytest.approx(0.0025**2 / (0.0025**2 + 0.01**2))
     c = reference_pair.combine(a, b, "antishadow_exact+light", "f" * 16, a.regions)
     assert c.header.spp == 200 and c.header.strategy == "antishadow_exact+light"
@@ -164,8 +188,9 @@ def test_05_combination_weights_by_region_and_stays_unbiased(rng: np.random.Gene
 
 
 def test_06_noise_check_and_the_extension_that_fixes_it() -> None:
-    checks = noise_check.check({"image": 0.02, "lit": 0.001, "outside": 0.0}, {"image": 0.1, "lit": 0.1,
-                                                                            "outside": 0.0}, 0.1)
+    checks = noise_check.check(
+        {"image": 0.02, "lit": 0.001, "outside": 0.0}, {"image": 0.1, "lit": 0.1, "outside": 0.0}, 0.1
+    )
     by = {c.region: c for c in checks}
     assert not by["image"].ok and by["image"].ratio == pytest.approx(0.2)
     assert by["lit"].ok and by["outside"].ok and math.isnan(by["outside"].ratio)
@@ -209,7 +234,7 @@ def test_07_time_to_error_is_exact_on_a_power_law_and_marks_bounds() -> None:
 def _replicates(error: float, times: list[float], noise: list[float], floor: float) -> list[summary.Replicate]:
     """Replicates with relMSE (error / t) x (1 + noise_j) + floor at t_j, curves c / t."""
     out = []
-    for t, n in zip(times, noise):
+    for t, n in zip(times, noise, strict=True):
         e = error / t * (1 + n) + floor
         curve = tuple((s, error / s * (1 + n) + floor) for s in (t / 8, t / 4, t / 2, t))
         out.append(summary.Replicate(rel_mse=e, time_s=t, spp=100, curve=curve))
@@ -218,11 +243,12 @@ def _replicates(error: float, times: list[float], noise: list[float], floor: flo
 
 def test_08_summary_rows_efficiency_standard_errors_speedup_and_bounds() -> None:
     floor = 1e-4
-    reps = {"light": {"lit": _replicates(0.4, [4, 4, 4], [0.1, -0.1, 0.0], floor)},
-            "portal": {"lit": _replicates(0.02, [4, 4, 4], [0.2, -0.2, 0.0], floor)}}
+    reps = {
+        "light": {"lit": _replicates(0.4, [4, 4, 4], [0.1, -0.1, 0.0], floor)},
+        "portal": {"lit": _replicates(0.02, [4, 4, 4], [0.2, -0.2, 0.0], floor)},
+    }
     info = {"lit": summary.RegionInfo("lit", 100, floor)}
-    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps, info, 0.1,
-                                  {"light": "done", "portal": "done"})
+    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps, info, 0.1, {"light": "done", "portal": "done"})
     by = {r["strategy"]: r for r in rows}
     light, portal = by["light"], by["portal"]
     # floor removed: relMSE = 0.1 (light) and 0.005 (portal) on average, 20x
@@ -240,8 +266,7 @@ def test_08_summary_rows_efficiency_standard_errors_speedup_and_bounds() -> None
     info = {"lit": summary.RegionInfo("lit", 100, 0.004)}
     reps["portal"] = {"lit": _replicates(0.02, [4, 4, 4], [0.2, -0.2, 0.0], 0.004)}
     reps["light"] = {"lit": _replicates(0.4, [4, 4, 4], [0.1, -0.1, 0.0], 0.004)}
-    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps, info, 0.1,
-                                  {"light": "done", "portal": "done"})
+    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps, info, 0.1, {"light": "done", "portal": "done"})
     portal = {r["strategy"]: r for r in rows}["portal"]
     assert portal["bound"] == "lower"
     assert portal["efficiency_vs_light"] == pytest.approx((0.1 * 4) / ((0.005 + 0.004) * 4))
@@ -249,10 +274,13 @@ def test_08_summary_rows_efficiency_standard_errors_speedup_and_bounds() -> None
 
 def test_09_speedup_is_read_off_the_curves() -> None:
     # light: relMSE 0.4 / t; portal: 0.1 / t, so it reaches light's final 0.1 at t = 1: speed-up 4
-    reps = {"light": {"image": _replicates(0.4, [4, 4], [0.0, 0.0], 0.0)},
-            "portal": {"image": _replicates(0.1, [4, 4], [0.0, 0.0], 0.0)}}
-    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps,
-                                  {"image": summary.RegionInfo("image", 10, 0.0)}, 0.1, {})
+    reps = {
+        "light": {"image": _replicates(0.4, [4, 4], [0.0, 0.0], 0.0)},
+        "portal": {"image": _replicates(0.1, [4, 4], [0.0, 0.0], 0.0)},
+    }
+    rows = summary.rows_for_point(
+        "p", 1.0, ("light", "portal"), reps, {"image": summary.RegionInfo("image", 10, 0.0)}, 0.1, {}
+    )
     portal = {r["strategy"]: r for r in rows}["portal"]
     assert portal["speedup_equal_error"] == pytest.approx(4.0) and portal["speedup_bound"] == ""
     assert portal["time_to_light_error_s"] == pytest.approx(1.0)
@@ -273,6 +301,7 @@ def test_10_combined_reference_round_trips_through_exr(tmp_path: Path, rng: np.r
 
 def test_11_an_extension_may_take_as_long_as_its_samples_need() -> None:
     from portal_harness.extend import extension_timeout
+
     # 1000 spp in 15 s, extended to 16000: 225 s expected, so more than 3 x that before it counts as hung
     manifest = {"final": {"spp": 1000, "time_s": 15.0}}
     assert extension_timeout(manifest, 16000) == pytest.approx(3 * 225 + 60)

@@ -4,8 +4,8 @@ calibration on synthetic data."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
@@ -16,11 +16,10 @@ from portal_harness.metrics import Region, VarianceEstimate
 
 def _images() -> tuple[np.ndarray, np.ndarray]:
     # 2x2 pixels, 3 channels; differences chosen to be easy by hand.
-    ref = np.array([[[1.0, 0.0, 2.0], [0.5, 0.5, 0.5]],
-                    [[0.0, 0.0, 0.0], [3.0, 1.0, 0.1]]])
+    ref = np.array([[[1.0, 0.0, 2.0], [0.5, 0.5, 0.5]], [[0.0, 0.0, 0.0], [3.0, 1.0, 0.1]]])
     img = ref.copy()
-    img[0, 0] = (2.0, 0.1, 2.0)      # diffs 1, 0.1, 0
-    img[1, 1] = (3.0, 0.0, 0.1)      # diffs 0, -1, 0
+    img[0, 0] = (2.0, 0.1, 2.0)  # diffs 1, 0.1, 0
+    img[1, 1] = (3.0, 0.0, 0.1)  # diffs 0, -1, 0
     return img, ref
 
 
@@ -57,8 +56,9 @@ def test_04_metrics_of_synthetic_exrs(tmp_path: Path, write_exr: Callable[..., N
     assert metrics.mse(a.rgb, b.rgb) == pytest.approx(2.01 / 12, rel=1e-6)
     # floor: mean of 0.02 / (r^2 + 0.01)
     r = ref.astype(np.float32).astype(np.float64)
-    assert metrics.rel_variance_floor(b.rgb, b.variance) == pytest.approx(float(np.mean(0.02 / (r * r + 0.01))),
-                                                                          rel=1e-6)
+    assert metrics.rel_variance_floor(b.rgb, b.variance) == pytest.approx(
+        float(np.mean(0.02 / (r * r + 0.01))), rel=1e-6
+    )
 
 
 def test_05_efficiency() -> None:

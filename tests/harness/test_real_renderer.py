@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import json
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
 import yaml
-
 from conftest import REPO
+
 from portal_harness import exr
 from portal_harness.renderer import renderer_version
 
@@ -24,10 +24,30 @@ TINY = ["--set", "film.width=32", "--set", "film.height=24"]
 
 def test_01_reads_the_renderers_output_with_its_header(real_renderer: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
-    proc = subprocess.run([str(real_renderer), str(SCENE), *TINY, "--out", str(out), "--spp", "8", "--time", "0",
-                           "--seed", "5", "--threads", "1", "--strategy", "light",
-                           "--set", "render.snapshots.every_spp=4"],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            str(real_renderer),
+            str(SCENE),
+            *TINY,
+            "--out",
+            str(out),
+            "--spp",
+            "8",
+            "--time",
+            "0",
+            "--seed",
+            "5",
+            "--threads",
+            "1",
+            "--strategy",
+            "light",
+            "--set",
+            "render.snapshots.every_spp=4",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     events = [json.loads(line) for line in proc.stdout.splitlines()]
     start, final = events[0], events[-1]
@@ -68,8 +88,9 @@ def _experiment(tmp_path: Path, strategies: list[str]) -> Path:
     return path
 
 
-def test_02_tiny_sweep_figures_and_resume(real_renderer: Path, tmp_path: Path, results: Path,
-                                          cli: Callable[..., tuple[int, str, str]]) -> None:
+def test_02_tiny_sweep_figures_and_resume(
+    real_renderer: Path, tmp_path: Path, results: Path, cli: Callable[..., tuple[int, str, str]]
+) -> None:
     exp = _experiment(tmp_path, ["light_area", "light", "portal"])
     status, out, err = cli("sweep", str(exp), "--no-progress", renderer=real_renderer)
     summary = json.loads((results / "experiments" / "real_tiny" / "summary.json").read_text())
@@ -91,17 +112,23 @@ def test_02_tiny_sweep_figures_and_resume(real_renderer: Path, tmp_path: Path, r
     assert rendered_now == (0 if portal_ok else 2)
 
 
-def test_03_renderer_config_error_is_a_failed_run_with_its_message(real_renderer: Path,
-                                                                   cli: Callable[..., tuple[int, str, str]]) -> None:
-    status, out, err = cli("run", str(SCENE), *TINY, "--set", "film.width=-3", "--spp", "2",
-                           renderer=real_renderer)
-    assert status == 1 and ": failed" in out
-    assert "exited with status 2" in err and "film.width" in err
+def test_03_renderer_config_error_is_refused_before_rendering(
+    real_renderer: Path, results: Path, cli: Callable[..., tuple[int, str, str]]
+) -> None:
+    # render --print-config checks the override: its message, exit 2, no run folder
+    status, out, err = cli("run", str(SCENE), *TINY, "--set", "film.width=-3", "--spp", "2", renderer=real_renderer)
+    assert status == 2 and out == ""
+    assert "--set film.width=-3: " in err
+    assert not (results / "runs").exists()
 
 
 def test_04_real_references_extended_tested_and_a_biased_strategy_caught(
-        real_renderer: Path, tmp_path: Path, results: Path, cli: Callable[..., tuple[int, str, str]],
-        monkeypatch: pytest.MonkeyPatch) -> None:
+    real_renderer: Path,
+    tmp_path: Path,
+    results: Path,
+    cli: Callable[..., tuple[int, str, str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     doc = yaml.safe_load(_experiment(tmp_path, ["light", "antishadow_exact"]).read_text())
     doc["sweep"] = {"params.s_L": [1.2]}
     doc["reference"] = {"strategies": ["antishadow_exact", "light"], "spp": 64, "seed": 7, "max_time_s": 10}

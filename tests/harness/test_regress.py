@@ -4,24 +4,28 @@ when a strategy's variance rises (a config with half the samples)."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
-
 from conftest import REPO
 
 CliRunner = Callable[..., tuple[int, str, str]]
 
 
 def _regress_experiment(write_experiment: Callable[..., Path], spp: int, baseline: Path, name: str) -> Path:
-    return write_experiment(name=name, strategies=["light", "portal"], sweep={"params.s_L": [0.15]},
-                            fixed={"params.s_P": 0.3, "film.width": 16, "film.height": 16},
-                            regress={"spp": spp, "seeds": [1, 2], "z_max": 4, "baseline": str(baseline)})
+    return write_experiment(
+        name=name,
+        strategies=["light", "portal"],
+        sweep={"params.s_L": [0.15]},
+        fixed={"params.s_P": 0.3, "film.width": 16, "film.height": 16},
+        regress={"spp": spp, "seeds": [1, 2], "z_max": 4, "baseline": str(baseline)},
+    )
 
 
-def test_01_update_then_pass_then_fail_on_halved_samples(cli: CliRunner, write_experiment: Callable[..., Path],
-                                                         tmp_path: Path) -> None:
+def test_01_update_then_pass_then_fail_on_halved_samples(
+    cli: CliRunner, write_experiment: Callable[..., Path], tmp_path: Path
+) -> None:
     baseline = tmp_path / "baselines" / "tiny.json"
     good = _regress_experiment(write_experiment, 32, baseline, "tiny")
     status, out, err = cli("regress", str(good), "--no-progress")
@@ -58,8 +62,9 @@ def test_01_update_then_pass_then_fail_on_halved_samples(cli: CliRunner, write_e
     assert "regress FAILED" in out
 
 
-def test_02_a_failing_strategy_fails_regress(cli: CliRunner, write_experiment: Callable[..., Path], tmp_path: Path,
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_02_a_failing_strategy_fails_regress(
+    cli: CliRunner, write_experiment: Callable[..., Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     baseline = tmp_path / "b.json"
     exp = _regress_experiment(write_experiment, 8, baseline, "tiny")
     assert cli("regress", str(exp), "--update", "--no-progress")[0] == 0
@@ -70,15 +75,17 @@ def test_02_a_failing_strategy_fails_regress(cli: CliRunner, write_experiment: C
 
 @pytest.mark.real
 def test_03_real_renderer_passes_the_committed_baseline_and_catches_halved_samples(
-        real_renderer: Path, results: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    real_renderer: Path, results: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from portal_harness.cli import main
 
     config = REPO / "configs" / "experiments" / "lampshade_regress.yaml"
     baseline = REPO / "results" / "baselines" / "lampshade_regress.json"
     if not baseline.exists():
         pytest.skip("no committed baseline yet (portal-harness regress --update)")
-    status = main(["regress", str(config), "--results", str(results), "--renderer", str(real_renderer),
-                   "--no-progress"])
+    status = main(
+        ["regress", str(config), "--results", str(results), "--renderer", str(real_renderer), "--no-progress"]
+    )
     out = capsys.readouterr().out
     assert status == 0, out
     worse = tmp_path / "lampshade_regress_half.yaml"
@@ -86,8 +93,7 @@ def test_03_real_renderer_passes_the_committed_baseline_and_catches_halved_sampl
     text = text.replace("../scenes/lampshade.yaml", str(REPO / "configs" / "scenes" / "lampshade.yaml"))
     text = text.replace("../../results/baselines/lampshade_regress.json", str(baseline))
     worse.write_text(text)
-    status = main(["regress", str(worse), "--results", str(results), "--renderer", str(real_renderer),
-                   "--no-progress"])
+    status = main(["regress", str(worse), "--results", str(results), "--renderer", str(real_renderer), "--no-progress"])
     out = capsys.readouterr().out
     assert status == 1, out
     rows = [line for line in out.splitlines() if line.startswith("s_L=")]

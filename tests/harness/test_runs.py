@@ -3,19 +3,22 @@ failures kept with their stderr, nothing half-finished counted as finished."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
+import re
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
-from portal_harness.regions import regions_of
 from portal_harness import exr, measure, runs, store
-from portal_harness.scene import spec_from_scene
+from portal_harness.errors import ConfigError
 from portal_harness.metrics import Region
 from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.regions import regions_of
 from portal_harness.renderer import renderer_version
+from portal_harness.scene import spec_from_scene
 
 
 @pytest.fixture
@@ -23,12 +26,14 @@ def layout(results: Path) -> ResultsLayout:
     return ResultsLayout(results)
 
 
-def test_01_run_writes_manifest_snapshots_and_is_cached(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                        render_log: Callable[[], list[str]]) -> None:
+def test_01_run_writes_manifest_snapshots_and_is_cached(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, render_log: Callable[[], list[str]]
+) -> None:
     version = renderer_version(str(fake_renderer))
     assert version == "0.1.0-fake"
-    spec = spec_from_scene(fake_scene, {}, strategy="portal", spp=0, time_s=0.2,
-                           snapshots={"every": "0.05"})
+    spec = spec_from_scene(
+        fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"}
+    )
     events: list[str] = []
     m = runs.execute(spec, layout, str(fake_renderer), version, on_event=lambda e: events.append(e["event"]))
     assert m["status"] == "done" and not m["cached"]
@@ -44,17 +49,23 @@ def test_01_run_writes_manifest_snapshots_and_is_cached(fake_scene: Path, fake_r
         assert exr.read_header(run.resolve(s["file"])).spp == s["spp"]
     assert run.config.exists() and run.final.exists() and run.events.exists()
     assert exr.read_header(run.final).render_time_s == pytest.approx(on_disk["final"]["time_s"])
-    assert not any(layout.runs_dir.joinpath(store.ATTEMPTS).iterdir())
+    assert not any(layout.attempts_dir().iterdir())
     again = runs.execute(spec, layout, str(fake_renderer), version)
     assert again["cached"] and len(render_log()) == 1
 
 
-def test_02_crash_is_failed_with_stderr_kept(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                             render_log: Callable[[], list[str]],
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_02_crash_is_failed_with_stderr_kept(
+    fake_scene: Path,
+    fake_renderer: Path,
+    layout: ResultsLayout,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_CRASH", "portal")
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"})
+    spec = spec_from_scene(
+        fake_scene, {}, str(fake_renderer), strategy="portal", spp=0, time_s=0.2, snapshots={"every": "0.05"}
+    )
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["signal"] == "SIGSEGV"
     assert "SIGSEGV" in m["error"]
@@ -69,23 +80,32 @@ def test_02_crash_is_failed_with_stderr_kept(fake_scene: Path, fake_renderer: Pa
     assert len(render_log()) == 2
 
 
-def test_03_unimplemented_strategy_and_config_errors_fail(fake_scene: Path, fake_renderer: Path,
-                                                          layout: ResultsLayout, render_log: Callable[[], list[str]],
-                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+def test_03_unimplemented_strategy_and_config_errors_fail(
+    fake_scene: Path,
+    fake_renderer: Path,
+    layout: ResultsLayout,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "antishadow_exact")
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="antishadow_exact", spp=4)
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="antishadow_exact", spp=4)
     m = runs.execute(spec, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 1 and "not implemented" in m["stderr_tail"]
-    bad = spec_from_scene(fake_scene, {}, strategy="light", spp=4, snapshots={"every": "0"})
+    # the renderer checks the schedule before any render: its message, as a ConfigError
+    with pytest.raises(ConfigError, match=re.escape("render.snapshots.every=-1")):
+        spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=4, snapshots={"every": "-1"})
+    # and a render it refuses anyway fails with exit status 2
+    bad = dataclasses.replace(spec, strategy="light", snapshots=(("every", "-1"),))
     m = runs.execute(bad, layout, str(fake_renderer), version)
     assert m["status"] == "failed" and m["exit_status"] == 2
 
 
-def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+def test_04_interrupted_attempt_is_never_installed(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, monkeypatch: pytest.MonkeyPatch
+) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="light", spp=8)
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=8)
     key = spec.key(version)
 
     def interrupted(*args: object, **kwargs: object) -> dict[str, object]:
@@ -96,15 +116,16 @@ def test_04_interrupted_attempt_is_never_installed(fake_scene: Path, fake_render
         runs.execute(spec, layout, str(fake_renderer), version)
     assert not layout.run(key).dir.exists()
     # a leftover attempt of a dead process is cleaned; of a live one, kept
-    dead = layout.runs_dir / store.ATTEMPTS / f"{key}-999999999-0-1"
+    dead = layout.attempts_dir() / f"{key}-999999999-0-1"
     dead.mkdir(parents=True)
     assert store.clean_stale_attempts(layout) >= 1 and not dead.exists()
 
 
-def test_05_folder_without_done_manifest_is_redone(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                   render_log: Callable[[], list[str]]) -> None:
+def test_05_folder_without_done_manifest_is_redone(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, render_log: Callable[[], list[str]]
+) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="light", spp=8)
+    spec = spec_from_scene(fake_scene, {}, str(fake_renderer), strategy="light", spp=8)
     run = layout.run(spec.key(version))
     run.dir.mkdir(parents=True)
     (run.dir / "final.exr").write_bytes(b"half")
@@ -114,10 +135,13 @@ def test_05_folder_without_done_manifest_is_redone(fake_scene: Path, fake_render
     assert exr.read_header(run.final).spp == 8
 
 
-def test_06_corrupt_snapshot_is_reported_not_averaged(fake_scene: Path, fake_renderer: Path, layout: ResultsLayout,
-                                                      render_log: Callable[[], list[str]]) -> None:
+def test_06_corrupt_snapshot_is_reported_not_averaged(
+    fake_scene: Path, fake_renderer: Path, layout: ResultsLayout, render_log: Callable[[], list[str]]
+) -> None:
     version = renderer_version(str(fake_renderer))
-    spec = spec_from_scene(fake_scene, {}, strategy="light", spp=0, time_s=0.1, snapshots={"every": "0.02"})
+    spec = spec_from_scene(
+        fake_scene, {}, str(fake_renderer), strategy="light", spp=0, time_s=0.1, snapshots={"every": "0.02"}
+    )
     m = runs.execute(spec, layout, str(fake_renderer), version)
     run = layout.run(m["key"])
     ref = exr.read_snapshot(run.final)
@@ -134,8 +158,7 @@ def test_06_corrupt_snapshot_is_reported_not_averaged(fake_scene: Path, fake_ren
 
 
 def test_07_install_files_writes_manifest_last(layout: ResultsLayout, tmp_path: Path) -> None:
-    files = {"final.exr": b"x", "manifest.json": json.dumps({"status": "done", "key": "k"}).encode(),
-             "stderr.txt": b""}
+    files = {"final.exr": b"x", "manifest.json": json.dumps({"status": "done", "key": "k"}).encode(), "stderr.txt": b""}
     run = store.install_files(layout, "k", False, files)
     assert store.is_done(run) and (run.dir / "final.exr").read_bytes() == b"x"
     with pytest.raises(ValueError):

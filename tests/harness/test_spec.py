@@ -9,8 +9,18 @@ from portal_harness.spec import RunSpec, format_value
 
 
 def _spec(**changes: object) -> RunSpec:
-    base = RunSpec(scene="/s.yaml", scene_sha256="ab" * 32, strategy="light", integrator="direct", spp=0,
-                   time_s=5.0, seed=1, threads=2, overrides=(("params.s_L", "0.3"),), snapshots=(("every", "0.5"),))
+    base = RunSpec(
+        scene="/s.yaml",
+        scene_sha256="ab" * 32,
+        strategy="light",
+        integrator="direct",
+        spp=0,
+        time_s=5.0,
+        seed=1,
+        threads=2,
+        overrides=(("params.s_L", "0.3"),),
+        snapshots=(("every", "0.5"),),
+    )
     return dataclasses.replace(base, **changes)
 
 
@@ -19,21 +29,36 @@ def test_01_key_is_stable_and_depends_on_every_input() -> None:
     assert k == _spec().key("0.1.0") and len(k) == 16
     assert _spec(scene="/elsewhere.yaml").key("0.1.0") == k  # content, not the path
     assert _spec(labels=(("ratio", 1.0),)).key("0.1.0") == k  # derived labels do not count
-    for change in ({"strategy": "portal"}, {"seed": 2}, {"threads": 1}, {"time_s": 4.0}, {"spp": 8},
-                   {"overrides": (("params.s_L", "0.6"),)}, {"snapshots": (("every", "0.25"),)},
-                   {"scene_sha256": "cd" * 32}):
+    for change in (
+        {"strategy": "portal"},
+        {"seed": 2},
+        {"threads": 1},
+        {"time_s": 4.0},
+        {"spp": 8},
+        {"overrides": (("params.s_L", "0.6"),)},
+        {"snapshots": (("every", "0.25"),)},
+        {"scene_sha256": "cd" * 32},
+    ):
         assert _spec(**change).key("0.1.0") != k, change
     assert _spec().key("0.2.0") != k
 
 
 def test_02_scene_hash_ignores_sampling_settings() -> None:
     h = _spec().scene_hash()
-    same: list[dict[str, object]] = [{"strategy": "portal"}, {"seed": 9}, {"spp": 64}, {"threads": 1},
-                                     {"overrides": (("params.s_L", "0.3"), ("render.mis", "balance"))}]
+    same: list[dict[str, object]] = [
+        {"strategy": "portal"},
+        {"seed": 9},
+        {"spp": 64},
+        {"threads": 1},
+        {"overrides": (("params.s_L", "0.3"), ("render.mis", "balance"))},
+    ]
     for change in same:
         assert _spec(**change).scene_hash() == h, change
-    different: list[dict[str, object]] = [{"integrator": "path"}, {"overrides": (("params.s_L", "0.6"),)},
-                                          {"overrides": (("params.s_L", "0.3"), ("render.max_depth", "3"))}]
+    different: list[dict[str, object]] = [
+        {"integrator": "path"},
+        {"overrides": (("params.s_L", "0.6"),)},
+        {"overrides": (("params.s_L", "0.3"), ("render.max_depth", "3"))},
+    ]
     for change in different:
         assert _spec(**change).scene_hash() != h, change
 
@@ -52,8 +77,16 @@ def test_04_command_line_follows_the_contract() -> None:
     cmd = _spec().command("/bin/render", "/s.yaml", "/out")
     assert cmd[:4] == ["/bin/render", "/s.yaml", "--out", "/out"]
     joined = " ".join(cmd)
-    for part in ("--strategy light", "--integrator direct", "--spp 0", "--time 5", "--seed 1", "--threads 2",
-                 "--set params.s_L=0.3", "--set render.snapshots.every=0.5"):
+    for part in (
+        "--strategy light",
+        "--integrator direct",
+        "--spp 0",
+        "--time 5",
+        "--seed 1",
+        "--threads 2",
+        "--set params.s_L=0.3",
+        "--set render.snapshots.every=0.5",
+    ):
         assert part in joined
 
 

@@ -12,8 +12,8 @@ import sqlite3
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -25,8 +25,9 @@ def _keys_rendered(log: list[str]) -> list[str]:
     return [Path(line.split()[2]).name.split("-")[0] for line in log]
 
 
-def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experiment: Callable[..., Path],
-                                                   results: Path, render_log: Callable[[], list[str]]) -> None:
+def test_01_sweep_metrics_figures_index_and_resume(
+    cli: CliRunner, write_experiment: Callable[..., Path], results: Path, render_log: Callable[[], list[str]]
+) -> None:
     exp = write_experiment()
     status, out, err = cli("sweep", str(exp), "--no-progress")
     assert status == 0, out + err
@@ -84,9 +85,13 @@ def test_01_sweep_metrics_figures_index_and_resume(cli: CliRunner, write_experim
     assert "0 rendered now" in out
 
 
-def test_02_failed_runs_are_recorded_and_the_sweep_goes_on(cli: CliRunner, write_experiment: Callable[..., Path],
-                                                           results: Path, render_log: Callable[[], list[str]],
-                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+def test_02_failed_runs_are_recorded_and_the_sweep_goes_on(
+    cli: CliRunner,
+    write_experiment: Callable[..., Path],
+    results: Path,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setenv("FAKE_RENDER_CRASH", "portal")
     monkeypatch.setenv("FAKE_RENDER_UNIMPLEMENTED", "projection")
     exp = write_experiment(strategies=["light", "portal", "projection"])
@@ -111,21 +116,32 @@ def test_02_failed_runs_are_recorded_and_the_sweep_goes_on(cli: CliRunner, write
     before = len(render_log())
     status, out, _ = cli("sweep", str(exp), "--no-progress")
     assert status == 0
-    assert sorted(line.split()[0] for line in render_log()[before:]) == ["portal", "portal", "projection",
-                                                                          "projection"]
+    assert sorted(line.split()[0] for line in render_log()[before:]) == ["portal", "portal", "projection", "projection"]
 
 
-def test_03_killed_sweep_resumes_without_redoing_finished_runs(write_experiment: Callable[..., Path], results: Path,
-                                                               fake_renderer: Path,
-                                                               render_log: Callable[[], list[str]]) -> None:
+def test_03_killed_sweep_resumes_without_redoing_finished_runs(
+    write_experiment: Callable[..., Path], results: Path, fake_renderer: Path, render_log: Callable[[], list[str]]
+) -> None:
     exp = write_experiment(strategies=["light", "portal", "projection"])
     env = {**os.environ, "FAKE_RENDER_SLEEP": "2.0"}  # each render takes about 0.4 s (refs 8 s)
     # short references, and a noise limit they meet without an extension
     exp_doc = exp.read_text().replace("spp: 2000", "spp: 80\n  noise_ratio: 0.99")
     assert "noise_ratio" in exp_doc
     exp.write_text(exp_doc)
-    cmd = [sys.executable, "-m", "portal_harness", "sweep", str(exp), "--results", str(results),
-           "--renderer", str(fake_renderer), "--no-progress", "--jobs", "1"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "portal_harness",
+        "sweep",
+        str(exp),
+        "--results",
+        str(results),
+        "--renderer",
+        str(fake_renderer),
+        "--no-progress",
+        "--jobs",
+        "1",
+    ]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60
     while len(render_log()) < 4 and time.monotonic() < deadline:
@@ -142,15 +158,16 @@ def test_03_killed_sweep_resumes_without_redoing_finished_runs(write_experiment:
 
     status = subprocess.run(cmd, env={**os.environ}, capture_output=True, text=True, timeout=120)
     assert status.returncode == 0, status.stdout + status.stderr
-    again = _keys_rendered(render_log())[len(started):]
+    again = _keys_rendered(render_log())[len(started) :]
     assert not set(again) & finished, status.stdout  # nothing finished was redone
     assert len(again) == 10 - len(finished)  # 2 region maps, 2 references, 6 runs
     assert "cached" in status.stdout
     assert not any((results / "runs" / ".attempts").iterdir())
 
 
-def test_04_bad_config_fails_before_any_render(cli: CliRunner, write_experiment: Callable[..., Path],
-                                               render_log: Callable[[], list[str]]) -> None:
+def test_04_bad_config_fails_before_any_render(
+    cli: CliRunner, write_experiment: Callable[..., Path], render_log: Callable[[], list[str]]
+) -> None:
     exp = write_experiment(strategies=["light", "portl"])
     status, _, err = cli("sweep", str(exp))
     assert status == 2
@@ -161,10 +178,12 @@ def test_04_bad_config_fails_before_any_render(cli: CliRunner, write_experiment:
     assert render_log() == []
 
 
-def test_05_metrics_command(cli: CliRunner, fake_scene: Path, results: Path,
-                            render_log: Callable[[], list[str]]) -> None:
-    status, out, err = cli("run", str(fake_scene), "--strategy", "portal", "--time", "0.2", "--spp", "0",
-                           "--snapshot-every", "0.05")
+def test_05_metrics_command(
+    cli: CliRunner, fake_scene: Path, results: Path, render_log: Callable[[], list[str]]
+) -> None:
+    status, out, err = cli(
+        "run", str(fake_scene), "--strategy", "portal", "--time", "0.2", "--spp", "0", "--snapshot-every", "0.05"
+    )
     assert status == 0, err
     key = out.split()[1].rstrip(":")
     status, out, err = cli("reference", str(fake_scene), "--spp", "256")
@@ -190,9 +209,13 @@ def _summary(results: Path, name: str = "tiny") -> dict:  # type: ignore[type-ar
     return json.loads((results / "experiments" / name / "summary.json").read_text())
 
 
-def test_06_a_biased_strategy_stops_the_sweep_before_any_run(cli: CliRunner, write_experiment: Callable[..., Path],
-                                                              results: Path, render_log: Callable[[], list[str]],
-                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+def test_06_a_biased_strategy_stops_the_sweep_before_any_run(
+    cli: CliRunner,
+    write_experiment: Callable[..., Path],
+    results: Path,
+    render_log: Callable[[], list[str]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     # the renderer's fault hook: portal's samples 5% too bright
     monkeypatch.setenv("PORTAL_LIGHTS_FAULT_BIAS", "portal:1.05")
     exp = write_experiment(reference={"strategies": ["light", "portal"], "spp": 2000, "seed": 99})
@@ -212,8 +235,8 @@ def test_06_a_biased_strategy_stops_the_sweep_before_any_run(cli: CliRunner, wri
 
 
 def test_07_a_short_reference_is_extended_until_it_resolves_every_region(
-        cli: CliRunner, write_experiment: Callable[..., Path], results: Path,
-        render_log: Callable[[], list[str]]) -> None:
+    cli: CliRunner, write_experiment: Callable[..., Path], results: Path, render_log: Callable[[], list[str]]
+) -> None:
     exp = write_experiment(reference={"strategy": "light", "spp": 60, "seed": 99})
     status, out, _ = cli("sweep", str(exp), "--no-progress")
     assert status == 0, out
@@ -232,11 +255,13 @@ def test_07_a_short_reference_is_extended_until_it_resolves_every_region(
     assert status == 0 and len(render_log()) == before and "extending" not in out
 
 
-def test_08_replicates_auto_references_and_figures(cli: CliRunner, write_experiment: Callable[..., Path],
-                                                   results: Path) -> None:
-    exp = write_experiment(budget={"time_s": 0.2, "threads": 1, "seed": 1, "replicates": 3,
-                                   "snapshots": {"every": 0.05}},
-                           reference={"strategies": "auto", "spp": 1500, "seed": 99, "pilot_time_s": 0.2})
+def test_08_replicates_auto_references_and_figures(
+    cli: CliRunner, write_experiment: Callable[..., Path], results: Path
+) -> None:
+    exp = write_experiment(
+        budget={"time_s": 0.2, "threads": 1, "seed": 1, "replicates": 3, "snapshots": {"every": 0.05}},
+        reference={"strategies": "auto", "spp": 1500, "seed": 99, "pilot_time_s": 0.2},
+    )
     status, out, _ = cli("sweep", str(exp), "--no-progress")
     assert status == 0, out
     summary = _summary(results)
@@ -260,8 +285,9 @@ def test_08_replicates_auto_references_and_figures(cli: CliRunner, write_experim
     assert (results / "figures" / "tiny_efficiency.png").stat().st_size > 5000
 
 
-def test_09_the_pilot_sets_the_first_reference_time(cli: CliRunner, write_experiment: Callable[..., Path],
-                                                    results: Path) -> None:
+def test_09_the_pilot_sets_the_first_reference_time(
+    cli: CliRunner, write_experiment: Callable[..., Path], results: Path
+) -> None:
     exp = write_experiment(reference={"strategies": "auto", "time_s": 1, "seed": 99, "pilot_time_s": 0.2})
     status, out, _ = cli("sweep", str(exp), "--no-progress")
     assert status == 0, out

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 import yaml
-
 from floor_model import LampshadeModel, ModelMismatch, PixelModel, expected_pixels
+
 from portal_harness import exr
 from portal_harness.metrics import REL_EPSILON, efficiency
 
@@ -71,7 +71,8 @@ class ClosedForm:
 
     @property
     def mask(self) -> np.ndarray:
-        return self.coarse.mask & self.fine.mask
+        both: np.ndarray = self.coarse.mask & self.fine.mask
+        return both
 
     def pixel_sets(self, insets: list[Inset]) -> dict[str, np.ndarray]:
         h, w = self.mask.shape
@@ -113,9 +114,12 @@ def load_config(run: Path) -> dict[str, Any]:
         raise ModelMismatch(f"{run / 'config.yaml'}: not a mapping")
     render = cfg.get("render") or {}
     direct = render.get("integrator") == "direct" or (
-        render.get("integrator") == "path" and int(render.get("max_depth", 0)) == 1)
+        render.get("integrator") == "path" and int(render.get("max_depth", 0)) == 1
+    )
     if not direct:
-        raise ModelMismatch(f"{run}: the closed form is for direct lighting only (integrator {render.get('integrator')})")
+        raise ModelMismatch(
+            f"{run}: the closed form is for direct lighting only (integrator {render.get('integrator')})"
+        )
     return cfg
 
 
@@ -146,8 +150,9 @@ class Comparison:
     z: float
 
 
-def compare(image: np.ndarray, variance: np.ndarray, expected: np.ndarray, select: np.ndarray,
-            time_s: float) -> Comparison:
+def compare(
+    image: np.ndarray, variance: np.ndarray, expected: np.ndarray, select: np.ndarray, time_s: float
+) -> Comparison:
     """relMSE = mean((x - r)^2 / (r^2 + 0.01)) over the set's pixels and
     channels (the harness's definition), and z of the mean difference.
 
@@ -180,8 +185,9 @@ class Row:
     ratio_vs_light: float = math.nan
 
 
-def evaluate(runs: list[Path], n: int, insets: list[Inset], snapshots: bool,
-             skipped: list[str] | None = None) -> tuple[list[Row], dict[str, ClosedForm]]:
+def evaluate(
+    runs: list[Path], n: int, insets: list[Inset], snapshots: bool, skipped: list[str] | None = None
+) -> tuple[list[Row], dict[str, ClosedForm]]:
     """Every run's final.exr (and its snapshots, if asked) against the closed
     form. Runs the model does not describe (another scene, the path
     integrator) raise ModelMismatch, or are listed in `skipped` if given."""

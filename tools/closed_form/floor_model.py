@@ -46,8 +46,17 @@ WALLS = {  # name -> (AABB min, AABB max) of the room's other surfaces
     "left_wall": ((-3.0, 0.0, -3.0), (-3.0, 4.0, 3.0)),
     "right_wall": ((3.0, 0.0, -3.0), (3.0, 4.0, 3.0)),
 }
-SHADE_PARTS = ("shade_left", "shade_right", "shade_back", "shade_front", "shade_top",
-               "shade_bottom_back", "shade_bottom_front", "shade_bottom_left", "shade_bottom_right")
+SHADE_PARTS = (
+    "shade_left",
+    "shade_right",
+    "shade_back",
+    "shade_front",
+    "shade_top",
+    "shade_bottom_back",
+    "shade_bottom_front",
+    "shade_bottom_left",
+    "shade_bottom_right",
+)
 # Geometry read from a config must match the canonical values to this.
 TOLERANCE = 1e-9
 # Occluders are grown by this much in the conservative tests (float safety).
@@ -82,8 +91,14 @@ class Camera:
         half_h = math.tan(0.5 * float(camera["fov_y"]) * math.pi / 180.0)
         half_w = half_h * width / height
         top_left = forward - right * half_w + true_up * half_h
-        return Camera(origin=position, top_left=top_left, dx=right * (2.0 * half_w / width),
-                      dy=true_up * (-2.0 * half_h / height), width=width, height=height)
+        return Camera(
+            origin=position,
+            top_left=top_left,
+            dx=right * (2.0 * half_w / width),
+            dy=true_up * (-2.0 * half_h / height),
+            width=width,
+            height=height,
+        )
 
     def film_position(self, point: np.ndarray) -> tuple[float, float]:
         """The film position (px, py) whose ray passes through `point` (in front)."""
@@ -94,7 +109,8 @@ class Camera:
     def directions(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Unit directions, shape px.shape + (3,)."""
         d = self.top_left + px[..., None] * self.dx + py[..., None] * self.dy
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+        unit: np.ndarray = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        return unit
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
@@ -102,8 +118,9 @@ def _normalize(v: np.ndarray) -> np.ndarray:
 
 
 def _close(a: Any, b: Any) -> bool:
-    return bool(np.allclose(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64),
-                            rtol=TOLERANCE, atol=TOLERANCE))
+    return bool(
+        np.allclose(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), rtol=TOLERANCE, atol=TOLERANCE)
+    )
 
 
 def _centred_square(vertices: Any, y: float, what: str) -> float:
@@ -140,8 +157,7 @@ class LampshadeModel:
         """Every surface but the floor, as AABBs (the shade as one), grown by GROW:
         the camera's rays must miss all of them."""
         a = self.shade_half
-        boxes = [(np.array(BOX_MIN), np.array(BOX_MAX)),
-                 (np.array([-a, PORTAL_Y, -a]), np.array([a, SHADE_TOP, a]))]
+        boxes = [(np.array(BOX_MIN), np.array(BOX_MAX)), (np.array([-a, PORTAL_Y, -a]), np.array([a, SHADE_TOP, a]))]
         boxes += [(np.array(lo), np.array(hi)) for lo, hi in WALLS.values()]
         return [(lo - GROW, hi + GROW) for lo, hi in boxes]
 
@@ -166,7 +182,9 @@ class LampshadeModel:
         radiance = np.asarray(light["radiance"], dtype=np.float64)
         expected = np.asarray(POWER_RADIANCE) * (0.5 / s_l) ** 2
         if not np.allclose(radiance, expected, rtol=1e-9, atol=0):
-            raise ModelMismatch(f"lamp radiance {radiance.tolist()} is not (40, 34, 24) (0.5 / s_L)^2 = {expected.tolist()}")
+            raise ModelMismatch(
+                f"lamp radiance {radiance.tolist()} is not (40, 34, 24) (0.5 / s_L)^2 = {expected.tolist()}"
+            )
 
         shapes = {s.get("name"): s for s in cfg.get("shapes") or []}
         expected_names = {"floor", "box", *WALLS, *SHADE_PARTS}
@@ -189,19 +207,31 @@ class LampshadeModel:
         shade_lo = np.min([p[0] for p in parts], axis=0)
         shade_hi = np.max([p[1] for p in parts], axis=0)
         if not (_close(shade_lo, [-a, PORTAL_Y, -a]) and _close(shade_hi, [a, SHADE_TOP, a])):
-            raise ModelMismatch(f"shade AABB {shade_lo.tolist()}..{shade_hi.tolist()} is not [-a, a] x [2.2, 2.65] x [-a, a], a = {a}")
+            raise ModelMismatch(
+                f"shade AABB {shade_lo.tolist()}..{shade_hi.tolist()} is not [-a, a] x [2.2, 2.65] x [-a, a], a = {a}"
+            )
         # The bottom plate must leave exactly the portal open: its four quads
         # (as in the scene file) lie in y = 2.2 and have the hole's edges at +-s_P/2.
         h = s_p / 2
-        plates = {"shade_bottom_back": ((-a, -a), (a, -h)), "shade_bottom_front": ((-a, h), (a, a)),
-                  "shade_bottom_left": ((-a, -h), (-h, h)), "shade_bottom_right": ((h, -h), (a, h))}
+        plates = {
+            "shade_bottom_back": ((-a, -a), (a, -h)),
+            "shade_bottom_front": ((-a, h), (a, a)),
+            "shade_bottom_left": ((-a, -h), (-h, h)),
+            "shade_bottom_right": ((h, -h), (a, h)),
+        }
         for name, ((x0, z0), (x1, z1)) in plates.items():
             if not _close(_aabb(shapes[name]), ((x0, PORTAL_Y, z0), (x1, PORTAL_Y, z1))):
                 raise ModelMismatch(f"{name} does not border the portal as in the scene file")
         film = cfg["film"]
         camera = Camera.from_config(cfg["camera"], int(film["width"]), int(film["height"]))
-        return LampshadeModel(s_light=s_l, s_portal=s_p, radiance=radiance,
-                              albedo=np.asarray(material["albedo"], dtype=np.float64), shade_half=a, camera=camera)
+        return LampshadeModel(
+            s_light=s_l,
+            s_portal=s_p,
+            radiance=radiance,
+            albedo=np.asarray(material["albedo"], dtype=np.float64),
+            shade_half=a,
+            camera=camera,
+        )
 
     # --- the closed form at floor points ------------------------------------------------
 
@@ -213,18 +243,24 @@ class LampshadeModel:
         half = k * self.s_light / 2
         hp = self.s_portal / 2
         cx, cz = px * (1 - k), pz * (1 - k)
-        return (np.maximum(cx - half, -hp), np.minimum(cx + half, hp),
-                np.maximum(cz - half, -hp), np.minimum(cz + half, hp))
+        return (
+            np.maximum(cx - half, -hp),
+            np.minimum(cx + half, hp),
+            np.maximum(cz - half, -hp),
+            np.minimum(cz + half, hp),
+        )
 
     def radiance_at(self, px: np.ndarray, pz: np.ndarray) -> np.ndarray:
         """L(p) per channel, shape px.shape + (3,), for unshadowed floor points."""
         x0, x1, z0, z1 = self.visible_rectangle(px, pz)
         e = projected_solid_angle_rect(px, pz, x0, x1, z0, z1, PORTAL_Y)
-        return (self.albedo / math.pi * self.radiance) * e[..., None]
+        radiance: np.ndarray = (self.albedo / math.pi * self.radiance) * e[..., None]
+        return radiance
 
 
-def projected_solid_angle_rect(px: np.ndarray, pz: np.ndarray, x0: np.ndarray, x1: np.ndarray,
-                               z0: np.ndarray, z1: np.ndarray, height: float) -> np.ndarray:
+def projected_solid_angle_rect(
+    px: np.ndarray, pz: np.ndarray, x0: np.ndarray, x1: np.ndarray, z0: np.ndarray, z1: np.ndarray, height: float
+) -> np.ndarray:
     """Lambert's polygon formula: the cosine-weighted solid angle, seen from
     floor points (px, 0, pz) with normal +y, of the horizontal rectangle
     [x0, x1] x {height} x [z0, z1]; 0 for an empty rectangle.
@@ -236,8 +272,9 @@ def projected_solid_angle_rect(px: np.ndarray, pz: np.ndarray, x0: np.ndarray, x
     empty = (x1 <= x0) | (z1 <= z0)
     xs = (x0, x1, x1, x0)
     zs = (z0, z0, z1, z1)
-    corners = [np.stack(np.broadcast_arrays(xs[i] - px, np.full_like(px, height), zs[i] - pz), axis=-1)
-               for i in range(4)]
+    corners = [
+        np.stack(np.broadcast_arrays(xs[i] - px, np.full_like(px, height), zs[i] - pz), axis=-1) for i in range(4)
+    ]
     total = np.zeros(np.broadcast(px, x0).shape)
     for i in range(4):
         a, b = corners[i], corners[(i + 1) % 4]
@@ -251,9 +288,17 @@ def projected_solid_angle_rect(px: np.ndarray, pz: np.ndarray, x0: np.ndarray, x
 
 # --- conservative occlusion tests ----------------------------------------------------------
 
-def frustum_meets_box(a_lo: np.ndarray, a_hi: np.ndarray, ya: float | np.ndarray,
-                      b_lo: np.ndarray, b_hi: np.ndarray, yb: float | np.ndarray,
-                      box_lo: np.ndarray, box_hi: np.ndarray) -> np.ndarray:
+
+def frustum_meets_box(
+    a_lo: np.ndarray,
+    a_hi: np.ndarray,
+    ya: float | np.ndarray,
+    b_lo: np.ndarray,
+    b_hi: np.ndarray,
+    yb: float | np.ndarray,
+    box_lo: np.ndarray,
+    box_hi: np.ndarray,
+) -> np.ndarray:
     """Whether conv(A u B) meets the closed AABB [box_lo, box_hi], for
     horizontal axis-aligned rectangles A = [a_lo, a_hi] (xz bounds, shape
     (..., 2)) at height ya and B at height yb != ya (B may be a point).
@@ -300,8 +345,9 @@ def footprint_corners(model: LampshadeModel) -> tuple[np.ndarray, np.ndarray]:
     """Camera rays through every pixel corner: directions (H+1, W+1, 3) and
     their floor hits (H+1, W+1, 3) (NaN where the ray does not go down)."""
     cam = model.camera
-    py, px = np.meshgrid(np.arange(cam.height + 1, dtype=np.float64), np.arange(cam.width + 1, dtype=np.float64),
-                         indexing="ij")
+    py, px = np.meshgrid(
+        np.arange(cam.height + 1, dtype=np.float64), np.arange(cam.width + 1, dtype=np.float64), indexing="ij"
+    )
     d = cam.directions(px, py)
     return d, _floor_hit(cam.origin, d)
 
@@ -309,7 +355,8 @@ def footprint_corners(model: LampshadeModel) -> tuple[np.ndarray, np.ndarray]:
 def _floor_hit(origin: np.ndarray, d: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(d[..., 1] < 0, -origin[1] / d[..., 1], np.nan)
-    return origin + t[..., None] * d
+    hit: np.ndarray = origin + t[..., None] * d
+    return hit
 
 
 def floor_mask(model: LampshadeModel) -> np.ndarray:
@@ -359,7 +406,8 @@ def floor_mask(model: LampshadeModel) -> np.ndarray:
     box_lo, box_hi = np.array(BOX_MIN) - GROW, np.array(BOX_MAX) + GROW
     shadowed = frustum_meets_box(lo, hi, 0.0, s_lo, s_hi, PORTAL_Y, box_lo, box_hi)
     ok &= ~(lit & shadowed)
-    return ok
+    result: np.ndarray = ok
+    return result
 
 
 def expected_pixels(model: LampshadeModel, n: int = 16) -> PixelModel:
@@ -369,8 +417,7 @@ def expected_pixels(model: LampshadeModel, n: int = 16) -> PixelModel:
     every sub-pixel ray to hit the floor inside the room (implied by the
     corner test; checked as a safeguard)."""
     cam = model.camera
-    py, px = np.meshgrid(np.arange(cam.height, dtype=np.float64), np.arange(cam.width, dtype=np.float64),
-                         indexing="ij")
+    py, px = np.meshgrid(np.arange(cam.height, dtype=np.float64), np.arange(cam.width, dtype=np.float64), indexing="ij")
     offsets = (np.arange(n) + 0.5) / n
     total = np.zeros((cam.height, cam.width, 3))
     inside = np.ones((cam.height, cam.width), dtype=bool)
@@ -378,7 +425,8 @@ def expected_pixels(model: LampshadeModel, n: int = 16) -> PixelModel:
         sx = px[..., None] + offsets  # (H, W, n)
         sy = np.broadcast_to(py[..., None] + oy, sx.shape)
         hit = _floor_hit(cam.origin, cam.directions(sx, sy))
-        inside &= np.all(np.isfinite(hit[..., 0]) & (np.abs(hit[..., 0]) < ROOM_HALF)
-                         & (np.abs(hit[..., 2]) < ROOM_HALF), axis=-1)
+        inside &= np.all(
+            np.isfinite(hit[..., 0]) & (np.abs(hit[..., 0]) < ROOM_HALF) & (np.abs(hit[..., 2]) < ROOM_HALF), axis=-1
+        )
         total += np.nan_to_num(model.radiance_at(hit[..., 0], hit[..., 2])).sum(axis=-2)
     return PixelModel(expected=total / (n * n), mask=floor_mask(model) & inside, n=n)

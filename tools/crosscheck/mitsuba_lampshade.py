@@ -49,9 +49,8 @@ def ensure_mitsuba() -> None:
         env = dict(os.environ, **{REEXEC_GUARD: "1"})
         os.execve(str(python), [str(python), str(Path(__file__).resolve()), *sys.argv[1:]], env)
     sys.stderr.write(
-        "mitsuba is not importable and %s has no working python with it.\n"
-        "Create it with:  python3 -m venv %s && %s/bin/pip install mitsuba numpy openexr PyYAML\n"
-        % (XCHECK_VENV, XCHECK_VENV, XCHECK_VENV)
+        f"mitsuba is not importable and {XCHECK_VENV} has no working python with it.\n"
+        f"Create it with:  python3 -m venv {XCHECK_VENV} && {XCHECK_VENV}/bin/pip install mitsuba pytest -e harness\n"
     )
     sys.exit(2)
 
@@ -73,35 +72,63 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="scene YAML (default: lampshade)")
     p.add_argument("--renderer", type=Path, default=default_renderer, help="our render binary")
     p.add_argument("--integrator", choices=("direct", "path"), default="direct")
-    p.add_argument("--s-L", dest="s_L", type=float, default=None,
-                   help="params.s_L override (default: the scene's value)")
+    p.add_argument(
+        "--s-L", dest="s_L", type=float, default=None, help="params.s_L override (default: the scene's value)"
+    )
     p.add_argument("--ours-spp", type=int, default=1024)
     p.add_argument("--mitsuba-spp", type=int, default=1024, help="total Mitsuba spp over all runs")
-    p.add_argument("--mitsuba-runs", type=int, default=32,
-                   help="K independent Mitsuba renders of mitsuba-spp/K spp each (variance estimate)")
-    p.add_argument("--max-depth", type=int, default=3,
-                   help="path only: our render.max_depth N (bounces); Mitsuba gets max_depth N+1")
-    p.add_argument("--rr-depth", type=int, default=5,
-                   help="path only: Russian roulette depth, ours render.rr_depth and Mitsuba rr_depth")
+    p.add_argument(
+        "--mitsuba-runs",
+        type=int,
+        default=32,
+        help="K independent Mitsuba renders of mitsuba-spp/K spp each (variance estimate)",
+    )
+    p.add_argument(
+        "--max-depth",
+        type=int,
+        default=3,
+        help="path only: our render.max_depth N (bounces); Mitsuba gets max_depth N+1",
+    )
+    p.add_argument(
+        "--rr-depth",
+        type=int,
+        default=5,
+        help="path only: Russian roulette depth, ours render.rr_depth and Mitsuba rr_depth",
+    )
     p.add_argument("--strategy", default="light", help="our sampling strategy")
     p.add_argument("--threads", default="2", help="our render threads")
     p.add_argument("--seed", type=int, default=1, help="our seed; Mitsuba uses seed*1000+k")
     p.add_argument("--block", type=int, default=8, help="block side in pixels")
     p.add_argument("--alpha", type=float, default=1e-3, help="overall false-alarm rate of the bound")
-    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
-                   help="extra --set override for our renderer (e.g. film.width=64); "
-                        "Mitsuba follows through the effective config")
-    p.add_argument("--reuse-ours", action="store_true",
-                   help="reuse OUT/ours/final.exr if present instead of rendering again")
-    p.add_argument("--no-recentre", action="store_true",
-                   help="render Mitsuba's scene at our coordinates instead of moved so that the "
-                        "lights' centroid is at the origin (float32 ray offsets; see README)")
-    p.add_argument("--mitsuba-cache", type=Path, default=None, metavar="FILE.npz",
-                   help="reuse Mitsuba's K renders from this file when scene, integrator, spp, runs "
-                        "and seed match (e.g. to compare several of our strategies); else render "
-                        "and store them there")
-    p.add_argument("--out", type=Path, default=None,
-                   help="output folder (default results/tmp/crosscheck/<integrator>_sL<s_L>)")
+    p.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="extra --set override for our renderer (e.g. film.width=64); Mitsuba follows through the effective config",
+    )
+    p.add_argument(
+        "--reuse-ours", action="store_true", help="reuse OUT/ours/final.exr if present instead of rendering again"
+    )
+    p.add_argument(
+        "--no-recentre",
+        action="store_true",
+        help="render Mitsuba's scene at our coordinates instead of moved so that the "
+        "lights' centroid is at the origin (float32 ray offsets; see README)",
+    )
+    p.add_argument(
+        "--mitsuba-cache",
+        type=Path,
+        default=None,
+        metavar="FILE.npz",
+        help="reuse Mitsuba's K renders from this file when scene, integrator, spp, runs "
+        "and seed match (e.g. to compare several of our strategies); else render "
+        "and store them there",
+    )
+    p.add_argument(
+        "--out", type=Path, default=None, help="output folder (default results/tmp/crosscheck/<integrator>_sL<s_L>)"
+    )
     args = p.parse_args(argv)
     if args.mitsuba_runs < 2 or args.mitsuba_spp % args.mitsuba_runs != 0:
         p.error("--mitsuba-runs must be >= 2 and divide --mitsuba-spp")
@@ -110,8 +137,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     if args.max_depth < 1:
         p.error("--max-depth must be >= 1")
     if args.out is None:
-        tag = "scene" if args.s_L is None else "sL%g" % args.s_L
-        args.out = ROOT / "results" / "tmp" / "crosscheck" / ("%s_%s" % (args.integrator, tag))
+        tag = "scene" if args.s_L is None else f"sL{args.s_L:g}"
+        args.out = ROOT / "results" / "tmp" / "crosscheck" / (f"{args.integrator}_{tag}")
     return args
 
 
@@ -121,14 +148,31 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def ours_command(args: argparse.Namespace, out_dir: Path) -> list[str]:
     """Our renderer's command line for these options (also the key of --reuse-ours)."""
-    cmd = [str(args.renderer), str(args.scene), "--out", str(out_dir), "--spp", str(args.ours_spp),
-           "--seed", str(args.seed), "--threads", str(args.threads), "--strategy", args.strategy,
-           "--integrator", args.integrator, "--quiet", "--set", "render.time=0",
-           "--set", "render.snapshots.every=1e9"]  # no snapshots: 0 is refused
+    cmd = [
+        str(args.renderer),
+        str(args.scene),
+        "--out",
+        str(out_dir),
+        "--spp",
+        str(args.ours_spp),
+        "--seed",
+        str(args.seed),
+        "--threads",
+        str(args.threads),
+        "--strategy",
+        args.strategy,
+        "--integrator",
+        args.integrator,
+        "--quiet",
+        "--set",
+        "render.time=0",
+        "--set",
+        "render.snapshots.every=1e9",
+    ]  # no snapshots: 0 is refused
     if args.s_L is not None:
-        cmd += ["--set", "params.s_L=%r" % args.s_L]
+        cmd += ["--set", f"params.s_L={args.s_L!r}"]
     if args.integrator == "path":
-        cmd += ["--set", "render.max_depth=%d" % args.max_depth, "--set", "render.rr_depth=%d" % args.rr_depth]
+        cmd += ["--set", f"render.max_depth={args.max_depth}", "--set", f"render.rr_depth={args.rr_depth}"]
     for s in args.sets:
         cmd += ["--set", s]
     return cmd
@@ -137,14 +181,16 @@ def ours_command(args: argparse.Namespace, out_dir: Path) -> list[str]:
 def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
     """Renders with our binary; returns its final JSON event plus wall time."""
     if not args.renderer.exists():
-        raise SetupError("renderer binary %s not found (build it: make BUILD=renderer/build-xcheck "
-                         "renderer/build-xcheck/render)" % args.renderer)
+        raise SetupError(
+            f"renderer binary {args.renderer} not found (build it: make BUILD=renderer/build-xcheck "
+            "renderer/build-xcheck/render)"
+        )
     cmd = ours_command(args, out_dir)
     t0 = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.monotonic() - t0
     if proc.returncode != 0:
-        raise SetupError("our renderer failed (exit %d): %s\n%s" % (proc.returncode, " ".join(cmd), proc.stderr))
+        raise SetupError(f"our renderer failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr}")
     final = None
     for line in proc.stdout.splitlines():
         ev = json.loads(line)
@@ -158,30 +204,28 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
 
 
 def read_ours(path: Path):
-    """Mean (H, W, 3) and variance of the mean (H, W, 3) from our EXR, float64."""
-    import numpy as np
-    import OpenEXR
+    """Our EXR through the harness's reader (portal_harness.exr, the one
+    EXR reader): the snapshot, whose rgb and variance (of the mean) are
+    (H, W, 3) float64."""
+    from portal_harness import exr
+    from portal_harness.errors import CorruptExrError
 
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        ch = f.channels()
-        header = dict(f.header())
-        mean = np.stack([ch[c].pixels for c in ("R", "G", "B")], axis=-1).astype(np.float64)
-        var = np.stack([ch["variance." + c].pixels for c in ("R", "G", "B")], axis=-1).astype(np.float64)
-    return mean, var, header
+    try:
+        return exr.read_snapshot(path)
+    except CorruptExrError as e:
+        raise SetupError(str(e)) from None
 
 
 def write_exr(path: Path, mean, var) -> None:
-    """Same channel layout as our renderer's EXR (R, G, B, variance.*)."""
-    import numpy as np
-    import OpenEXR
+    """Same channel layout as our renderer's EXR (R, G, B, variance.*), no attributes."""
+    from portal_harness import exr
 
     channels = {}
-    for i, c in enumerate("RGB"):
-        channels[c] = np.ascontiguousarray(mean[..., i], dtype=np.float32)
-        channels["variance." + c] = np.ascontiguousarray(var[..., i], dtype=np.float32)
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, channels) as f:
-        f.write(str(path))
+    for i, c in enumerate(exr.RGB_CHANNELS):
+        channels[c] = mean[..., i]
+    for i, c in enumerate(exr.VARIANCE_CHANNELS):
+        channels[c] = var[..., i]
+    exr.write_exr(path, channels, {})
 
 
 # ---------------------------------------------------------------------------
@@ -196,16 +240,17 @@ def _triangles(vertices: list, quads: list, triangles: list) -> list[tuple[int, 
         tris.append((q[0], q[2], q[3]))
     for t in tris:
         if any(not 0 <= i < len(vertices) for i in t):
-            raise SetupError("face index out of range: %r" % (t,))
+            raise SetupError(f"face index out of range: {t!r}")
     return tris
 
 
 def write_ply(path: Path, vertices: list, tris: list) -> None:
     """Binary little-endian PLY: float xyz, uchar-count int faces."""
-    head = ("ply\nformat binary_little_endian 1.0\nelement vertex %d\n"
-            "property float x\nproperty float y\nproperty float z\n"
-            "element face %d\nproperty list uchar int vertex_indices\nend_header\n"
-            % (len(vertices), len(tris)))
+    head = (
+        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        f"element face {len(tris)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
     body = b"".join(struct.pack("<3f", *map(float, v)) for v in vertices)
     body += b"".join(struct.pack("<B3i", 3, *t) for t in tris)
     path.write_bytes(head.encode("ascii") + body)
@@ -217,7 +262,7 @@ def _rgb(value) -> dict:
 
 def _bsdf(material: dict, name: str) -> dict:
     if material.get("type") != "diffuse":
-        raise SetupError("material %r: only diffuse is converted (got %r)" % (name, material.get("type")))
+        raise SetupError("material {!r}: only diffuse is converted (got {!r})".format(name, material.get("type")))
     # Our surfaces are two-sided; Mitsuba's diffuse is black from the back.
     return {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb(material["albedo"])}}
 
@@ -239,8 +284,7 @@ def recentre_offset(cfg: dict) -> list[float]:
     return [sum(float(v[i]) for v in verts) / len(verts) for i in range(3)]
 
 
-def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int,
-                     offset: list[float] | None = None) -> dict:
+def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int, offset: list[float] | None = None) -> dict:
     """Mitsuba load_dict() description of our effective config, every
     position moved by -offset (default none)."""
     import mitsuba as mi
@@ -253,8 +297,7 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int,
     mesh_dir.mkdir(parents=True, exist_ok=True)
     cam = cfg["camera"]
     origin, target = moved([cam["position"], cam["look_at"]])
-    look_at = mi.ScalarTransform4f().look_at(origin=origin, target=target,
-                                             up=[float(x) for x in cam["up"]])
+    look_at = mi.ScalarTransform4f().look_at(origin=origin, target=target, up=[float(x) for x in cam["up"]])
     scene: dict = {
         "type": "scene",
         "integrator": integrator,
@@ -279,12 +322,13 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int,
     materials = cfg["materials"]
     for i, shape in enumerate(cfg.get("shapes") or []):
         if shape.get("type") != "mesh":
-            raise SetupError("shape %r: effective configs hold meshes only (got %r)"
-                             % (shape.get("name"), shape.get("type")))
+            raise SetupError(
+                "shape {!r}: effective configs hold meshes only (got {!r})".format(shape.get("name"), shape.get("type"))
+            )
         tris = _triangles(shape["vertices"], shape.get("quads") or [], shape.get("triangles") or [])
-        ply = mesh_dir / ("shape_%02d.ply" % i)
+        ply = mesh_dir / f"shape_{i:02d}.ply"
         write_ply(ply, moved(shape["vertices"]), tris)
-        scene["shape_%02d_%s" % (i, shape["name"])] = {
+        scene[f"shape_{i:02d}_{shape['name']}"] = {
             "type": "ply",
             "filename": str(ply),
             # Flat shading: without this Mitsuba would smooth the normals of
@@ -294,17 +338,20 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int,
         }
     for i, light in enumerate(cfg.get("lights") or []):
         if light.get("two_sided"):
-            raise SetupError("light %r: two-sided lights are not converted (Mitsuba's area emitter "
-                             "is one-sided)" % light["name"])
+            raise SetupError(
+                "light {!r}: two-sided lights are not converted (Mitsuba's area emitter is one-sided)".format(
+                    light["name"]
+                )
+            )
         verts = light["vertices"]
         # Fan triangulation of the convex polygon keeps its winding. Mitsuba's
         # triangle normal is cross(p1 - p0, p2 - p0), the right-hand rule of the
         # vertex order, as our polygon_normal; its area emitter emits on the
         # normal's side, as our one-sided light does.
         tris = [(0, k, k + 1) for k in range(1, len(verts) - 1)]
-        ply = mesh_dir / ("light_%02d.ply" % i)
+        ply = mesh_dir / f"light_{i:02d}.ply"
         write_ply(ply, moved(verts), tris)
-        scene["light_%02d_%s" % (i, light["name"])] = {
+        scene[f"light_{i:02d}_{light['name']}"] = {
             "type": "ply",
             "filename": str(ply),
             "face_normals": True,
@@ -366,7 +413,7 @@ def block_mean(a, b: int):
     """Means over b x b blocks of (..., H, W, C); a partial border is dropped."""
     h, w = a.shape[-3] // b * b, a.shape[-2] // b * b
     a = a[..., :h, :w, :]
-    shape = a.shape[:-3] + (h // b, b, w // b, b, a.shape[-1])
+    shape = (*a.shape[:-3], h // b, b, w // b, b, a.shape[-1])
     return a.reshape(shape).mean(axis=(-4, -2))
 
 
@@ -385,8 +432,9 @@ def one_hit_scale(img, var):
     return np.array(out)
 
 
-def compare(ours, ours_var, mits_runs, b: int, alpha: float,
-            ours_spp: int | None = None, mits_spp: int | None = None) -> dict:
+def compare(
+    ours, ours_var, mits_runs, b: int, alpha: float, ours_spp: int | None = None, mits_spp: int | None = None
+) -> dict:
     import numpy as np
 
     k = mits_runs.shape[0]
@@ -421,8 +469,10 @@ def compare(ours, ours_var, mits_runs, b: int, alpha: float,
     # Only where the other image has light: blocks black in both stay z = 0.
     mvb_sampled = mvb.copy()
     zero_hit_tests = 0
-    for spp, img, var_px, blk, other, vbs in ((ours_spp, ours, ours_var, ob, mb, (ovb,)),
-                                              (mits_spp, mits, mits_var, mb, ob, (mvb, mvb_runs))):
+    for spp, img, var_px, blk, other, vbs in (
+        (ours_spp, ours, ours_var, ob, mb, (ovb,)),
+        (mits_spp, mits, mits_var, mb, ob, (mvb, mvb_runs)),
+    ):
         if spp is None:
             continue
         empty = (blk == 0) & (vbs[0] == 0) & (other != 0)
@@ -432,11 +482,15 @@ def compare(ours, ours_var, mits_runs, b: int, alpha: float,
         zero_hit_tests += int(np.count_nonzero(empty))
     var = ovb + mvb
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(var > 0, diff / np.sqrt(np.where(var > 0, var, 1.0)),
-                     np.where(diff == 0, 0.0, np.inf * np.sign(diff)))
+        z = np.where(
+            var > 0, diff / np.sqrt(np.where(var > 0, var, 1.0)), np.where(diff == 0, 0.0, np.inf * np.sign(diff))
+        )
         var_runs = ovb + mvb_runs
-        z_runs = np.where(var_runs > 0, diff / np.sqrt(np.where(var_runs > 0, var_runs, 1.0)),
-                          np.where(diff == 0, 0.0, np.inf * np.sign(diff)))
+        z_runs = np.where(
+            var_runs > 0,
+            diff / np.sqrt(np.where(var_runs > 0, var_runs, 1.0)),
+            np.where(diff == 0, 0.0, np.inf * np.sign(diff)),
+        )
     n_tests = z.size
     bound = normal_two_sided_quantile(alpha / n_tests)
     absz = np.abs(z)
@@ -447,7 +501,7 @@ def compare(ours, ours_var, mits_runs, b: int, alpha: float,
     ratio_sigma = np.sqrt(ours_var.sum(axis=(0, 1)) + mits_var.sum(axis=(0, 1))) / sum_m
     # relMSE with the usual 1e-2 guard in the denominator; it holds both
     # images' noise, so compare it with its expectation from the variances.
-    denom = mits ** 2 + 1e-2
+    denom = mits**2 + 1e-2
     relmse = float(np.mean((ours - mits) ** 2 / denom))
     relmse_noise = float(np.mean((ours_var + mits_var) / denom))
 
@@ -455,17 +509,19 @@ def compare(ours, ours_var, mits_runs, b: int, alpha: float,
     order = np.argsort(absz, axis=None)[::-1][:10]
     for flat in order:
         by, bx, c = np.unravel_index(flat, z.shape)
-        top.append({
-            "block": [int(bx), int(by)],
-            "pixels_x": [int(bx * b), int(bx * b + b - 1)],
-            "pixels_y": [int(by * b), int(by * b + b - 1)],
-            "channel": "RGB"[c],
-            "ours": float(ob[by, bx, c]),
-            "mitsuba": float(mb[by, bx, c]),
-            "sigma_ours": float(math.sqrt(ovb[by, bx, c])),
-            "sigma_mitsuba": float(math.sqrt(mvb[by, bx, c])),
-            "z": float(z[by, bx, c]),
-        })
+        top.append(
+            {
+                "block": [int(bx), int(by)],
+                "pixels_x": [int(bx * b), int(bx * b + b - 1)],
+                "pixels_y": [int(by * b), int(by * b + b - 1)],
+                "channel": "RGB"[c],
+                "ours": float(ob[by, bx, c]),
+                "mitsuba": float(mb[by, bx, c]),
+                "sigma_ours": float(math.sqrt(ovb[by, bx, c])),
+                "sigma_mitsuba": float(math.sqrt(mvb[by, bx, c])),
+                "z": float(z[by, bx, c]),
+            }
+        )
     pos = mvb_sampled > 0
     return {
         "mitsuba_mean": mits,
@@ -489,10 +545,12 @@ def compare(ours, ours_var, mits_runs, b: int, alpha: float,
             "mean_z": float(z[var > 0].mean()) if (var > 0).any() else 0.0,
             "mean_z2": float(np.mean(z[var > 0] ** 2)) if (var > 0).any() else 0.0,
             "max_abs_z_runs_variance": float(np.abs(z_runs).max()),
-            "median_var_ratio_runs_over_pooled": (float(np.median(mvb_runs[pos] / mvb_sampled[pos]))
-                                                  if pos.any() else None),
-            "median_var_ratio_ours_over_mitsuba": (float(np.median(ovb[pos] / mvb_sampled[pos]))
-                                                   if pos.any() else None),
+            "median_var_ratio_runs_over_pooled": (
+                float(np.median(mvb_runs[pos] / mvb_sampled[pos])) if pos.any() else None
+            ),
+            "median_var_ratio_ours_over_mitsuba": (
+                float(np.median(ovb[pos] / mvb_sampled[pos])) if pos.any() else None
+            ),
             "mean_ratio_ours_over_mitsuba": [float(x) for x in ratio],
             "mean_ratio_sigma": [float(x) for x in ratio_sigma],
             "relmse": relmse,
@@ -575,37 +633,50 @@ def write_images(out: Path, ours, mits, z, b: int, bound: float) -> dict:
 
 
 def format_table(s: dict, info: dict) -> str:
-    lines = []
-    lines.append("cross-check ours vs Mitsuba %s: integrator %s, s_L %s, %s" % (
-        info["mitsuba_version"], info["integrator"], info["s_L"], info["mitsuba_integrator"]))
-    lines.append("  ours    : %d spp, strategy %s, render %.1f s (wall %.1f s)" % (
-        info["ours_spp"], info["strategy"], info["ours_time_s"], info["ours_wall_s"]))
-    lines.append("  mitsuba : %d spp = %d runs x %d spp, render %.1f s (+ load %.1f s)" % (
-        info["mitsuba_spp"], info["mitsuba_runs"], info["mitsuba_spp"] // info["mitsuba_runs"],
-        info["mitsuba_render_s"], info["mitsuba_load_s"]))
-    lines.append("  %-34s %s" % ("blocks x channels", "%d x 3 = %d (%dx%d px)" % (
-        s["blocks"], s["tests"], s["block_px"], s["block_px"])))
-    lines.append("  %-34s %.3f   (bound %.3f: Bonferroni, alpha %g)" % (
-        "max |z|", s["max_abs_z"], s["bound"], s["alpha"]))
-    lines.append("  %-34s %.3f" % ("max |z| (variance from run spread)", s["max_abs_z_runs_variance"]))
-    lines.append("  %-34s %d" % ("tests where one side had no hit", s["zero_hit_tests"]))
-    lines.append("  %-34s %.4f (normal: %.4f)" % ("fraction |z| > 3", s["frac_gt_3"], s["expected_frac_gt_3"]))
-    lines.append("  %-34s %.5f (normal: %.5f)" % ("fraction |z| > 4", s["frac_gt_4"], s["expected_frac_gt_4"]))
-    lines.append("  %-34s %.5f" % ("fraction |z| > 5", s["frac_gt_5"]))
-    lines.append("  %-34s %+.3f / %.3f (normal: 0 / 1; over %d tests with variance)" % (
-        "mean z / mean z^2", s["mean_z"], s["mean_z2"], s["tests_with_variance"]))
-    lines.append("  %-34s %s" % ("mean ratio ours/mitsuba R G B", "  ".join(
-        "%.4f+-%.4f" % (r, e) for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"]))))
-    lines.append("  %-34s %.3e (noise alone: %.3e)" % ("relMSE", s["relmse"], s["relmse_expected_from_noise"]))
+    def row(label: str, value: str) -> str:
+        return f"  {label:<34} {value}"
+
+    ratios = "  ".join(
+        f"{r:.4f}+-{e:.4f}" for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True)
+    )
+    runs = info["mitsuba_runs"]
+    lines = [
+        f"cross-check ours vs Mitsuba {info['mitsuba_version']}: integrator {info['integrator']}, "
+        f"s_L {info['s_L']}, {info['mitsuba_integrator']}",
+        f"  ours    : {info['ours_spp']} spp, strategy {info['strategy']}, render {info['ours_time_s']:.1f} s "
+        f"(wall {info['ours_wall_s']:.1f} s)",
+        f"  mitsuba : {info['mitsuba_spp']} spp = {runs} runs x {info['mitsuba_spp'] // runs} spp, "
+        f"render {info['mitsuba_render_s']:.1f} s (+ load {info['mitsuba_load_s']:.1f} s)",
+        row("blocks x channels", f"{s['blocks']} x 3 = {s['tests']} ({s['block_px']}x{s['block_px']} px)"),
+        row("max |z|", f"{s['max_abs_z']:.3f}   (bound {s['bound']:.3f}: Bonferroni, alpha {s['alpha']:g})"),
+        row("max |z| (variance from run spread)", f"{s['max_abs_z_runs_variance']:.3f}"),
+        row("tests where one side had no hit", f"{s['zero_hit_tests']}"),
+        row("fraction |z| > 3", f"{s['frac_gt_3']:.4f} (normal: {s['expected_frac_gt_3']:.4f})"),
+        row("fraction |z| > 4", f"{s['frac_gt_4']:.5f} (normal: {s['expected_frac_gt_4']:.5f})"),
+        row("fraction |z| > 5", f"{s['frac_gt_5']:.5f}"),
+        row(
+            "mean z / mean z^2",
+            f"{s['mean_z']:+.3f} / {s['mean_z2']:.3f} (normal: 0 / 1; over "
+            f"{s['tests_with_variance']} tests with variance)",
+        ),
+        row("mean ratio ours/mitsuba R G B", ratios),
+        row("relMSE", f"{s['relmse']:.3e} (noise alone: {s['relmse_expected_from_noise']:.3e})"),
+    ]
     if s["median_var_ratio_runs_over_pooled"] is not None:
-        lines.append("  %-34s %.3f (1 if pixels independent)" % (
-            "median var ratio runs/pooled", s["median_var_ratio_runs_over_pooled"]))
+        lines.append(
+            row(
+                "median var ratio runs/pooled",
+                f"{s['median_var_ratio_runs_over_pooled']:.3f} (1 if pixels independent)",
+            )
+        )
     lines.append("  largest |z| blocks (x0-x1, y0-y1 pixels, row 0 at the top):")
     for t in s["top_blocks"][:5]:
-        lines.append("    x %3d-%3d y %3d-%3d %s  ours %.5g +- %.2g  mitsuba %.5g +- %.2g  z %+.2f" % (
-            t["pixels_x"][0], t["pixels_x"][1], t["pixels_y"][0], t["pixels_y"][1], t["channel"],
-            t["ours"], t["sigma_ours"], t["mitsuba"], t["sigma_mitsuba"], t["z"]))
-    lines.append("  result: %s" % ("AGREE within noise" if s["max_abs_z"] <= s["bound"] else "DISAGREE"))
+        lines.append(
+            f"    x {t['pixels_x'][0]:3d}-{t['pixels_x'][1]:3d} y {t['pixels_y'][0]:3d}-{t['pixels_y'][1]:3d} "
+            f"{t['channel']}  ours {t['ours']:.5g} +- {t['sigma_ours']:.2g}  "
+            f"mitsuba {t['mitsuba']:.5g} +- {t['sigma_mitsuba']:.2g}  z {t['z']:+.2f}"
+        )
+    lines.append(f"  result: {'AGREE within noise' if s['max_abs_z'] <= s['bound'] else 'DISAGREE'}")
     return "\n".join(lines)
 
 
@@ -626,15 +697,16 @@ def main(argv: list[str] | None = None) -> int:
         if args.reuse_ours and final_exr.exists() and (ours_dir / "ours_run.json").exists():
             ours_run = json.loads((ours_dir / "ours_run.json").read_text())
             if ours_run.get("command") != ours_command(args, ours_dir):
-                print("not reusing %s: rendered with other options" % final_exr, file=sys.stderr)
+                print(f"not reusing {final_exr}: rendered with other options", file=sys.stderr)
                 ours_run = None
             else:
-                print("reusing %s" % final_exr, file=sys.stderr)
+                print(f"reusing {final_exr}", file=sys.stderr)
         if ours_run is None:
-            print("rendering ours: %d spp ..." % args.ours_spp, file=sys.stderr)
+            print(f"rendering ours: {args.ours_spp} spp ...", file=sys.stderr)
             ours_run = run_ours(args, ours_dir)
             (ours_dir / "ours_run.json").write_text(json.dumps(ours_run, indent=1))
-        ours, ours_var, ours_header = read_ours(final_exr)
+        snapshot = read_ours(final_exr)
+        ours, ours_var, ours_header = snapshot.rgb, snapshot.variance, snapshot.header
         cfg = yaml.safe_load((ours_dir / "config.yaml").read_text())
 
         spp_each = args.mitsuba_spp // args.mitsuba_runs
@@ -643,9 +715,18 @@ def main(argv: list[str] | None = None) -> int:
         scene_dict = build_scene_dict(cfg, integ, out / "mitsuba" / "meshes", spp_each, offset)
         # What determines Mitsuba's images: the scene (our render settings
         # aside), its integrator, spp, runs and seeds.
-        key = json.dumps({"scene": {k: v for k, v in cfg.items() if k != "render"}, "integrator": integ,
-                          "offset": offset, "spp_each": spp_each, "runs": args.mitsuba_runs, "seed": args.seed,
-                          "mitsuba": mi.__version__}, sort_keys=True)
+        key = json.dumps(
+            {
+                "scene": {k: v for k, v in cfg.items() if k != "render"},
+                "integrator": integ,
+                "offset": offset,
+                "spp_each": spp_each,
+                "runs": args.mitsuba_runs,
+                "seed": args.seed,
+                "mitsuba": mi.__version__,
+            },
+            sort_keys=True,
+        )
         cache = args.mitsuba_cache
         cached = None
         if cache is not None and cache.exists():
@@ -654,22 +735,20 @@ def main(argv: list[str] | None = None) -> int:
                     cached = (z["runs"].astype(np.float64), float(z["load_s"]), float(z["render_s"]))
         if cached is not None:
             runs, load_s, render_s = cached
-            print("reusing Mitsuba renders from %s" % cache, file=sys.stderr)
+            print(f"reusing Mitsuba renders from {cache}", file=sys.stderr)
         else:
-            print("rendering Mitsuba: %d runs x %d spp ..." % (args.mitsuba_runs, spp_each), file=sys.stderr)
+            print(f"rendering Mitsuba: {args.mitsuba_runs} runs x {spp_each} spp ...", file=sys.stderr)
             runs, load_s, render_s = render_mitsuba(scene_dict, args.mitsuba_runs, spp_each, args.seed * 1000)
             if cache is not None:
                 cache.parent.mkdir(parents=True, exist_ok=True)
-                np.savez_compressed(cache, key=key, runs=runs.astype(np.float32), load_s=load_s,
-                                    render_s=render_s)
+                np.savez_compressed(cache, key=key, runs=runs.astype(np.float32), load_s=load_s, render_s=render_s)
         if runs.shape[1:] != ours.shape:
-            raise SetupError("image sizes differ: ours %r, Mitsuba %r" % (ours.shape, runs.shape[1:]))
+            raise SetupError(f"image sizes differ: ours {ours.shape!r}, Mitsuba {runs.shape[1:]!r}")
     except SetupError as e:
-        print("error: %s" % e, file=sys.stderr)
+        print(f"error: {e}", file=sys.stderr)
         return 2
 
-    result = compare(ours, ours_var, runs, args.block, args.alpha,
-                     ours_spp=int(ours_header.get("spp", args.ours_spp)), mits_spp=args.mitsuba_spp)
+    result = compare(ours, ours_var, runs, args.block, args.alpha, ours_spp=ours_header.spp, mits_spp=args.mitsuba_spp)
     write_exr(out / "mitsuba" / "mitsuba.exr", result["mitsuba_mean"], result["mitsuba_var"])
     img_info = write_images(out, ours, result["mitsuba_mean"], result["z"], args.block, result["stats"]["bound"])
 
@@ -681,10 +760,10 @@ def main(argv: list[str] | None = None) -> int:
         "mitsuba_integrator": json.dumps(integ),
         "s_L": args.s_L if args.s_L is not None else (s_L if s_L is not None else "scene default"),
         "strategy": args.strategy,
-        "ours_spp": int(ours_header.get("spp", args.ours_spp)),
+        "ours_spp": ours_header.spp,
         "ours_time_s": float(ours_run["time_s"]),
         "ours_wall_s": float(ours_run["wall_s"]),
-        "ours_config_hash": ours_header.get("config_hash"),
+        "ours_config_hash": ours_header.config_hash,
         "mitsuba_spp": args.mitsuba_spp,
         "mitsuba_runs": args.mitsuba_runs,
         "mitsuba_load_s": load_s,
