@@ -101,6 +101,35 @@ def read_header(path: Path | str) -> SnapshotHeader:
     return _header_from(p, raw)
 
 
+# Attributes every OpenEXR file has, whoever wrote it.
+STANDARD_ATTRIBUTES = frozenset(
+    {
+        "channels",
+        "compression",
+        "dataWindow",
+        "displayWindow",
+        "lineOrder",
+        "pixelAspectRatio",
+        "screenWindowCenter",
+        "screenWindowWidth",
+        "type",
+    }
+)
+
+
+def read_names(path: Path | str) -> tuple[list[str], list[str]]:
+    """The channel names and the non-standard header attribute names of an
+    EXR file, sorted, without reading its pixels (for contract checks)."""
+    p = Path(path)
+    try:
+        with OpenEXR.File(str(p), header_only=True) as f:
+            raw = dict(f.header())
+    except (RuntimeError, ValueError, OSError) as e:
+        raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
+    channels = sorted(c.name for c in raw.get("channels", []))
+    return channels, sorted(set(raw) - STANDARD_ATTRIBUTES)
+
+
 def _stack(path: Path, channels: dict[str, Any], names: tuple[str, ...], height: int, width: int) -> np.ndarray:
     planes = []
     for name in names:

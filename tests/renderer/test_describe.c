@@ -11,7 +11,7 @@
 #include "exit_code.h"
 #include "film.h"
 #include "json_util.h"
-#include "render_event.h"
+#include "render_events.h"
 #include "sampler.h"
 #include "testlib.h"
 #include "version.h"
