@@ -35,7 +35,7 @@
 #include "strategy.h"
 #include "target.h"
 
-#define N_POINTS 4096
+#define N_POINTS   4096
 #define N_VARIANTS (STRATEGY_COUNT + 2)
 
 struct point_set {
@@ -45,22 +45,30 @@ struct point_set {
     double u[N_POINTS][4];
     struct vec3 shadow_o[N_POINTS], shadow_d[N_POINTS];
     double shadow_tmax[N_POINTS];
-    struct vec3 wi_light[N_POINTS];      /* towards a uniform point on the light */
-    int n_vis;                           /* points with a visible polygon */
+    struct vec3 wi_light[N_POINTS]; /* towards a uniform point on the light */
+    int n_vis;                      /* points with a visible polygon */
     struct polygon vis[N_POINTS];
     int vis_point[N_POINTS];
     int regions[4];
 };
 
-enum cell_kind { CELL_SHADOW, CELL_CLASSIFY, CELL_VISIBLE_POLYGON, CELL_VISIBLE_TARGET, CELL_PREPARE,
-                 CELL_PREPARE_SAMPLE, CELL_PREPARE_PDF, CELL_PREPARE_SAMPLE_MANY };
-static const char *const cell_names[] = { "shadow_ray", "classify", "visible_polygon", "visible_target",
-                                          "prepare", "prepare_sample", "prepare_pdf", "prepare_sample_many" };
+enum cell_kind {
+    CELL_SHADOW,
+    CELL_CLASSIFY,
+    CELL_VISIBLE_POLYGON,
+    CELL_VISIBLE_TARGET,
+    CELL_PREPARE,
+    CELL_PREPARE_SAMPLE,
+    CELL_PREPARE_PDF,
+    CELL_PREPARE_SAMPLE_MANY
+};
+static const char *const cell_names[] = { "shadow_ray", "classify",       "visible_polygon", "visible_target",
+                                          "prepare",    "prepare_sample", "prepare_pdf",     "prepare_sample_many" };
 
 struct cell {
     enum cell_kind kind;
-    int strategy;    /* for the strategy cells */
-    double ns[64];   /* per rep */
+    int strategy;  /* for the strategy cells */
+    double ns[64]; /* per rep */
     double wall_ns[64];
 };
 
@@ -69,7 +77,8 @@ static struct vec3 light_point(const struct polygon *poly, struct rng *rng)
     /* Fan triangle by area, then uniform in it. */
     double areas[POLYGON_MAX], total = 0.0;
     for (int k = 0; k + 2 < poly->n; ++k) {
-        areas[k] = 0.5 * vec3_length(vec3_cross(vec3_sub(poly->v[k + 1], poly->v[0]), vec3_sub(poly->v[k + 2], poly->v[0])));
+        areas[k] =
+            0.5 * vec3_length(vec3_cross(vec3_sub(poly->v[k + 1], poly->v[0]), vec3_sub(poly->v[k + 2], poly->v[0])));
         total += areas[k];
     }
     double x = rng_uniform(rng) * total;
@@ -107,7 +116,8 @@ static void make_points(struct point_set *ps, const char *name, const struct sce
         ps->wi_light[i] = wi;
         ps->shadow_o[i] = scene_offset_origin(sc, p, up, wi);
         ps->shadow_d[i] = wi;
-        ps->shadow_tmax[i] = vec3_length(vec3_sub(y, ps->shadow_o[i])) * (1.0 - 1e-4) /* shadow rays stop short of the light */;
+        ps->shadow_tmax[i] =
+            vec3_length(vec3_sub(y, ps->shadow_o[i])) * (1.0 - 1e-4) /* shadow rays stop short of the light */;
         struct polygon vis;
         if (antishadow_visible_polygon(a, p, &vis) >= 3) {
             ps->vis[ps->n_vis] = vis;
@@ -321,8 +331,7 @@ int main(int argc, char **argv)
             char name[96];
             if (cl->kind >= CELL_PREPARE)
                 snprintf(name, sizeof name, "%s.%s", cell_names[cl->kind], variant_names[cl->strategy]);
-            else
-                snprintf(name, sizeof name, "%s", cell_names[cl->kind]);
+            else snprintf(name, sizeof name, "%s", cell_names[cl->kind]);
             printf("%s\"%s\":{\"ns\":[", c ? "," : "", name);
             for (int r = 0; r < reps; ++r) printf("%s%.2f", r ? "," : "", cl->ns[r]);
             printf("],\"wall_ns\":[");

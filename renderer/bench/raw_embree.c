@@ -48,7 +48,7 @@ struct ray_rec {
 struct batch {
     int n, cap;
     struct ray_rec *rays;
-    struct RTCRayHit *rh;   /* the same rays in Embree's float layout */
+    struct RTCRayHit *rh; /* the same rays in Embree's float layout */
 };
 
 static void batch_push(struct batch *b, struct vec3 o, struct vec3 d, double tmax, int kind)
@@ -247,8 +247,8 @@ static void *worker_main(void *arg)
 }
 
 struct measurement {
-    double rays_per_s;          /* all threads, per wall second */
-    double rays_per_cpu_s;      /* per second of thread CPU time */
+    double rays_per_s;     /* all threads, per wall second */
+    double rays_per_cpu_s; /* per second of thread CPU time */
 };
 
 static struct measurement measure(const struct scene *sc, const struct batch *b, int api, int threads, double seconds)
@@ -298,8 +298,7 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; ++i) {
         if (bench_take_set(&ov, argc, argv, &i)) continue;
         if (!strcmp(argv[i], "--mix-only")) mix_only = true;
-        else
-        if (!strcmp(argv[i], "--seconds") && i + 1 < argc) seconds = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--seconds") && i + 1 < argc) seconds = atof(argv[++i]);
         else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--max-threads") && i + 1 < argc) max_threads = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--spp") && i + 1 < argc) spp = atoi(argv[++i]);
@@ -397,8 +396,7 @@ int main(int argc, char **argv)
                        "\"median_rays_per_cpu_s\":%.1f}",
                        mw, mw / t, mc);
             }
-    if (mix_only)
-        printf("],\"mix_embree_1t_without_robust_flag\":null}\n");
+    if (mix_only) printf("],\"mix_embree_1t_without_robust_flag\":null}\n");
     else
         printf("],\"mix_embree_1t_without_robust_flag\":{\"median_rays_per_s\":%.1f,\"median_rays_per_cpu_s\":%.1f}}\n",
                bench_median(nr_wall, reps), bench_median(nr_cpu, reps));

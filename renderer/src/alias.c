@@ -34,13 +34,17 @@ bool alias_build(struct alias_table *t, const double *weights, int n, struct err
         t->prob[i] = weights[i] / sum;
         t->accept[i] = t->prob[i] * n;
         t->alias[i] = i;
-        if (t->accept[i] < 1.0) small[ns++] = i; else large[nl++] = i;
+        if (t->accept[i] < 1.0) small[ns++] = i;
+        else large[nl++] = i;
     }
     while (ns > 0 && nl > 0) {
         int s = small[--ns], l = large[nl - 1];
         t->alias[s] = l;
         t->accept[l] -= 1.0 - t->accept[s];
-        if (t->accept[l] < 1.0) { --nl; small[ns++] = l; }
+        if (t->accept[l] < 1.0) {
+            --nl;
+            small[ns++] = l;
+        }
     }
     /* Leftovers are full bins up to rounding. */
     while (nl > 0) t->accept[large[--nl]] = 1.0;

@@ -9,9 +9,9 @@
 
 struct alias_table {
     int n;
-    double *prob;     /* normalised probabilities p_i (sum 1) */
-    double *accept;   /* acceptance threshold of bin i */
-    int *alias;       /* alias of bin i */
+    double *prob;   /* normalised probabilities p_i (sum 1) */
+    double *accept; /* acceptance threshold of bin i */
+    int *alias;     /* alias of bin i */
 };
 
 /* Builds from non-negative weights with a positive sum. */

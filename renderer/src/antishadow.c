@@ -69,10 +69,13 @@ static bool check_polygon(const struct polygon *poly, const char *what, struct e
             return error_set(err, "%s vertex %d is not finite", what, i);
     }
     switch (polygon_check(poly)) {
-    case POLYGON_DEFECT_NONE: return true;
+    case POLYGON_DEFECT_NONE:
+        return true;
     case POLYGON_DEFECT_DEGENERATE:
-    case POLYGON_DEFECT_NOT_PLANAR: return error_set(err, "%s is degenerate or not planar", what);
-    case POLYGON_DEFECT_NOT_CONVEX: return error_set(err, "%s is not strictly convex", what);
+    case POLYGON_DEFECT_NOT_PLANAR:
+        return error_set(err, "%s is degenerate or not planar", what);
+    case POLYGON_DEFECT_NOT_CONVEX:
+        return error_set(err, "%s is not strictly convex", what);
     }
     return false;
 }
@@ -198,8 +201,9 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
                          "strictly on one side",
                          d_min, d_max);
     if (!(d_max < -tol) && !(d_min > tol))
-        return error_set(err, "light touches the portal's plane (closest vertex %.3g from it); it must be strictly "
-                              "on one side",
+        return error_set(err,
+                         "light touches the portal's plane (closest vertex %.3g from it); it must be strictly "
+                         "on one side",
                          fabs(d_min) < fabs(d_max) ? d_min : d_max);
     if (d_min > tol) {
         a->portal_plane.normal = vec3_neg(a->portal_plane.normal);
@@ -262,10 +266,8 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
         /* Supporting plane, positive on the side away from portal and light:
            the largest angle when the portal is on the u1 > 0 side, else the
            smallest (the mirror image). */
-        if (side > 0.0)
-            a->antumbra[a->n_antumbra++] = section_plane(&s, ex.x_hi, ex.y_hi, -1.0);
-        else if (side < 0.0)
-            a->antumbra[a->n_antumbra++] = section_plane(&s, ex.x_lo, ex.y_lo, 1.0);
+        if (side > 0.0) a->antumbra[a->n_antumbra++] = section_plane(&s, ex.x_hi, ex.y_hi, -1.0);
+        else if (side < 0.0) a->antumbra[a->n_antumbra++] = section_plane(&s, ex.x_lo, ex.y_lo, 1.0);
     }
     /* Each light edge's line misses the portal when the portal is strictly
        on one side of the light's plane, so every edge gave its plane. */
@@ -303,15 +305,14 @@ static int project_light(const struct antishadow *a, struct vec3 p, struct polyg
     for (int i = 0; i < a->light.n; ++i) {
         struct vec3 l = a->light.v[i];
         double dl = plane_distance(&a->portal_plane, l); /* < 0 */
-        double s = dl / (dl - dp);                        /* fraction of the way from l to p */
+        double s = dl / (dl - dp);                       /* fraction of the way from l to p */
         out->v[i] = vec3_madd(l, vec3_sub(p, l), s);
     }
     out->n = a->light.n;
     return out->n;
 }
 
-int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region,
-                                  struct polygon *out)
+int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out)
 {
     switch (region) {
     case REGION_OUTSIDE:

@@ -29,13 +29,7 @@
    light, within the light's shade box (strategy.h decides it), where the
    light is reached directly, not through a portal. aov.h's classes begin
    with these five. */
-enum region {
-    REGION_OUTSIDE,
-    REGION_ANTI_UMBRA,
-    REGION_ANTI_PENUMBRA,
-    REGION_ANTI_ANTUMBRA,
-    REGION_INSIDE
-};
+enum region { REGION_OUTSIDE, REGION_ANTI_UMBRA, REGION_ANTI_PENUMBRA, REGION_ANTI_ANTUMBRA, REGION_INSIDE };
 
 /* One separating plane per portal edge and at most two per light edge. */
 #define ANTISHADOW_SEPARATING_MAX (3 * POLYGON_INPUT_MAX)
@@ -43,15 +37,15 @@ enum region {
 /* Every plane is oriented so that its positive side (plane_distance > 0) is
    the side of the region it bounds; distances are in scene units (metres). */
 struct antishadow {
-    struct plane portal_plane;    /* positive beyond the portal, away from the light */
-    int n_separating;             /* p outside if negative for any of them */
+    struct plane portal_plane; /* positive beyond the portal, away from the light */
+    int n_separating;          /* p outside if negative for any of them */
     struct plane separating[ANTISHADOW_SEPARATING_MAX];
-    int n_umbra;                  /* anti-umbra if positive for all (one per portal edge) */
+    int n_umbra; /* anti-umbra if positive for all (one per portal edge) */
     struct plane umbra[POLYGON_INPUT_MAX];
-    bool has_antumbra;            /* false when the portal reaches the light's plane */
-    int n_antumbra;               /* anti-antumbra if positive for all (one per light edge) */
+    bool has_antumbra; /* false when the portal reaches the light's plane */
+    int n_antumbra;    /* anti-antumbra if positive for all (one per light edge) */
     struct plane antumbra[POLYGON_INPUT_MAX];
-    struct polygon light, portal; /* copies of the inputs, as given */
+    struct polygon light, portal;   /* copies of the inputs, as given */
     struct clip_planes portal_clip; /* the portal's edge planes, for clipping */
 };
 
@@ -77,7 +71,6 @@ int antishadow_visible_polygon(const struct antishadow *a, struct vec3 p, struct
 /* Same, for a caller that already has region = antishadow_classify(a, p):
    the anti-umbra gives the projected light and the anti-antumbra the portal
    without clipping; only the anti-penumbra clips. */
-int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region,
-                                  struct polygon *out);
+int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out);
 
 #endif

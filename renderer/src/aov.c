@@ -78,6 +78,5 @@ enum aov_region aov_classify_hit(const struct aov_classifier *c, struct aov_scra
 void aov_classify_row(const struct aov_classifier *c, struct aov_scratch *scratch, const struct vec3 *d,
                       const struct hit *hits, const bool *found, int n, unsigned char *cls)
 {
-    for (int x = 0; x < n; ++x)
-        cls[x] = (unsigned char)aov_classify_hit(c, scratch, d[x], found[x] ? &hits[x] : NULL);
+    for (int x = 0; x < n; ++x) cls[x] = (unsigned char)aov_classify_hit(c, scratch, d[x], found[x] ? &hits[x] : NULL);
 }

@@ -21,9 +21,9 @@ enum aov_region {
     AOV_REGION_ANTI_UMBRA = REGION_ANTI_UMBRA,
     AOV_REGION_ANTI_PENUMBRA = REGION_ANTI_PENUMBRA,
     AOV_REGION_ANTI_ANTUMBRA = REGION_ANTI_ANTUMBRA,
-    AOV_REGION_INSIDE = REGION_INSIDE,   /* inside the shade of the dominant light */
-    AOV_REGION_EMITTER,       /* the camera ray hits a light */
-    AOV_REGION_MISS           /* the camera ray leaves the scene */
+    AOV_REGION_INSIDE = REGION_INSIDE, /* inside the shade of the dominant light */
+    AOV_REGION_EMITTER,                /* the camera ray hits a light */
+    AOV_REGION_MISS                    /* the camera ray leaves the scene */
 };
 #define AOV_REGION_COUNT 7
 

@@ -64,7 +64,8 @@ static struct vec3 ggx_sample_visible_normal(double alpha, struct vec3 wo, doubl
 {
     struct vec3 vh = vec3_normalize(vec3_make(alpha * wo.x, alpha * wo.y, wo.z));
     double lensq = vh.x * vh.x + vh.y * vh.y;
-    struct vec3 t1 = lensq > 0.0 ? vec3_scale(vec3_make(-vh.y, vh.x, 0.0), 1.0 / sqrt(lensq)) : vec3_make(1.0, 0.0, 0.0);
+    struct vec3 t1 =
+        lensq > 0.0 ? vec3_scale(vec3_make(-vh.y, vh.x, 0.0), 1.0 / sqrt(lensq)) : vec3_make(1.0, 0.0, 0.0);
     struct vec3 t2 = vec3_cross(vh, t1);
     double r = sqrt(u), sin_phi, cos_phi;
     fm_sincos(2.0 * M_PI * v, &sin_phi, &cos_phi);

@@ -14,8 +14,8 @@
 
 struct material {
     enum material_kind kind;
-    struct rgb albedo;   /* diffuse reflectance, or GGX F0 */
-    double roughness;    /* GGX alpha */
+    struct rgb albedo; /* diffuse reflectance, or GGX F0 */
+    double roughness;  /* GGX alpha */
 };
 
 /* f(wo, wi); zero when either lies below the surface. */
@@ -25,8 +25,8 @@ double bsdf_pdf(const struct material *m, struct vec3 wo, struct vec3 wi);
 
 struct bsdf_sample {
     struct vec3 wi;
-    struct rgb f;      /* bsdf_eval(wo, wi) */
-    double pdf;        /* bsdf_pdf(wo, wi) */
+    struct rgb f; /* bsdf_eval(wo, wi) */
+    double pdf;   /* bsdf_pdf(wo, wi) */
 };
 /* The Lambertian BSDF's cosine-distributed direction (local frame) from two
    uniforms, by Malley's method (the disk is sampled in polar coordinates).

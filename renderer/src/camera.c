@@ -17,4 +17,3 @@ void camera_init(struct camera *c, const struct camera_desc *d, int width, int h
     c->dx = vec3_scale(c->right, 2.0 * half_w / width);
     c->dy = vec3_scale(c->up, -2.0 * half_h / height);
 }
-

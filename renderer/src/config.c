@@ -51,8 +51,10 @@ static bool load_params(struct loader *L, const yaml_node_t *root)
 static bool load_sections(struct loader *L, struct config *c)
 {
     const yaml_node_t *root = L->root ? config_node(L, L->root) : NULL;
-    if (!root) return error_at(L->err, L->file, 1, 1, "empty document (expected a mapping with camera, film, lights "
-                                                      "and render)");
+    if (!root)
+        return error_at(L->err, L->file, 1, 1,
+                        "empty document (expected a mapping with camera, film, lights "
+                        "and render)");
     return config_expect_type(L, root, YAML_MAPPING_NODE, "a mapping at the top level") &&
            config_check_keys(L, root, "the top level", top_keys, COUNT(top_keys)) && load_params(L, root) &&
            config_load_scene(L, root, c) && config_load_render(L, root, c);
@@ -131,12 +133,11 @@ static bool load_text(const char *text, size_t length, const char *name, const s
     return ok;
 }
 
-bool config_load_string(const char *text, size_t length, const char *name,
-                        const struct config_override *overrides, int n_overrides, struct config *out,
-                        struct error *err)
+bool config_load_string(const char *text, size_t length, const char *name, const struct config_override *overrides,
+                        int n_overrides, struct config *out, struct error *err)
 {
-    return load_text(text ? text : "", text ? length : 0, name ? name : "<string>", NULL, overrides, n_overrides,
-                     out, err);
+    return load_text(text ? text : "", text ? length : 0, name ? name : "<string>", NULL, overrides, n_overrides, out,
+                     err);
 }
 
 bool config_load(const char *path, const struct config_override *overrides, int n_overrides, struct config *out,

@@ -17,10 +17,10 @@
 #include "strategy_kind.h"
 #include "vec.h"
 
-#define CONFIG_NAME_MAX 64
-#define CONFIG_PATH_MAX 1024
-#define CONFIG_SCHEDULE_MAX 256
-#define CONFIG_INCLUDE_DEPTH_MAX 16  /* include: nesting levels below the loaded file */
+#define CONFIG_NAME_MAX          64
+#define CONFIG_PATH_MAX          1024
+#define CONFIG_SCHEDULE_MAX      256
+#define CONFIG_INCLUDE_DEPTH_MAX 16 /* include: nesting levels below the loaded file */
 
 struct source_loc {
     int line, column; /* one-based, of the YAML node that defined the item */
@@ -30,21 +30,21 @@ struct source_loc {
 struct material_desc {
     char name[CONFIG_NAME_MAX];
     enum material_kind kind;
-    struct rgb albedo;     /* diffuse reflectance, or GGX specular colour */
-    double roughness;      /* GGX alpha (0, 1]; unused for diffuse */
+    struct rgb albedo; /* diffuse reflectance, or GGX specular colour */
+    double roughness;  /* GGX alpha (0, 1]; unused for diffuse */
     struct source_loc loc;
 };
 
 /* Every shape is reduced to an indexed mesh of quads and triangles. Surfaces
    are two-sided. */
 struct shape_desc {
-    int material;                 /* index into config.materials */
+    int material; /* index into config.materials */
     int n_vertices;
-    struct vec3 *vertices;        /* owned */
+    struct vec3 *vertices; /* owned */
     int n_triangles;
-    int (*triangles)[3];          /* owned, may be NULL */
+    int (*triangles)[3]; /* owned, may be NULL */
     int n_quads;
-    int (*quads)[4];              /* owned, may be NULL; planar convex */
+    int (*quads)[4]; /* owned, may be NULL; planar convex */
     struct source_loc loc;
 };
 
@@ -53,7 +53,7 @@ struct shape_desc {
    lit side). Lights reflect nothing. */
 struct light_desc {
     char name[CONFIG_NAME_MAX];
-    struct polygon polygon;       /* 3..POLYGON_INPUT_MAX vertices */
+    struct polygon polygon; /* 3..POLYGON_INPUT_MAX vertices */
     struct rgb radiance;
     bool two_sided;
     struct source_loc loc;
@@ -62,24 +62,24 @@ struct light_desc {
 /* An opening through which every path of its light leaves (not geometry). */
 struct portal_desc {
     char name[CONFIG_NAME_MAX];
-    int light;                    /* index into config.lights */
-    struct polygon polygon;       /* 3..POLYGON_INPUT_MAX vertices */
+    int light;              /* index into config.lights */
+    struct polygon polygon; /* 3..POLYGON_INPUT_MAX vertices */
     struct source_loc loc;
 };
 
 struct camera_desc {
     struct vec3 position, look_at, up;
-    double fov_y_deg;             /* vertical field of view, (0, 180) */
+    double fov_y_deg; /* vertical field of view, (0, 180) */
 };
 
 /* When to write snapshots; any combination; the final one is always written. */
 struct snapshot_schedule {
-    double every_s;               /* 0: off */
-    double doubling_s;            /* first time, then 2x, 4x...; 0: off */
+    double every_s;    /* 0: off */
+    double doubling_s; /* first time, then 2x, 4x...; 0: off */
     int n_times;
     double times_s[CONFIG_SCHEDULE_MAX];
-    int every_spp;                /* 0: off */
-    int doubling_spp;             /* first spp, then 2x, 4x...; 0: off (a scalar, so --set reaches it) */
+    int every_spp;    /* 0: off */
+    int doubling_spp; /* first spp, then 2x, 4x...; 0: off (a scalar, so --set reaches it) */
     int n_spps;
     int spps[CONFIG_SCHEDULE_MAX];
 };
@@ -89,17 +89,17 @@ struct render_desc {
     enum strategy_kind strategy;
     enum mis_kind mis;
     enum portal_weight_kind portal_weight;
-    double defensive;             /* [0, 1): fraction of plain light sampling */
-    int max_depth;                /* path: >= 1 bounces; direct ignores it */
-    int rr_depth;                 /* path: Russian roulette from this depth */
-    int spp;                      /* 0: no sample limit */
-    double time_s;                /* 0: no time limit; at least one is set */
+    double defensive; /* [0, 1): fraction of plain light sampling */
+    int max_depth;    /* path: >= 1 bounces; direct ignores it */
+    int rr_depth;     /* path: Russian roulette from this depth */
+    int spp;          /* 0: no sample limit */
+    double time_s;    /* 0: no time limit; at least one is set */
     struct snapshot_schedule snapshots;
     uint64_t seed;
-    int threads;                  /* 0: auto (number of online CPUs) */
+    int threads; /* 0: auto (number of online CPUs) */
     char output[CONFIG_PATH_MAX];
-    bool aov_region;              /* render.aov.region: per-pixel antishadow region classes (aov.h) */
-    bool resumable;               /* also write output/final.state (film_state.h) */
+    bool aov_region; /* render.aov.region: per-pixel antishadow region classes (aov.h) */
+    bool resumable;  /* also write output/final.state (film_state.h) */
 };
 
 /* The keys of render.snapshots, and the unit each counts in ("s" of render
@@ -110,14 +110,14 @@ extern const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT];
 
 /* One entry of `params:`, after overrides, evaluated. */
 struct config_param {
-    char *name;                   /* owned */
+    char *name; /* owned */
     double value;
 };
 
 struct config {
-    char path[CONFIG_PATH_MAX];   /* the file it came from */
+    char path[CONFIG_PATH_MAX]; /* the file it came from */
     int n_files;
-    char **files;                 /* owned: path, then every included file in load order */
+    char **files; /* owned: path, then every included file in load order */
     int width, height;
     struct camera_desc camera;
     int n_materials;
@@ -132,7 +132,7 @@ struct config {
     /* Canonical YAML of the effective configuration (params substituted,
        overrides applied, defaults filled); loads back to the same config. */
     char *effective_yaml;
-    uint64_t hash;                /* FNV-1a 64 of effective_yaml */
+    uint64_t hash; /* FNV-1a 64 of effective_yaml */
     /* FNV-1a 64 of the effective YAML without the keys that do not change
        the image of a pass (render.spp, time, snapshots, threads, output,
        resumable): a resumed render must match the state's. */
@@ -145,7 +145,7 @@ struct config {
     /* The params in file order: effective_yaml has them substituted, so
        this is the only record of their values (render --print-config). */
     int n_params;
-    struct config_param *params;  /* owned */
+    struct config_param *params; /* owned */
 };
 
 /* One --set key.path=value. Paths are dot-separated mapping keys and
@@ -162,13 +162,12 @@ struct config_override {
    merged over the previous ones, then merges the file itself over them:
    mappings merge key by key (the including file wins), sequences and
    scalars are replaced whole. Overrides apply to the merged result. */
-bool config_load(const char *path, const struct config_override *overrides, int n_overrides,
-                 struct config *out, struct error *err);
+bool config_load(const char *path, const struct config_override *overrides, int n_overrides, struct config *out,
+                 struct error *err);
 /* Same from memory; `name` is used as the file name in messages. There is no
    folder to resolve includes against: `include:` is an error. */
-bool config_load_string(const char *text, size_t length, const char *name,
-                        const struct config_override *overrides, int n_overrides,
-                        struct config *out, struct error *err);
+bool config_load_string(const char *text, size_t length, const char *name, const struct config_override *overrides,
+                        int n_overrides, struct config *out, struct error *err);
 void config_free(struct config *c);
 
 /* Writes the effective configuration (c->effective_yaml) as one JSON value:

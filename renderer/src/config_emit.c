@@ -106,14 +106,12 @@ static void emit_string(struct text *t, const char *s)
     while (*p) {
         unsigned long c;
         int len = utf8_decode(p, &c);
-        if (c == '"' || c == '\\')
-            text_printf(t, "\\%c", (int)c);
-        else if (c < 0x20 || (c >= 0x7F && c <= 0x9F))
-            text_printf(t, "\\x%02lX", c);
-        else if (c == 0x2028 || c == 0x2029 || c == 0xFEFF || c == 0xFFFE || c == 0xFFFF || (c >= 0xD800 && c <= 0xDFFF))
+        if (c == '"' || c == '\\') text_printf(t, "\\%c", (int)c);
+        else if (c < 0x20 || (c >= 0x7F && c <= 0x9F)) text_printf(t, "\\x%02lX", c);
+        else if (c == 0x2028 || c == 0x2029 || c == 0xFEFF || c == 0xFFFE || c == 0xFFFF ||
+                 (c >= 0xD800 && c <= 0xDFFF))
             text_printf(t, "\\u%04lX", c);
-        else
-            text_printf(t, "%.*s", len, (const char *)p);
+        else text_printf(t, "%.*s", len, (const char *)p);
         p += len;
     }
     text_printf(t, "\"");
@@ -173,7 +171,8 @@ static void emit_shapes(struct text *t, const struct config *c, char (*names)[CO
             text_printf(t, "      - [%d, %d, %d]\n", s->triangles[f][0], s->triangles[f][1], s->triangles[f][2]);
         if (s->n_quads) text_printf(t, "    quads:\n");
         for (int f = 0; f < s->n_quads; ++f)
-            text_printf(t, "      - [%d, %d, %d, %d]\n", s->quads[f][0], s->quads[f][1], s->quads[f][2], s->quads[f][3]);
+            text_printf(t, "      - [%d, %d, %d, %d]\n", s->quads[f][0], s->quads[f][1], s->quads[f][2],
+                        s->quads[f][3]);
     }
 }
 
@@ -269,10 +268,8 @@ static void emit_render(struct text *t, const struct render_desc *r, bool image_
     text_printf(t, "\n  seed: %" PRIu64, r->seed);
     if (!image_only) {
         text_printf(t, "\n  threads: ");
-        if (r->threads == 0)
-            text_printf(t, "auto");
-        else
-            text_printf(t, "%d", r->threads);
+        if (r->threads == 0) text_printf(t, "auto");
+        else text_printf(t, "%d", r->threads);
         text_printf(t, "\n  output: ");
         emit_string(t, r->output);
         text_printf(t, "\n  resumable: %s", r->resumable ? "true" : "false");

@@ -16,9 +16,9 @@
    copied nodes (the copy recurses), and nodes made by merging mappings
    relative to nodes copied (aliases to mappings could otherwise multiply
    the merged nodes exponentially). Real configs stay far below both. */
-#define COPY_DEPTH_MAX 1000
+#define COPY_DEPTH_MAX       1000
 #define MERGE_NODES_PER_COPY 16
-#define MERGE_NODES_SLACK 4096
+#define MERGE_NODES_SLACK    4096
 
 /* libyaml reader errors carry a byte offset, not a mark. */
 static void offset_to_mark(const char *text, size_t offset, int *line, int *column)
@@ -71,7 +71,7 @@ static bool parse_document(struct loader *L, int s, const char *text, size_t len
             const yaml_node_t *root = yaml_document_get_root_node(&next);
             if (root)
                 ok = config_report(L, s, (int)root->start_mark.line + 1, (int)root->start_mark.column + 1,
-                            "a second YAML document (expected exactly one)");
+                                   "a second YAML document (expected exactly one)");
             yaml_document_delete(&next);
         }
         if (!ok) yaml_document_delete(doc);
@@ -150,9 +150,14 @@ static int add_like(struct loader *L, const yaml_node_t *n, int s)
         id = yaml_document_add_scalar(&L->doc, copy.tag, copy.data.scalar.value, (int)copy.data.scalar.length,
                                       copy.data.scalar.style);
         break;
-    case YAML_SEQUENCE_NODE: id = yaml_document_add_sequence(&L->doc, copy.tag, copy.data.sequence.style); break;
-    case YAML_MAPPING_NODE: id = yaml_document_add_mapping(&L->doc, copy.tag, copy.data.mapping.style); break;
-    case YAML_NO_NODE: break;
+    case YAML_SEQUENCE_NODE:
+        id = yaml_document_add_sequence(&L->doc, copy.tag, copy.data.sequence.style);
+        break;
+    case YAML_MAPPING_NODE:
+        id = yaml_document_add_mapping(&L->doc, copy.tag, copy.data.mapping.style);
+        break;
+    case YAML_NO_NODE:
+        break;
     }
     if (!id) return out_of_memory(L);
     if (id > L->cap_node_source) {
@@ -185,7 +190,7 @@ static int copy_node(struct loader *L, int s, yaml_document_t *doc, int id, int 
     const yaml_node_t *n = yaml_document_get_node(doc, id);
     if (depth > COPY_DEPTH_MAX) {
         config_report(L, s, (int)n->start_mark.line + 1, (int)n->start_mark.column + 1,
-               "nested more than %d levels deep (expected a flatter document)", COPY_DEPTH_MAX);
+                      "nested more than %d levels deep (expected a flatter document)", COPY_DEPTH_MAX);
         return 0;
     }
     int c = add_like(L, n, s);
@@ -280,8 +285,8 @@ static bool check_unique_keys(struct loader *L, int s, yaml_document_t *doc)
                 const yaml_node_t *other = yaml_document_get_node(doc, pairs[j].key);
                 if (other->type == YAML_SCALAR_NODE && strcmp(config_text(other), config_text(key)) == 0)
                     return config_report(L, s, (int)key->start_mark.line + 1, (int)key->start_mark.column + 1,
-                                  "duplicate key \"%.64s\" (first at line %d, column %d)", config_text(key),
-                                  (int)other->start_mark.line + 1, (int)other->start_mark.column + 1);
+                                         "duplicate key \"%.64s\" (first at line %d, column %d)", config_text(key),
+                                         (int)other->start_mark.line + 1, (int)other->start_mark.column + 1);
             }
         }
     }
@@ -300,8 +305,8 @@ static bool include_path_ok(struct loader *L, int s, const yaml_node_t *entry)
         return config_report(L, s, line, column, "%s, got %s", expected, config_describe_node(entry, buf, sizeof buf));
     const char *name = config_text(entry);
     double number;
-    bool boolean = !strcmp(name, "true") || !strcmp(name, "True") || !strcmp(name, "TRUE") ||
-                   !strcmp(name, "false") || !strcmp(name, "False") || !strcmp(name, "FALSE");
+    bool boolean = !strcmp(name, "true") || !strcmp(name, "True") || !strcmp(name, "TRUE") || !strcmp(name, "false") ||
+                   !strcmp(name, "False") || !strcmp(name, "FALSE");
     if (entry->data.scalar.style == YAML_PLAIN_SCALAR_STYLE && (boolean || config_parse_literal(name, &number)))
         return config_report(L, s, line, column, "%s, got %.40s (quote it if it is a file name)", expected, name);
     if (strlen(name) != entry->data.scalar.length)
@@ -407,7 +412,7 @@ static int resolve(struct loader *L, int s, yaml_document_t *doc, int depth)
     }
     if (root->type != YAML_MAPPING_NODE) {
         config_report(L, s, (int)root->start_mark.line + 1, (int)root->start_mark.column + 1,
-               "expected a mapping at the top level, got %s", config_describe_node(root, buf, sizeof buf));
+                      "expected a mapping at the top level, got %s", config_describe_node(root, buf, sizeof buf));
         return 0;
     }
     if (!check_unique_keys(L, s, doc)) return 0;
@@ -417,7 +422,7 @@ static int resolve(struct loader *L, int s, yaml_document_t *doc, int depth)
     if (inc && !config_is_null(inc)) {
         if (inc->type == YAML_MAPPING_NODE) {
             config_report(L, s, (int)inc->start_mark.line + 1, (int)inc->start_mark.column + 1,
-                   "expected a path (a string) or a list of paths, got a mapping");
+                          "expected a path (a string) or a list of paths, got a mapping");
             return 0;
         }
         bool list = inc->type == YAML_SEQUENCE_NODE;
@@ -459,8 +464,8 @@ bool config_load_document(struct loader *L, const char *text, size_t length)
     bool ok;
     if (L->from_string) {
         ok = config_report(L, 0, (int)include_key->start_mark.line + 1, (int)include_key->start_mark.column + 1,
-                    "include is not available for a config given as a string (expected a config file: includes "
-                    "are relative to its folder)");
+                           "include is not available for a config given as a string (expected a config file: includes "
+                           "are relative to its folder)");
     } else {
         ok = yaml_document_initialize(&L->doc, NULL, NULL, NULL, 1, 1) || out_of_memory(L);
         L->have_doc = ok;

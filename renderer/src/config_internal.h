@@ -39,22 +39,22 @@ struct override_mark {
 
 /* A file read for the config: the loaded file (index 0) or an include. */
 struct source {
-    char *path;             /* owned; as opened: the includer's folder joined with the include */
-    int parent;             /* the including source; -1 for the loaded file */
-    int line, column;       /* of the include entry in the parent, one-based */
-    bool have_id;           /* dev and ino identify the file (not for strings) */
+    char *path;       /* owned; as opened: the includer's folder joined with the include */
+    int parent;       /* the including source; -1 for the loaded file */
+    int line, column; /* of the include entry in the parent, one-based */
+    bool have_id;     /* dev and ino identify the file (not for strings) */
     dev_t dev;
     ino_t ino;
 };
 
 /* The state of one load, from reading the file to emitting the effective YAML. */
 struct loader {
-    const char *file;       /* the loaded file's name */
+    const char *file; /* the loaded file's name */
     struct error *err;
     yaml_document_t doc;
     bool have_doc;
-    int root;               /* node id of the root in doc; 0 when the document is empty */
-    bool from_string;       /* no folder to resolve includes against */
+    int root;         /* node id of the root in doc; 0 when the document is empty */
+    bool from_string; /* no folder to resolve includes against */
     struct source *sources;
     int n_sources;
     /* Source of each node of doc (by id - 1), when doc was merged from an
@@ -66,7 +66,7 @@ struct loader {
     int n_overrides;
     struct override_mark *marks;
     int n_marks;
-    struct expr_var *params;  /* names point into the document */
+    struct expr_var *params; /* names point into the document */
     int n_params;
     char (*shape_names)[CONFIG_NAME_MAX]; /* "" when unnamed; only for effective_yaml */
 };

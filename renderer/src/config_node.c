@@ -44,13 +44,16 @@ bool config_is_null(const yaml_node_t *n)
 const char *config_describe_node(const yaml_node_t *n, char *buf, size_t size)
 {
     switch (n->type) {
-    case YAML_MAPPING_NODE: return "a mapping";
-    case YAML_SEQUENCE_NODE: return "a sequence";
+    case YAML_MAPPING_NODE:
+        return "a mapping";
+    case YAML_SEQUENCE_NODE:
+        return "a sequence";
     case YAML_SCALAR_NODE:
         if (config_is_null(n)) return "null";
         snprintf(buf, size, "\"%.40s%s\"", config_text(n), strlen(config_text(n)) > 40 ? "..." : "");
         return buf;
-    case YAML_NO_NODE: break;
+    case YAML_NO_NODE:
+        break;
     }
     return "nothing";
 }
@@ -248,12 +251,9 @@ bool config_get_number(struct loader *L, const yaml_node_t *n, const char *expec
 
 static void describe_range(char *buf, size_t size, double lo, bool lo_open, double hi, bool hi_open)
 {
-    if (isinf(lo) && isinf(hi))
-        snprintf(buf, size, "a number");
-    else if (isinf(hi))
-        snprintf(buf, size, "a number %s %g", lo_open ? ">" : ">=", lo);
-    else
-        snprintf(buf, size, "a number in %c%g, %g%c", lo_open ? '(' : '[', lo, hi, hi_open ? ')' : ']');
+    if (isinf(lo) && isinf(hi)) snprintf(buf, size, "a number");
+    else if (isinf(hi)) snprintf(buf, size, "a number %s %g", lo_open ? ">" : ">=", lo);
+    else snprintf(buf, size, "a number in %c%g, %g%c", lo_open ? '(' : '[', lo, hi, hi_open ? ')' : ']');
 }
 
 bool config_get_number_in(struct loader *L, const yaml_node_t *n, double lo, bool lo_open, double hi, bool hi_open,
@@ -271,12 +271,9 @@ bool config_get_number_in(struct loader *L, const yaml_node_t *n, double lo, boo
 bool config_get_int(struct loader *L, const yaml_node_t *n, int lo, int hi, int *out)
 {
     char desc[96], buf[64];
-    if (lo == 0 && hi == INT_MAX)
-        snprintf(desc, sizeof desc, "a non-negative integer");
-    else if (lo == 1 && hi == INT_MAX)
-        snprintf(desc, sizeof desc, "a positive integer");
-    else
-        snprintf(desc, sizeof desc, "an integer in [%d, %d]", lo, hi);
+    if (lo == 0 && hi == INT_MAX) snprintf(desc, sizeof desc, "a non-negative integer");
+    else if (lo == 1 && hi == INT_MAX) snprintf(desc, sizeof desc, "a positive integer");
+    else snprintf(desc, sizeof desc, "an integer in [%d, %d]", lo, hi);
     double v;
     if (!config_get_number(L, n, desc, &v)) return false;
     if (v != floor(v) || v < lo || v > hi)

@@ -75,9 +75,9 @@ bool config_apply_override(struct loader *L, int k)
             }
             if (!slot) {
                 int key = yaml_document_add_scalar(&L->doc, NULL, (yaml_char_t *)comp, -1, YAML_PLAIN_SCALAR_STYLE);
-                int value = key ? yaml_document_add_scalar(&L->doc, NULL, (yaml_char_t *)o->value, -1,
-                                                           YAML_PLAIN_SCALAR_STYLE)
-                                : 0;
+                int value =
+                    key ? yaml_document_add_scalar(&L->doc, NULL, (yaml_char_t *)o->value, -1, YAML_PLAIN_SCALAR_STYLE)
+                        : 0;
                 if (!key || !value || !yaml_document_append_mapping_pair(&L->doc, cur, key, value))
                     return error_set(L->err, "--set %s=%s: not valid UTF-8 (or out of memory)", o->path, o->value);
                 return mark_override(L, key, k) && mark_override(L, value, k);

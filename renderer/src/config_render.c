@@ -11,12 +11,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const render_keys[] = { "integrator", "strategy", "mis",       "portal_weight", "defensive",
-                                           "max_depth",  "rr_depth", "spp",       "time",          "snapshots",
-                                           "seed",       "threads",  "output",    "aov",
-                                           "resumable" };
+static const char *const render_keys[] = { "integrator", "strategy", "mis",    "portal_weight", "defensive",
+                                           "max_depth",  "rr_depth", "spp",    "time",          "snapshots",
+                                           "seed",       "threads",  "output", "aov",           "resumable" };
 const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT] = { "every",     "doubling",     "times",
-                                                                    "every_spp", "doubling_spp", "spp" };
+                                                                      "every_spp", "doubling_spp", "spp" };
 /* What each key counts in: render time (config_get_number_in) or passes (config_get_int, get_spps). */
 const char *const config_snapshot_units[CONFIG_SNAPSHOT_KEY_COUNT] = { "s", "s", "s", "spp", "spp", "spp" };
 static const char *const aov_keys[] = { "region" };

@@ -23,7 +23,7 @@ static const char *const mesh_keys[] = { "name", "type", "material", "vertices",
 static const char *const light_keys[] = { "name", "vertices", "radiance", "two_sided" };
 static const char *const portal_keys[] = { "name", "light", "vertices" };
 
-#define PARALLEL_TOL 1e-9     /* |sin| of the angle between up and the view direction */
+#define PARALLEL_TOL 1e-9 /* |sin| of the angle between up and the view direction */
 
 #define FILM_SIZE_MAX 16384
 
@@ -31,7 +31,8 @@ static const char *const portal_keys[] = { "name", "light", "vertices" };
 static bool check_polygon(struct loader *L, const yaml_node_t *n, const char *what, const struct polygon *poly)
 {
     switch (polygon_check(poly)) {
-    case POLYGON_DEFECT_NONE: return true;
+    case POLYGON_DEFECT_NONE:
+        return true;
     case POLYGON_DEFECT_DEGENERATE:
         return config_fail(L, n, "%s is degenerate (expected a polygon with non-zero area)", what);
     case POLYGON_DEFECT_NOT_PLANAR:
@@ -44,8 +45,7 @@ static bool check_polygon(struct loader *L, const yaml_node_t *n, const char *wh
 }
 
 /* A polygon of min..max points; checked by check_polygon. */
-static bool get_polygon(struct loader *L, const yaml_node_t *n, const char *what, int min, int max,
-                        struct polygon *out)
+static bool get_polygon(struct loader *L, const yaml_node_t *n, const char *what, int min, int max, struct polygon *out)
 {
     char buf[64];
     memset(out, 0, sizeof *out);
@@ -79,7 +79,8 @@ static bool load_camera(struct loader *L, const yaml_node_t *root, struct camera
     if (vec3_length(dir) == 0.0) return config_fail(L, look, "look_at equals position (expected a different point)");
     if (vec3_length(cam->up) == 0.0) return config_fail(L, up, "up is zero (expected a direction)");
     if (vec3_length(vec3_cross(vec3_normalize(dir), vec3_normalize(cam->up))) <= PARALLEL_TOL)
-        return config_fail(L, up, "up is parallel to the view direction (expected a direction not along look_at - "
+        return config_fail(L, up,
+                           "up is parallel to the view direction (expected a direction not along look_at - "
                            "position)");
     return true;
 }
@@ -96,8 +97,7 @@ static bool load_film(struct loader *L, const yaml_node_t *root, struct config *
     return true;
 }
 
-static bool load_material(struct loader *L, const yaml_node_t *key, const yaml_node_t *map,
-                          struct material_desc *m)
+static bool load_material(struct loader *L, const yaml_node_t *key, const yaml_node_t *map, struct material_desc *m)
 {
     if (!config_get_string(L, key, m->name, sizeof m->name)) return false;
     char where[CONFIG_NAME_MAX + 16];
@@ -264,10 +264,8 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
     s->loc = config_loc_of(L, map);
     if (!config_expect_type(L, map, YAML_MAPPING_NODE, "a mapping")) return false;
     if ((n = config_map_get(L, map, "name")) && !config_get_string(L, n, name, CONFIG_NAME_MAX)) return false;
-    if (name[0])
-        snprintf(where, sizeof where, "shape %d (%s)", index, name);
-    else
-        snprintf(where, sizeof where, "shape %d", index);
+    if (name[0]) snprintf(where, sizeof where, "shape %d (%s)", index, name);
+    else snprintf(where, sizeof where, "shape %d", index);
     if (!(n = config_need(L, map, "type", where)) || !config_get_enum(L, n, "shape type", shape_kind_names, 3, &kind))
         return false;
     const char *const *keys = kind == SHAPE_QUAD ? quad_keys : kind == SHAPE_BOX ? box_keys : mesh_keys;
@@ -285,9 +283,12 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
                            c->n_materials ? list.s : "no materials are defined");
     }
     switch ((enum shape_kind)kind) {
-    case SHAPE_QUAD: return load_quad(L, map, where, s);
-    case SHAPE_BOX: return load_box(L, map, where, s);
-    case SHAPE_MESH: return load_mesh(L, map, where, s);
+    case SHAPE_QUAD:
+        return load_quad(L, map, where, s);
+    case SHAPE_BOX:
+        return load_box(L, map, where, s);
+    case SHAPE_MESH:
+        return load_mesh(L, map, where, s);
     }
     return false;
 }
@@ -323,9 +324,8 @@ static bool load_light(struct loader *L, const yaml_node_t *map, int index, stru
             return config_fail(L, name, "duplicate light name \"%s\" (first at line %d, column %d)", l->name,
                                c->lights[i].loc.line, c->lights[i].loc.column);
     snprintf(where, sizeof where, "light \"%s\"", l->name);
-    if (!(n = config_need(L, map, "vertices", where)) ||
-        !get_polygon(L, n, where, 3, POLYGON_INPUT_MAX, &l->polygon) || !(n = config_need(L, map, "radiance", where)) ||
-        !config_get_rgb(L, n, 0.0, INFINITY, &l->radiance))
+    if (!(n = config_need(L, map, "vertices", where)) || !get_polygon(L, n, where, 3, POLYGON_INPUT_MAX, &l->polygon) ||
+        !(n = config_need(L, map, "radiance", where)) || !config_get_rgb(L, n, 0.0, INFINITY, &l->radiance))
         return false;
     if (rgb_is_black(l->radiance))
         return config_fail(L, n, "%s has zero radiance (expected a positive component)", where);

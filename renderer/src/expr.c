@@ -19,8 +19,8 @@
    so that -2^2 = -(2^2) and 2^3^2 = 2^(3^2), as in mathematics. Nesting is
    bounded so hostile input cannot exhaust the stack. */
 #define EXPR_DEPTH_MAX 64
-#define EXPR_ARGS_MAX 16
-#define EXPR_NAME_MAX 64
+#define EXPR_ARGS_MAX  16
+#define EXPR_NAME_MAX  64
 
 enum func { FUNC_MIN, FUNC_MAX, FUNC_ABS, FUNC_SQRT, FUNC_SIN, FUNC_COS, FUNC_TAN };
 
@@ -29,9 +29,12 @@ static const struct {
     enum func func;
     int min_args, max_args;
 } functions[] = {
-    { "min", FUNC_MIN, 2, EXPR_ARGS_MAX }, { "max", FUNC_MAX, 2, EXPR_ARGS_MAX },
-    { "abs", FUNC_ABS, 1, 1 },             { "sqrt", FUNC_SQRT, 1, 1 },
-    { "sin", FUNC_SIN, 1, 1 },             { "cos", FUNC_COS, 1, 1 },
+    { "min", FUNC_MIN, 2, EXPR_ARGS_MAX },
+    { "max", FUNC_MAX, 2, EXPR_ARGS_MAX },
+    { "abs", FUNC_ABS, 1, 1 },
+    { "sqrt", FUNC_SQRT, 1, 1 },
+    { "sin", FUNC_SIN, 1, 1 },
+    { "cos", FUNC_COS, 1, 1 },
     { "tan", FUNC_TAN, 1, 1 },
 };
 #define N_FUNCTIONS ((int)(sizeof functions / sizeof functions[0]))
@@ -109,14 +112,22 @@ static bool apply_function(struct parser *ps, int f, const double *args, int n, 
     case FUNC_MAX:
         for (int i = 1; i < n; ++i) v = args[i] > v ? args[i] : v;
         break;
-    case FUNC_ABS: v = fabs(v); break;
+    case FUNC_ABS:
+        v = fabs(v);
+        break;
     case FUNC_SQRT:
         if (v < 0.0) return error_set(ps->err, "sqrt of a negative number (%g)", v);
         v = sqrt(v);
         break;
-    case FUNC_SIN: v = sin(v); break;
-    case FUNC_COS: v = cos(v); break;
-    case FUNC_TAN: v = tan(v); break;
+    case FUNC_SIN:
+        v = sin(v);
+        break;
+    case FUNC_COS:
+        v = cos(v);
+        break;
+    case FUNC_TAN:
+        v = tan(v);
+        break;
     }
     *out = v;
     return check_finite(ps, v, functions[f].name);
@@ -145,8 +156,8 @@ static bool parse_call(struct parser *ps, int f, double *out)
         if (functions[f].min_args == functions[f].max_args)
             return error_set(ps->err, "%s takes %d argument%s, got %d", functions[f].name, functions[f].min_args,
                              functions[f].min_args == 1 ? "" : "s", n);
-        return error_set(ps->err, "%s takes at least %d arguments, got %d", functions[f].name,
-                         functions[f].min_args, n);
+        return error_set(ps->err, "%s takes at least %d arguments, got %d", functions[f].name, functions[f].min_args,
+                         n);
     }
     return apply_function(ps, f, args, n, out);
 }
@@ -180,7 +191,9 @@ static bool parse_name(struct parser *ps, double *out)
             if (*ps->p != '(') return fail_unexpected(ps, "\"(\" after a function name");
             return parse_call(ps, f, out);
         }
-    if (*ps->p == '(') return error_set(ps->err, "unknown function \"%s\" (expected one of: min, max, abs, sqrt, sin, cos, tan)", name);
+    if (*ps->p == '(')
+        return error_set(ps->err, "unknown function \"%s\" (expected one of: min, max, abs, sqrt, sin, cos, tan)",
+                         name);
     if (strcmp(name, "pi") == 0) {
         *out = M_PI;
         return true;

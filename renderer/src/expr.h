@@ -18,8 +18,7 @@ struct expr_var {
    intermediate result must be finite. On failure err holds the reason without
    a location (e.g. `unknown name "s_l" (expected one of: s_L, pi)`); the
    caller adds the location and the text. */
-bool expr_eval(const char *text, const struct expr_var *vars, int n_vars, double *out,
-               struct error *err);
+bool expr_eval(const char *text, const struct expr_var *vars, int n_vars, double *out, struct error *err);
 
 /* True for [A-Za-z_][A-Za-z0-9_]*: the names expressions can refer to. */
 bool expr_is_identifier(const char *name);

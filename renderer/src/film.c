@@ -28,7 +28,7 @@
    3.5 / 48 ms. ZIPS (one scanline per chunk) is the fastest zlib variant
    and level 1 the fastest level at the same ratio. */
 #define FILM_EXR_COMPRESSION EXR_COMPRESSION_ZIPS
-#define FILM_ZIP_LEVEL 1
+#define FILM_ZIP_LEVEL       1
 
 /* Channel names as stored; the file keeps them sorted, so readers map by
    name. Index k < 3 is rgb[k], k >= 3 is variance[k - 3]. */
@@ -49,7 +49,7 @@ const char *const film_attribute_names[FILM_ATTRIBUTE_COUNT] = {
 };
 #define ATTR(k) film_attribute_names[FILM_ATTR_##k]
 
-#define REGION_PREFIX FILM_REGION_PREFIX
+#define REGION_PREFIX     FILM_REGION_PREFIX
 #define REGION_PREFIX_LEN (sizeof REGION_PREFIX - 1)
 
 /* Where channel `name` lives in img: its first float, with *per_pixel
@@ -86,8 +86,8 @@ static bool check_size(int width, int height, const char *what, struct error *er
     if (width <= 0 || height <= 0)
         return error_set(err, "%s size %dx%d: width and height must be positive", what, width, height);
     if (width > FILM_MAX_SIDE || height > FILM_MAX_SIDE || (int64_t)width * height > FILM_MAX_PIXELS)
-        return error_set(err, "%s size %dx%d is too large (at most %d per side and %" PRId64 " pixels)",
-                         what, width, height, FILM_MAX_SIDE, FILM_MAX_PIXELS);
+        return error_set(err, "%s size %dx%d is too large (at most %d per side and %" PRId64 " pixels)", what, width,
+                         height, FILM_MAX_SIDE, FILM_MAX_PIXELS);
     return true;
 }
 
@@ -161,8 +161,7 @@ bool film_image_alloc(struct film_image *img, int width, int height, struct erro
     img->variance = malloc(n * sizeof *img->variance);
     if (!img->rgb || !img->variance) {
         film_image_free(img);
-        return error_set(err, "image %dx%d: cannot allocate %zu MiB", width, height,
-                         (2 * n * sizeof(float)) >> 20);
+        return error_set(err, "image %dx%d: cannot allocate %zu MiB", width, height, (2 * n * sizeof(float)) >> 20);
     }
     img->width = width;
     img->height = height;
@@ -237,12 +236,12 @@ void film_snapshot(const struct film *f, struct film_image *img)
    unnoticed. Every failed write is remembered here with its errno. */
 struct exr_stream {
     int fd;
-    int error;     /* errno of the first failed read or write; 0 if none */
-    int64_t size;  /* file size, for reading */
+    int error;    /* errno of the first failed read or write; 0 if none */
+    int64_t size; /* file size, for reading */
 };
 
-static int64_t stream_write(exr_const_context_t ctxt, void *user, const void *buffer, uint64_t size,
-                            uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+static int64_t stream_write(exr_const_context_t ctxt, void *user, const void *buffer, uint64_t size, uint64_t offset,
+                            exr_stream_error_func_ptr_t error_cb)
 {
     struct exr_stream *s = user;
     const unsigned char *p = buffer;
@@ -261,8 +260,8 @@ static int64_t stream_write(exr_const_context_t ctxt, void *user, const void *bu
     return (int64_t)done;
 }
 
-static int64_t stream_read(exr_const_context_t ctxt, void *user, void *buffer, uint64_t size,
-                           uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+static int64_t stream_read(exr_const_context_t ctxt, void *user, void *buffer, uint64_t size, uint64_t offset,
+                           exr_stream_error_func_ptr_t error_cb)
 {
     struct exr_stream *s = user;
     unsigned char *p = buffer;
@@ -313,8 +312,7 @@ static exr_context_initializer_t exr_init_for(struct exr_stream *s)
 
 /* Formats the failure of an OpenEXR call: an I/O error the stream saw is the
    real cause and wins over the library's generic code. */
-static bool exr_fail(struct error *err, const char *path, const char *call, exr_result_t rc,
-                     const struct exr_stream *s)
+static bool exr_fail(struct error *err, const char *path, const char *call, exr_result_t rc, const struct exr_stream *s)
 {
     if (s->error) return error_set(err, "%s: %s: %s", path, call, strerror(s->error));
     return error_set(err, "%s: %s: %s", path, call, exr_get_default_error_message(rc));
@@ -346,20 +344,16 @@ static exr_result_t compress_unambiguous(exr_encode_pipeline_t *enc)
 
 /* Header definition and pixel chunks, into an open context. */
 static bool write_exr_content(exr_context_t ctx, const char *path, const struct film_image *img,
-                              const struct snapshot_info *info, struct exr_stream *s,
-                              struct error *err)
+                              const struct snapshot_info *info, struct exr_stream *s, struct error *err)
 {
     exr_result_t rc;
     int part = 0;
-    if ((rc = exr_add_part(ctx, "", EXR_STORAGE_SCANLINE, &part)))
-        return exr_fail(err, path, "exr_add_part", rc, s);
+    if ((rc = exr_add_part(ctx, "", EXR_STORAGE_SCANLINE, &part))) return exr_fail(err, path, "exr_add_part", rc, s);
     if ((rc = exr_initialize_required_attr_simple(ctx, part, img->width, img->height,
-                                                  info->compress ? FILM_EXR_COMPRESSION
-                                                                 : EXR_COMPRESSION_NONE)))
+                                                  info->compress ? FILM_EXR_COMPRESSION : EXR_COMPRESSION_NONE)))
         return exr_fail(err, path, "exr_initialize_required_attr_simple", rc, s);
     for (int k = 0; k < FILM_CHANNEL_COUNT; ++k)
-        if ((rc = exr_add_channel(ctx, part, film_channel_names[k], EXR_PIXEL_FLOAT,
-                                  EXR_PERCEPTUALLY_LINEAR, 1, 1)))
+        if ((rc = exr_add_channel(ctx, part, film_channel_names[k], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1, 1)))
             return exr_fail(err, path, "exr_add_channel", rc, s);
     char classes[REGION_CLASSES_MAX];
     for (int k = 0; img->region && k < AOV_REGION_COUNT; ++k) {
@@ -424,8 +418,7 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
                 ch->user_data_type = EXR_PIXEL_FLOAT;
             }
             call = "exr_encoding_choose_default_routines";
-            if (y == 0 && !(rc = exr_encoding_choose_default_routines(ctx, part, &enc)) &&
-                enc.compress_fn) {
+            if (y == 0 && !(rc = exr_encoding_choose_default_routines(ctx, part, &enc)) && enc.compress_fn) {
                 hook.inner = enc.compress_fn;
                 enc.compress_fn = compress_unambiguous;
                 enc.encoding_user_data = &hook;
@@ -441,11 +434,9 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
     return ok;
 }
 
-bool film_write_exr(const char *path, const struct film_image *img, const struct snapshot_info *info,
-                    struct error *err)
+bool film_write_exr(const char *path, const struct film_image *img, const struct snapshot_info *info, struct error *err)
 {
-    if (!img || !img->rgb || !img->variance || !info)
-        return error_set(err, "%s: nothing to write", path);
+    if (!img || !img->rgb || !img->variance || !info) return error_set(err, "%s: nothing to write", path);
     if (!check_size(img->width, img->height, "image", err)) return false;
 
     size_t tmp_len = strlen(path) + 32;
@@ -464,8 +455,7 @@ bool film_write_exr(const char *path, const struct film_image *img, const struct
     exr_context_initializer_t init = exr_init_for(&s);
     exr_context_t ctx = NULL;
     exr_result_t rc = exr_start_write(&ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
-    bool ok = rc ? exr_fail(err, path, "exr_start_write", rc, &s)
-                 : write_exr_content(ctx, path, img, info, &s, err);
+    bool ok = rc ? exr_fail(err, path, "exr_start_write", rc, &s) : write_exr_content(ctx, path, img, info, &s, err);
     if (ctx) {
         /* exr_finish flushes what is left (the chunk offset table); any write
            it makes goes through stream_write, so s.error catches it. */
@@ -476,16 +466,14 @@ bool film_write_exr(const char *path, const struct film_image *img, const struct
        pointing at a file whose data never reached the disk. */
     if (ok && fsync(s.fd) != 0) ok = error_set(err, "%s: fsync %s: %s", path, tmp, strerror(errno));
     if (close(s.fd) != 0 && ok) ok = error_set(err, "%s: close %s: %s", path, tmp, strerror(errno));
-    if (ok && rename(tmp, path) != 0)
-        ok = error_set(err, "%s: rename from %s: %s", path, tmp, strerror(errno));
+    if (ok && rename(tmp, path) != 0) ok = error_set(err, "%s: rename from %s: %s", path, tmp, strerror(errno));
     if (!ok) unlink(tmp);
     free(tmp);
     return ok;
 }
 
 /* Header attributes, copied out of the context. */
-static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snapshot_read *meta,
-                          struct error *err)
+static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snapshot_read *meta, struct error *err)
 {
     const char *const string_names[3] = { ATTR(STRATEGY), ATTR(INTEGRATOR), ATTR(RENDERER_VERSION) };
     exr_result_t rc;
@@ -507,16 +495,14 @@ static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snap
     size_t total = 0;
     for (int i = 0; i < 3; ++i) {
         if ((rc = exr_attr_get_string(ctx, 0, string_names[i], &len[i], &text[i])))
-            return error_set(err, "%s: attribute %s: %s", path, string_names[i],
-                             exr_get_default_error_message(rc));
+            return error_set(err, "%s: attribute %s: %s", path, string_names[i], exr_get_default_error_message(rc));
         total += (size_t)len[i] + 1;
     }
     meta->storage = malloc(total);
     if (!meta->storage) return error_set(err, "%s: out of memory", path);
     /* The library's strings are not NUL-terminated: copy with the length. */
     char *dst = meta->storage;
-    const char **fields[3] = { &meta->info.strategy, &meta->info.integrator,
-                               &meta->info.renderer_version };
+    const char **fields[3] = { &meta->info.strategy, &meta->info.integrator, &meta->info.renderer_version };
     for (int i = 0; i < 3; ++i) {
         memcpy(dst, text[i], (size_t)len[i]);
         dst[len[i]] = '\0';
@@ -544,8 +530,7 @@ static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snap
         return error_set(err, "%s: attribute config_hash: %s", path, exr_get_default_error_message(rc));
     good = n == 16;
     for (int i = 0; good && i < n; ++i)
-        good = (str[i] >= '0' && str[i] <= '9') || (str[i] >= 'a' && str[i] <= 'f') ||
-               (str[i] >= 'A' && str[i] <= 'F');
+        good = (str[i] >= '0' && str[i] <= '9') || (str[i] >= 'a' && str[i] <= 'f') || (str[i] >= 'A' && str[i] <= 'F');
     if (!good) return error_set(err, "%s: attribute config_hash is not 16 hex digits", path);
     memcpy(buf, str, 16);
     buf[16] = '\0';
@@ -554,8 +539,8 @@ static bool read_exr_info(exr_const_context_t ctx, const char *path, struct snap
 }
 
 /* Pixels of part 0 into img (allocated here). */
-static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct film_image *img,
-                            struct exr_stream *s, struct error *err)
+static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct film_image *img, struct exr_stream *s,
+                            struct error *err)
 {
     exr_result_t rc;
     exr_storage_t storage;
@@ -585,13 +570,12 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
         have[k] = e != NULL;
         if (!e && k < FILM_CHANNEL_COUNT) return error_set(err, "%s: missing channel %s", path, wanted[k]);
         if (e && (e->pixel_type != EXR_PIXEL_FLOAT || e->x_sampling != 1 || e->y_sampling != 1))
-            return error_set(err, "%s: channel %s is not a full-resolution 32-bit float channel",
-                             path, wanted[k]);
+            return error_set(err, "%s: channel %s is not a full-resolution 32-bit float channel", path, wanted[k]);
         n_regions += k >= FILM_CHANNEL_COUNT && e;
     }
     for (int k = FILM_CHANNEL_COUNT; n_regions > 0 && k < FILM_CHANNEL_COUNT + AOV_REGION_COUNT; ++k)
-        if (!have[k]) return error_set(err, "%s: missing channel %s (the file has other region channels)", path,
-                                       wanted[k]);
+        if (!have[k])
+            return error_set(err, "%s: missing channel %s (the file has other region channels)", path, wanted[k]);
     if (n_regions > 0) {
         /* The channels are found by name; the attribute must still agree,
            or the file was written with other classes. */
@@ -625,8 +609,7 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
         bool first = y == dw.min.y;
         if (!rc) {
             call = first ? "exr_decoding_initialize" : "exr_decoding_update";
-            rc = first ? exr_decoding_initialize(ctx, 0, &chunk, &dec)
-                       : exr_decoding_update(ctx, 0, &chunk, &dec);
+            rc = first ? exr_decoding_initialize(ctx, 0, &chunk, &dec) : exr_decoding_update(ctx, 0, &chunk, &dec);
         }
         if (!rc) {
             for (int c = 0; c < dec.channel_count; ++c) {
@@ -638,8 +621,7 @@ static bool read_exr_pixels(exr_const_context_t ctx, const char *path, struct fi
                     continue;
                 }
                 size_t row = (size_t)per_pixel * (size_t)width;
-                ch->decode_to_ptr =
-                    (uint8_t *)(base + (size_t)(chunk.start_y - dw.min.y) * row);
+                ch->decode_to_ptr = (uint8_t *)(base + (size_t)(chunk.start_y - dw.min.y) * row);
                 ch->user_pixel_stride = per_pixel * (int32_t)sizeof(float);
                 ch->user_line_stride = (int32_t)(row * sizeof(float));
                 ch->user_bytes_per_element = (int16_t)sizeof(float);

@@ -17,11 +17,11 @@
    within a pass, so no locking is needed. */
 struct film {
     int width, height;
-    double *mean;      /* 3 per pixel, row-major, row 0 at the top */
-    double *m2;        /* 3 per pixel: sum of squared deviations */
-    uint32_t *count;   /* 1 per pixel: samples accumulated (a non-finite
+    double *mean;           /* 3 per pixel, row-major, row 0 at the top */
+    double *m2;             /* 3 per pixel: sum of squared deviations */
+    uint32_t *count;        /* 1 per pixel: samples accumulated (a non-finite
                           sample is dropped, so a pixel may lag `passes`) */
-    int64_t passes;    /* completed passes */
+    int64_t passes;         /* completed passes */
     uint32_t *region_count; /* AOV_REGION_COUNT per pixel (film_enable_regions),
                           NULL when the region AOV is off: the pixel's accepted
                           samples per primary-hit class, so they sum to count */
@@ -30,7 +30,7 @@ struct film {
 /* Largest accepted image: each side at most FILM_MAX_SIDE pixels and at most
    FILM_MAX_PIXELS pixels in all (a film of that size holds 3 GiB of doubles).
    Larger requests fail with a message instead of an allocation attempt. */
-#define FILM_MAX_SIDE 65536
+#define FILM_MAX_SIDE   65536
 #define FILM_MAX_PIXELS ((int64_t)1 << 27)
 
 /* Allocates a zeroed width x height film; fails on non-positive or absurd
@@ -74,9 +74,9 @@ void film_add_row(struct film *f, int y, const struct rgb *c, int n);
 /* A snapshot: float images ready to write. */
 struct film_image {
     int width, height;
-    float *rgb;        /* 3 per pixel: running mean */
-    float *variance;   /* 3 per pixel: variance of the mean (sigma^2 / n) */
-    float *region;     /* AOV_REGION_COUNT per pixel: the fraction of the pixel's
+    float *rgb;      /* 3 per pixel: running mean */
+    float *variance; /* 3 per pixel: variance of the mean (sigma^2 / n) */
+    float *region;   /* AOV_REGION_COUNT per pixel: the fraction of the pixel's
                           samples in each class (0 for a pixel without samples),
                           or NULL when the image has no region AOV */
 };
@@ -123,16 +123,16 @@ extern const char *const film_attribute_names[FILM_ATTRIBUTE_COUNT];
 
 /* Header attributes of a snapshot. */
 struct snapshot_info {
-    double render_time_s;          /* rendering only, snapshot I/O excluded */
+    double render_time_s; /* rendering only, snapshot I/O excluded */
     int64_t spp;
     const char *strategy;
     const char *integrator;
     uint64_t seed;
     uint64_t config_hash;
     const char *renderer_version;
-    uint64_t rays;                 /* rays traced so far */
-    uint64_t nonfinite_samples;    /* samples dropped for NaN/Inf */
-    bool compress;                 /* ZIPS when true; none for timed snapshots,
+    uint64_t rays;              /* rays traced so far */
+    uint64_t nonfinite_samples; /* samples dropped for NaN/Inf */
+    bool compress;              /* ZIPS when true; none for timed snapshots,
                                       where zlib costs ~40 ms per 256^2 frame
                                       and gains ~3% on noisy floats */
 };

@@ -13,8 +13,8 @@
 
 static const char state_magic[8] = { 'P', 'L', 'F', 'S', 'T', 'A', 'T', 'E' };
 #define STATE_HEADER_BYTES 120u
-#define STATE_NAME_MAX 63u
-#define STATE_ARRAYS_MAX 16
+#define STATE_NAME_MAX     63u
+#define STATE_ARRAYS_MAX   16
 
 enum state_type { STATE_F64 = 1, STATE_U32 = 2 };
 
@@ -43,7 +43,8 @@ static int film_arrays(const struct film *f, struct state_array out[STATE_ARRAYS
     out[n++] = (struct state_array){ "mean", STATE_F64, 3, f->mean };
     out[n++] = (struct state_array){ "m2", STATE_F64, 3, f->m2 };
     out[n++] = (struct state_array){ "count", STATE_U32, 1, f->count };
-    if (f->region_count) out[n++] = (struct state_array){ REGION_COUNT_ARRAY, STATE_U32, AOV_REGION_COUNT, f->region_count };
+    if (f->region_count)
+        out[n++] = (struct state_array){ REGION_COUNT_ARRAY, STATE_U32, AOV_REGION_COUNT, f->region_count };
     return n;
 }
 
@@ -64,7 +65,7 @@ static uint64_t fnv1a64_update(uint64_t h, const void *data, size_t n)
 /* Small fields are gathered in `buf`; arrays go straight from the film. */
 struct state_writer {
     int fd;
-    int error;          /* errno of the first failed write; 0 if none */
+    int error; /* errno of the first failed write; 0 if none */
     uint64_t hash;
     unsigned char buf[256];
     size_t len;
@@ -104,11 +105,26 @@ static void put(struct state_writer *w, const void *data, size_t n)
     w->len += n;
 }
 
-static void put_u32(struct state_writer *w, uint32_t v) { put(w, &v, sizeof v); }
-static void put_i32(struct state_writer *w, int32_t v) { put(w, &v, sizeof v); }
-static void put_u64(struct state_writer *w, uint64_t v) { put(w, &v, sizeof v); }
-static void put_i64(struct state_writer *w, int64_t v) { put(w, &v, sizeof v); }
-static void put_f64(struct state_writer *w, double v) { put(w, &v, sizeof v); }
+static void put_u32(struct state_writer *w, uint32_t v)
+{
+    put(w, &v, sizeof v);
+}
+static void put_i32(struct state_writer *w, int32_t v)
+{
+    put(w, &v, sizeof v);
+}
+static void put_u64(struct state_writer *w, uint64_t v)
+{
+    put(w, &v, sizeof v);
+}
+static void put_i64(struct state_writer *w, int64_t v)
+{
+    put(w, &v, sizeof v);
+}
+static void put_f64(struct state_writer *w, double v)
+{
+    put(w, &v, sizeof v);
+}
 
 static void write_content(struct state_writer *w, const struct film_state *s)
 {
@@ -191,7 +207,7 @@ struct state_reader {
     int fd;
     const char *path;
     uint64_t hash;
-    uint64_t left;      /* bytes of the file not read yet */
+    uint64_t left; /* bytes of the file not read yet */
     uint64_t size;
 };
 
@@ -215,11 +231,26 @@ static bool get(struct state_reader *r, void *data, size_t n, struct error *err)
     return true;
 }
 
-static bool get_u32(struct state_reader *r, uint32_t *v, struct error *err) { return get(r, v, sizeof *v, err); }
-static bool get_i32(struct state_reader *r, int32_t *v, struct error *err) { return get(r, v, sizeof *v, err); }
-static bool get_u64(struct state_reader *r, uint64_t *v, struct error *err) { return get(r, v, sizeof *v, err); }
-static bool get_i64(struct state_reader *r, int64_t *v, struct error *err) { return get(r, v, sizeof *v, err); }
-static bool get_f64(struct state_reader *r, double *v, struct error *err) { return get(r, v, sizeof *v, err); }
+static bool get_u32(struct state_reader *r, uint32_t *v, struct error *err)
+{
+    return get(r, v, sizeof *v, err);
+}
+static bool get_i32(struct state_reader *r, int32_t *v, struct error *err)
+{
+    return get(r, v, sizeof *v, err);
+}
+static bool get_u64(struct state_reader *r, uint64_t *v, struct error *err)
+{
+    return get(r, v, sizeof *v, err);
+}
+static bool get_i64(struct state_reader *r, int64_t *v, struct error *err)
+{
+    return get(r, v, sizeof *v, err);
+}
+static bool get_f64(struct state_reader *r, double *v, struct error *err)
+{
+    return get(r, v, sizeof *v, err);
+}
 
 /* The bytes of an array this film does not hold: read for the checksum. */
 static bool skip(struct state_reader *r, uint64_t n, struct error *err)
@@ -242,8 +273,8 @@ static bool read_header(struct state_reader *r, struct film_state *s, uint32_t *
         return error_set(err, "%s: not a render state file (bad magic number)", r->path);
     if (!get_u32(r, &version, err) || !get_u32(r, &header_bytes, err)) return false;
     if (version != FILM_STATE_VERSION)
-        return error_set(err, "%s: state format version %" PRIu32 " (this renderer reads version %d)", r->path,
-                         version, FILM_STATE_VERSION);
+        return error_set(err, "%s: state format version %" PRIu32 " (this renderer reads version %d)", r->path, version,
+                         FILM_STATE_VERSION);
     if (header_bytes != STATE_HEADER_BYTES)
         return error_set(err, "%s: header of %" PRIu32 " bytes (expected %u): damaged", r->path, header_bytes,
                          STATE_HEADER_BYTES);
@@ -269,8 +300,8 @@ static bool read_header(struct state_reader *r, struct film_state *s, uint32_t *
 
 /* One array: into the film if it is one of its accumulators (type and
    size checked), skipped otherwise. `seen` marks the film's arrays read. */
-static bool read_array(struct state_reader *r, struct film *film, struct state_array *want, int *n_wanted,
-                       bool *seen, size_t pixels, struct error *err)
+static bool read_array(struct state_reader *r, struct film *film, struct state_array *want, int *n_wanted, bool *seen,
+                       size_t pixels, struct error *err)
 {
     int n_want = *n_wanted;
     uint32_t len, type;

@@ -33,16 +33,16 @@
 #define FILM_STATE_VERSION 1
 
 struct film_state {
-    struct film film;            /* accumulators and passes done */
-    double render_time_s;        /* render clock so far (passes only) */
-    double render_cpu_s;         /* render threads' CPU time so far */
-    double snapshot_cpu_s;       /* CPU time timed snapshots took so far */
-    double snapshot_pause_s;     /* wall time paused for snapshot copies so far */
+    struct film film;        /* accumulators and passes done */
+    double render_time_s;    /* render clock so far (passes only) */
+    double render_cpu_s;     /* render threads' CPU time so far */
+    double snapshot_cpu_s;   /* CPU time timed snapshots took so far */
+    double snapshot_pause_s; /* wall time paused for snapshot copies so far */
     struct integrator_stats stats;
-    uint64_t nonfinite_samples;  /* samples dropped so far */
-    int snapshots;               /* timed snapshots written so far */
+    uint64_t nonfinite_samples; /* samples dropped so far */
+    int snapshots;              /* timed snapshots written so far */
     uint64_t seed;
-    uint64_t image_hash;         /* config.image_hash of the render */
+    uint64_t image_hash; /* config.image_hash of the render */
 };
 
 /* Writes s to "path.tmp-<pid>", fsyncs it and renames it to `path`, so a

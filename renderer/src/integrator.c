@@ -59,8 +59,8 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
 }
 
 /* Emission found by a BSDF-sampled ray, weighted against the strategy. */
-static struct rgb bsdf_hit_light(const struct integrator *it, const struct strategy_point *sp, int light,
-                                 struct vec3 d, double bsdf_pdf_value)
+static struct rgb bsdf_hit_light(const struct integrator *it, const struct strategy_point *sp, int light, struct vec3 d,
+                                 double bsdf_pdf_value)
 {
     struct rgb le = light_emitted(&it->scene->lights[light], vec3_neg(d));
     if (it->mis == MIS_NONE || rgb_is_black(le)) return rgb_make(0.0, 0.0, 0.0);
@@ -73,8 +73,8 @@ static int bsdf_trace(const struct integrator *it, const struct bsdf_query *q)
     return q->trace ? scene_first_light(it->scene, q->ray.o, q->ray.d, q->ray.tmax) : -1;
 }
 
-static struct rgb bsdf_resolve(const struct integrator *it, const struct strategy_point *sp,
-                               const struct bsdf_query *q, int light)
+static struct rgb bsdf_resolve(const struct integrator *it, const struct strategy_point *sp, const struct bsdf_query *q,
+                               int light)
 {
     if (light < 0) return rgb_make(0.0, 0.0, 0.0);
     return rgb_mul(q->weight, bsdf_hit_light(it, sp, light, q->ray.d, q->pdf));
@@ -172,8 +172,8 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
 struct integrator_row {
     struct vertex *v;
     struct strategy_point *sp;
-    double (*u)[4];           /* light sample uniforms */
-    double (*ub)[2];          /* BSDF sample uniforms */
+    double (*u)[4];  /* light sample uniforms */
+    double (*ub)[2]; /* BSDF sample uniforms */
     struct light_sample *ls;
     bool *ok;
     struct shadow_query *shadow;

@@ -9,11 +9,11 @@
 #include <stdint.h>
 
 struct integrator_stats {
-    uint64_t rays;              /* all rays traced */
-    uint64_t shadow_rays;       /* occlusion rays towards a sampled light point */
-    uint64_t shadow_blocked;    /* ...of which were occluded */
-    uint64_t light_samples;     /* next-event samples that produced a direction */
-    uint64_t light_missed;      /* ...whose direction missed the light (no ray traced) */
+    uint64_t rays;           /* all rays traced */
+    uint64_t shadow_rays;    /* occlusion rays towards a sampled light point */
+    uint64_t shadow_blocked; /* ...of which were occluded */
+    uint64_t light_samples;  /* next-event samples that produced a direction */
+    uint64_t light_missed;   /* ...whose direction missed the light (no ray traced) */
 };
 
 /* a += b, counter by counter. */

@@ -9,4 +9,3 @@ bool light_init(struct light *l, const struct polygon *poly, struct rgb radiance
     l->first_portal = l->n_portals = 0;
     return true;
 }
-

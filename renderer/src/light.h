@@ -10,8 +10,8 @@
 #include "vec.h"
 
 struct light {
-    struct target target;        /* polygon, normal (emitting side), area */
-    struct rgb radiance;         /* W / (m^2 sr) per channel */
+    struct target target; /* polygon, normal (emitting side), area */
+    struct rgb radiance;  /* W / (m^2 sr) per channel */
     bool two_sided;
     double power;                /* luminance flux: pi * area * Y(radiance) * sides */
     int first_portal, n_portals; /* range in scene.portals */

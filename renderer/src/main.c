@@ -17,55 +17,54 @@
 #include "scene.h"
 #include "version.h"
 
-static const char usage[] =
-    "usage: render CONFIG [options]\n"
-    "       render --resume DIR [--spp N] [--time S] [--threads N|auto] [--quiet]\n"
-    "       render --print-config CONFIG [options] [--format yaml|json]\n"
-    "       render --describe\n"
-    "\n"
-    "Renders the scene described by the YAML file CONFIG progressively, writing\n"
-    "timed OpenEXR snapshots and DIR/final.exr, and one JSON line per snapshot on\n"
-    "stdout. --resume continues the render in DIR (made with --resumable) with the\n"
-    "passes it did not draw, to the same bits as one uninterrupted render; --spp\n"
-    "and --time are then totals, and only render.spp, render.time, render.threads,\n"
-    "render.snapshots.* and render.resumable may be overridden.\n"
-    "\n"
-    "--print-config loads CONFIG as a render would (includes, params, overrides,\n"
-    "defaults, every check, same messages and exit status) and prints the\n"
-    "effective configuration instead of rendering: YAML (the config.yaml a render\n"
-    "writes) or, with --format json, one JSON object {config, params, files,\n"
-    "hash, image_hash}; nothing is created, render.output is not touched.\n"
-    "\n"
-    "--describe prints the renderer's contract as one JSON object (strategies,\n"
-    "integrators, materials, AOV and EXR channels, EXR attributes, snapshot\n"
-    "keys, exit codes, JSON events), read from the tables the renderer uses.\n"
-    "\n"
-    "options (each overrides the config's value):\n"
-    "  --set KEY.PATH=VALUE  override any scalar of the config, e.g.\n"
-    "                        --set params.s_L=0.15  --set camera.position.1=2.5\n"
-    "                        --set render.aov.region=true (region.* AOV channels)\n"
-    "  --out DIR             output folder (render.output); created if missing\n"
-    "  --spp N               stop after N samples per pixel (render.spp; 0 = no limit)\n"
-    "  --time SECONDS        stop after this render time (render.time; 0 = no limit)\n"
-    "  --seed N              random seed (render.seed)\n"
-    "  --threads N|auto      render threads (render.threads)\n"
-    "  --strategy NAME       light_area | light | portal | projection | antishadow |\n"
-    "                        antishadow_exact (render.strategy)\n"
-    "  --integrator NAME     direct | path (render.integrator)\n"
-    "  --resumable           also write DIR/final.state, so that --resume can\n"
-    "                        continue the render (render.resumable=true)\n"
-    "  --resume DIR          continue the render in DIR (no CONFIG)\n"
-    "  --quiet               no progress messages on stderr\n"
-    "  --print-config        print the effective configuration, do not render\n"
-    "  --format yaml|json    the form of --print-config (default yaml)\n"
-    "  --describe            print the contract as JSON (no other arguments)\n"
-    "  --help, --version\n"
-    "\n"
-    "exit status: 0 done, 1 runtime error, 2 usage or config error, including an\n"
-    "output folder that cannot be created or written, a malformed fault hook, and\n"
-    "a --resume that cannot continue (nothing is written or changed), 3\n"
-    "interrupted by SIGINT/SIGTERM (final.exr, and final.state if resumable, hold\n"
-    "the passes done).\n";
+static const char usage[] = "usage: render CONFIG [options]\n"
+                            "       render --resume DIR [--spp N] [--time S] [--threads N|auto] [--quiet]\n"
+                            "       render --print-config CONFIG [options] [--format yaml|json]\n"
+                            "       render --describe\n"
+                            "\n"
+                            "Renders the scene described by the YAML file CONFIG progressively, writing\n"
+                            "timed OpenEXR snapshots and DIR/final.exr, and one JSON line per snapshot on\n"
+                            "stdout. --resume continues the render in DIR (made with --resumable) with the\n"
+                            "passes it did not draw, to the same bits as one uninterrupted render; --spp\n"
+                            "and --time are then totals, and only render.spp, render.time, render.threads,\n"
+                            "render.snapshots.* and render.resumable may be overridden.\n"
+                            "\n"
+                            "--print-config loads CONFIG as a render would (includes, params, overrides,\n"
+                            "defaults, every check, same messages and exit status) and prints the\n"
+                            "effective configuration instead of rendering: YAML (the config.yaml a render\n"
+                            "writes) or, with --format json, one JSON object {config, params, files,\n"
+                            "hash, image_hash}; nothing is created, render.output is not touched.\n"
+                            "\n"
+                            "--describe prints the renderer's contract as one JSON object (strategies,\n"
+                            "integrators, materials, AOV and EXR channels, EXR attributes, snapshot\n"
+                            "keys, exit codes, JSON events), read from the tables the renderer uses.\n"
+                            "\n"
+                            "options (each overrides the config's value):\n"
+                            "  --set KEY.PATH=VALUE  override any scalar of the config, e.g.\n"
+                            "                        --set params.s_L=0.15  --set camera.position.1=2.5\n"
+                            "                        --set render.aov.region=true (region.* AOV channels)\n"
+                            "  --out DIR             output folder (render.output); created if missing\n"
+                            "  --spp N               stop after N samples per pixel (render.spp; 0 = no limit)\n"
+                            "  --time SECONDS        stop after this render time (render.time; 0 = no limit)\n"
+                            "  --seed N              random seed (render.seed)\n"
+                            "  --threads N|auto      render threads (render.threads)\n"
+                            "  --strategy NAME       light_area | light | portal | projection | antishadow |\n"
+                            "                        antishadow_exact (render.strategy)\n"
+                            "  --integrator NAME     direct | path (render.integrator)\n"
+                            "  --resumable           also write DIR/final.state, so that --resume can\n"
+                            "                        continue the render (render.resumable=true)\n"
+                            "  --resume DIR          continue the render in DIR (no CONFIG)\n"
+                            "  --quiet               no progress messages on stderr\n"
+                            "  --print-config        print the effective configuration, do not render\n"
+                            "  --format yaml|json    the form of --print-config (default yaml)\n"
+                            "  --describe            print the contract as JSON (no other arguments)\n"
+                            "  --help, --version\n"
+                            "\n"
+                            "exit status: 0 done, 1 runtime error, 2 usage or config error, including an\n"
+                            "output folder that cannot be created or written, a malformed fault hook, and\n"
+                            "a --resume that cannot continue (nothing is written or changed), 3\n"
+                            "interrupted by SIGINT/SIGTERM (final.exr, and final.state if resumable, hold\n"
+                            "the passes done).\n";
 
 /* The folders make_dirs created, deepest last, so that a failure can
    remove them again. */
@@ -88,12 +87,9 @@ static bool make_dirs(const char *dir, struct made_dirs *made, struct error *err
         if (*p == '/' || *p == '\0') {
             char c = *p;
             *p = '\0';
-            if (mkdir(buf, 0777) == 0)
-                made->ends[made->n++] = (size_t)(p - buf);
-            else if (errno != EEXIST && c == '\0')
-                return error_set(err, "cannot be created: %s", strerror(errno));
-            else if (errno != EEXIST)
-                return error_set(err, "cannot be created: %s: %s", buf, strerror(errno));
+            if (mkdir(buf, 0777) == 0) made->ends[made->n++] = (size_t)(p - buf);
+            else if (errno != EEXIST && c == '\0') return error_set(err, "cannot be created: %s", strerror(errno));
+            else if (errno != EEXIST) return error_set(err, "cannot be created: %s: %s", buf, strerror(errno));
             *p = c;
             if (c == '\0') break;
         }
@@ -204,10 +200,15 @@ int main(int argc, char **argv)
         return EXIT_RUNTIME;
     }
 
-    static const struct { const char *flag, *key; } shorthands[] = {
-        { "--out", "render.output" },       { "--spp", "render.spp" },
-        { "--time", "render.time" },        { "--seed", "render.seed" },
-        { "--threads", "render.threads" },  { "--strategy", "render.strategy" },
+    static const struct {
+        const char *flag, *key;
+    } shorthands[] = {
+        { "--out", "render.output" },
+        { "--spp", "render.spp" },
+        { "--time", "render.time" },
+        { "--seed", "render.seed" },
+        { "--threads", "render.threads" },
+        { "--strategy", "render.strategy" },
         { "--integrator", "render.integrator" },
     };
     for (int i = 1; i < argc; ++i) {
@@ -367,17 +368,15 @@ int main(int argc, char **argv)
         /* A resume rewrites config.yaml with the new totals only now that
            everything has been checked. --print-config has checked all a
            render checks before it makes the output folder, and stops. */
-        bool ready = print_config || (resume_dir ? write_effective_config(&cfg, &err)
-                                                 : prepare_output(&cfg, ov, ov_flag, &err));
+        bool ready =
+            print_config || (resume_dir ? write_effective_config(&cfg, &err) : prepare_output(&cfg, ov, ov_flag, &err));
         if (print_config) {
             status = print_config_write(&cfg, format, stdout, &err) ? EXIT_DONE : EXIT_RUNTIME;
             if (status != EXIT_DONE) fprintf(stderr, "render: --print-config: %s\n", err.message);
         } else if (!ready && resume_dir)
             fprintf(stderr, "render: --resume %s: output folder %s\n", resume_dir, err.message);
-        else if (!ready)
-            fprintf(stderr, "%s\n", err.message);
-        else
-            status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, &faults, quiet);
+        else if (!ready) fprintf(stderr, "%s\n", err.message);
+        else status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, &faults, quiet);
         scene_destroy(&scene);
     }
     if (resume_dir) film_state_free(&start);

@@ -28,14 +28,14 @@ bool aabb_of_region(const struct plane *planes, int n, struct aabb box, struct a
 
 struct pair_bvh_node {
     struct aabb box;
-    int first;   /* leaf: first index into items; inner: left child (right = left + 1) */
-    int count;   /* leaf: number of items; inner: 0 */
+    int first; /* leaf: first index into items; inner: left child (right = left + 1) */
+    int count; /* leaf: number of items; inner: 0 */
 };
 
 struct pair_bvh {
     int n_nodes;
     struct pair_bvh_node *nodes;
-    int *items;  /* pair indices, grouped by leaf */
+    int *items;         /* pair indices, grouped by leaf */
     struct aabb *boxes; /* each item's own box, by item index */
 };
 

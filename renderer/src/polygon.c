@@ -7,10 +7,10 @@
    diagonal). Clipping snaps distances below POLYGON_SNAP_REL to the plane so
    that vertices on a clip edge are kept as they are and no sliver vertex is
    created next to them; vertices closer than POLYGON_DUP_REL are merged. */
-#define POLYGON_SNAP_REL 1e-12
-#define POLYGON_DUP_REL 1e-10
-#define POLYGON_CONVEX_REL 1e-9
-#define POLYGON_CONTAINS_REL 1e-9
+#define POLYGON_SNAP_REL       1e-12
+#define POLYGON_DUP_REL        1e-10
+#define POLYGON_CONVEX_REL     1e-9
+#define POLYGON_CONTAINS_REL   1e-9
 #define POLYGON_DEGENERATE_REL 1e-12
 
 double polygon_size(const struct polygon *poly)
@@ -193,7 +193,8 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
         return 0;
     }
     double size = polygon_size(in);
-    double eps = POLYGON_SNAP_REL * size + 4.0 * DBL_EPSILON * (polygon_max_abs(in) * vec3_max_abs(pl->normal) + fabs(pl->offset));
+    double eps = POLYGON_SNAP_REL * size +
+                 4.0 * DBL_EPSILON * (polygon_max_abs(in) * vec3_max_abs(pl->normal) + fabs(pl->offset));
     double d[POLYGON_MAX];
     bool all_in = true;
     for (int i = 0; i < n; ++i) {

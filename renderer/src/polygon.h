@@ -11,7 +11,7 @@
 /* Clipping a convex n-gon by a convex m-gon yields at most n + m vertices;
    lights and portals have at most POLYGON_INPUT_MAX so clipped results fit. */
 #define POLYGON_INPUT_MAX 8
-#define POLYGON_MAX 24
+#define POLYGON_MAX       24
 
 struct polygon {
     int n;

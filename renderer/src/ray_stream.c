@@ -23,8 +23,8 @@ bool ray_stream_init(struct ray_stream *s, int cap, struct error *err)
        at an inactive ray's components. */
     memset(block, 0, RAY_STREAM_ARRAYS * n * sizeof(float));
     float *f = block;
-    float **floats[] = { &s->ox, &s->oy, &s->oz, &s->dx, &s->dy, &s->dz, &s->tnear,
-                         &s->tfar, &s->time, &s->ng_x, &s->ng_y, &s->ng_z, &s->u, &s->v };
+    float **floats[] = { &s->ox,   &s->oy,   &s->oz,   &s->dx,   &s->dy,   &s->dz, &s->tnear,
+                         &s->tfar, &s->time, &s->ng_x, &s->ng_y, &s->ng_z, &s->u,  &s->v };
     unsigned **uints[] = { &s->mask, &s->id, &s->flags, &s->prim_id, &s->geom_id, &s->inst_id };
     size_t nf = sizeof floats / sizeof floats[0], nu = sizeof uints / sizeof uints[0];
     for (size_t k = 0; k < nf; ++k) *floats[k] = f + k * n;

@@ -52,17 +52,17 @@ void render_catch_signals(void)
 struct pass_control {
     pthread_mutex_t lock;
     pthread_cond_t start, done;
-    int64_t generation;       /* incremented to start a pass */
+    int64_t generation; /* incremented to start a pass */
     int next_row;
-    int active;               /* workers still in the current pass */
+    int active; /* workers still in the current pass */
     bool quit;
-    int64_t pass;             /* index of the pass being rendered */
+    int64_t pass;                  /* index of the pass being rendered */
     int64_t fault_nonfinite_every; /* test hook: poison ~1 sample in N (0: off) */
-    bool fault_biased;        /* test hook: every sample times fault_bias */
+    bool fault_biased;             /* test hook: every sample times fault_bias */
     double fault_bias;
     uint64_t nonfinite;
     struct integrator_stats stats;
-    double cpu_s;             /* CPU time the workers spent rendering passes */
+    double cpu_s; /* CPU time the workers spent rendering passes */
 };
 
 struct worker {
@@ -142,10 +142,9 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
 {
     const struct config *cfg = w->cfg;
     camera_row(w->camera, cfg->render.seed, y, pass, cfg->width, w->row_rng, w->row_dir);
-    scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit,
-                             w->row_found);
-    integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit,
-                            w->row_found, cfg->width, w->row_rng, w->row_color, stats);
+    scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit, w->row_found);
+    integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit, w->row_found,
+                            cfg->width, w->row_rng, w->row_color, stats);
     if (w->pc->fault_biased)
         for (int x = 0; x < cfg->width; ++x) w->row_color[x] = rgb_scale(w->row_color[x], w->pc->fault_bias);
     int dropped = 0;
@@ -300,10 +299,10 @@ bool render_faults_parse(const char *nonfinite, const char *bias, struct render_
 /* What the render has done so far, beyond the film and the workers'
    counters: restored from a state when resuming, saved in it at the end. */
 struct progress {
-    int64_t pass;              /* passes done */
-    double elapsed;            /* render clock */
-    double last_pass;          /* duration of the latest pass (0 before one) */
-    int snapshots;             /* timed snapshots written */
+    int64_t pass;     /* passes done */
+    double elapsed;   /* render clock */
+    double last_pass; /* duration of the latest pass (0 before one) */
+    int snapshots;    /* timed snapshots written */
     /* What the snapshot schedule costs the main thread: wall time with the
        render threads paused, and CPU time (the writer's is wr.cpu_s). */
     double pause_s, pause_cpu_s;
@@ -322,7 +321,7 @@ struct render {
     struct snapshot_writer wr;
     struct pass_control pc;
     struct worker *workers;
-    int started;               /* render threads running */
+    int started; /* render threads running */
     struct progress pr;
 };
 
@@ -520,14 +519,15 @@ bool render_run(const struct render_options *opt, struct render_result *result, 
     const struct film_state *start = opt->start;
     memset(result, 0, sizeof *result);
     if (start && (start->film.width != cfg->width || start->film.height != cfg->height || !start->film.mean))
-        return error_set(err, "the state to resume is %dx%d, the config %dx%d", start->film.width,
-                         start->film.height, cfg->width, cfg->height);
+        return error_set(err, "the state to resume is %dx%d, the config %dx%d", start->film.width, start->film.height,
+                         cfg->width, cfg->height);
     struct render r;
     if (!render_init(&r, opt, err)) return false;
     bool ok = render_prepare(&r, opt, err);
     int n_threads = thread_count(&cfg->render);
-    struct worker proto = { .cfg = cfg, .camera = &r.camera, .integrator = &r.integrator, .film = &r.film,
-                            .aov = r.have_aov ? &r.aov : NULL };
+    struct worker proto = {
+        .cfg = cfg, .camera = &r.camera, .integrator = &r.integrator, .film = &r.film, .aov = r.have_aov ? &r.aov : NULL
+    };
     ok = ok && pool_start(&r.pc, &r.workers, &r.started, n_threads, &proto, &r.strategy, err) &&
          snapshot_writer_start(&r.wr, err);
     if (ok) {

@@ -22,10 +22,10 @@
 /* Results are cumulative: a resumed render counts the passes, time,
    snapshots and rays of the runs before it. */
 struct render_result {
-    int64_t spp;                 /* completed passes */
-    double time_s;               /* render time, snapshot I/O excluded */
-    int snapshots;               /* timed snapshots written (final excluded) */
-    bool interrupted;            /* stopped by SIGINT/SIGTERM */
+    int64_t spp;      /* completed passes */
+    double time_s;    /* render time, snapshot I/O excluded */
+    int snapshots;    /* timed snapshots written (final excluded) */
+    bool interrupted; /* stopped by SIGINT/SIGTERM */
     uint64_t nonfinite_samples;
     struct integrator_stats stats;
     struct render_timers timers; /* for the benchmarks: CPU and pause times */
@@ -41,10 +41,10 @@ void render_catch_signals(void);
    radiance by FACTOR when the render's strategy is STRATEGY (a
    deliberately biased estimator). All zero: no faults. */
 struct render_faults {
-    int64_t nonfinite_every;       /* 0: off */
-    bool bias;                     /* PORTAL_LIGHTS_FAULT_BIAS is set */
+    int64_t nonfinite_every; /* 0: off */
+    bool bias;               /* PORTAL_LIGHTS_FAULT_BIAS is set */
     enum strategy_kind bias_strategy;
-    double bias_factor;            /* finite, >= 0 */
+    double bias_factor; /* finite, >= 0 */
 };
 
 /* Parses the two hooks' values (NULL: the variable is unset); fails with a
@@ -55,15 +55,15 @@ bool render_faults_parse(const char *nonfinite, const char *bias, struct render_
 /* What render_run renders, and how. */
 struct render_options {
     const struct config *cfg;
-    const struct scene *scene;     /* built from cfg */
+    const struct scene *scene; /* built from cfg */
     /* NULL for a fresh render. Otherwise the render continues from that
        state: its film moves into the render (start->film is left empty;
        the caller still frees start), passes go on from start->film.passes,
        and time, counters and snapshot numbering continue from it; its size
        must be cfg's. */
     struct film_state *start;
-    FILE *json;                    /* JSON event lines (render_events.h) */
-    struct render_faults faults;   /* test hooks; zeroed for none */
+    FILE *json;                  /* JSON event lines (render_events.h) */
+    struct render_faults faults; /* test hooks; zeroed for none */
 };
 
 /* Renders opt->cfg into cfg->render.output, which must exist. With

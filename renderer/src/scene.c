@@ -33,11 +33,10 @@ static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, con
     RTCDevice dev = s->device;
     RTCGeometry g = rtcNewGeometry(dev, k == 4 ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
     if (!g) return error_set(err, "Embree could not create a geometry");
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                        (size_t)n_verts);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0,
-                                           k == 4 ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3, (size_t)k * sizeof(unsigned),
-                                           (size_t)n_faces);
+    float *vb =
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), (size_t)n_verts);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, k == 4 ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
+                                           (size_t)k * sizeof(unsigned), (size_t)n_faces);
     if (!vb || !ib) {
         rtcReleaseGeometry(g);
         return error_set(err, "out of memory for Embree buffers");
@@ -161,8 +160,7 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
     for (int i = 0; i < cfg->n_lights; ++i) {
         struct light *l = &s->lights[i];
         if (!light_init(l, &cfg->lights[i].polygon, cfg->lights[i].radiance, cfg->lights[i].two_sided))
-            return error_at(err, loc_file(cfg, &cfg->lights[i].loc), cfg->lights[i].loc.line,
-                            cfg->lights[i].loc.column,
+            return error_at(err, loc_file(cfg, &cfg->lights[i].loc), cfg->lights[i].loc.line, cfg->lights[i].loc.column,
                             "light \"%s\" is degenerate", cfg->lights[i].name);
         /* Portals are grouped by light so that a light's portals are one range. */
         l->first_portal = s->n_portals;
@@ -345,8 +343,8 @@ int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, doubl
 /* Embree's view of a stream's arrays. */
 static struct RTCRayNp ray_np(struct ray_stream *r)
 {
-    struct RTCRayNp np = { r->ox, r->oy, r->oz, r->tnear, r->dx, r->dy, r->dz, r->time, r->tfar, r->mask, r->id,
-                           r->flags };
+    struct RTCRayNp np = { r->ox, r->oy,   r->oz,   r->tnear, r->dx, r->dy,
+                           r->dz, r->time, r->tfar, r->mask,  r->id, r->flags };
     return np;
 }
 
@@ -362,9 +360,10 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
 {
     for (int i = 0; i < n; ++i) rays->geom_id[i] = RTC_INVALID_GEOMETRY_ID;
     for (int i = 0; i < n; ++i) rays->inst_id[i] = RTC_INVALID_GEOMETRY_ID;
-    struct RTCRayHitNp np = { ray_np(rays),
-                              { rays->ng_x, rays->ng_y, rays->ng_z, rays->u, rays->v, rays->prim_id, rays->geom_id,
-                                { rays->inst_id } } };
+    struct RTCRayHitNp np = {
+        ray_np(rays),
+        { rays->ng_x, rays->ng_y, rays->ng_z, rays->u, rays->v, rays->prim_id, rays->geom_id, { rays->inst_id } }
+    };
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);

@@ -20,15 +20,15 @@ struct config; /* config.h */
 /* One portal of a light, with its antishadow precomputed at load. */
 struct portal {
     int light;
-    struct target target;         /* the opening's polygon, area, normal */
+    struct target target; /* the opening's polygon, area, normal */
     struct vec3 centroid;
     struct antishadow antishadow;
 };
 
 /* What a geometry stands for: a surface with a material, or a light. */
 struct geometry_info {
-    int material;   /* -1 for lights */
-    int light;      /* -1 for surfaces */
+    int material; /* -1 for lights */
+    int light;    /* -1 for surfaces */
 };
 
 struct scene {
@@ -37,21 +37,21 @@ struct scene {
     int n_lights;
     struct light *lights;
     int n_portals;
-    struct portal *portals;       /* grouped by light: light.first_portal.. */
+    struct portal *portals; /* grouped by light: light.first_portal.. */
     int n_geometries;
     struct geometry_info *geometries; /* indexed by Embree geomID */
     struct vec3 bounds_lo, bounds_hi; /* of all geometry and lights */
-    double scale;                 /* bounding-box diagonal, for ray offsets */
-    void *device;                 /* RTCDevice */
-    void *rtc_scene;              /* RTCScene, committed */
+    double scale;                     /* bounding-box diagonal, for ray offsets */
+    void *device;                     /* RTCDevice */
+    void *rtc_scene;                  /* RTCScene, committed */
 };
 
 struct hit {
     double t;
     struct vec3 p;
-    struct vec3 ng;     /* unit geometric normal, winding-oriented */
-    int material;       /* -1 when a light was hit */
-    int light;          /* -1 when a surface was hit */
+    struct vec3 ng; /* unit geometric normal, winding-oriented */
+    int material;   /* -1 when a light was hit */
+    int light;      /* -1 when a surface was hit */
 };
 
 /* Builds Embree geometry for every shape and light; precomputes portals. */

@@ -5,8 +5,7 @@
 #include "fastmath.h"
 #include "mis.h"
 
-bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
-                 struct vertex *v)
+bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo, struct vertex *v)
 {
     vertex_orient(sc, p, ng, material, wo, v);
     v->frame = frame_from_normal(v->n);
@@ -22,9 +21,9 @@ bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int mate
    vectoriser handles a lane of doubles better than a mix with bools. */
 
 struct shadow_lane {
-    double ox, oy, oz, tmax;  /* the shadow segment (direction: wi) */
-    double r, g, b;           /* delivered unless blocked */
-    double counted;           /* a ray was set up (counted even if too short to trace) */
+    double ox, oy, oz, tmax; /* the shadow segment (direction: wi) */
+    double r, g, b;          /* delivered unless blocked */
+    double counted;          /* a ray was set up (counted even if too short to trace) */
     double trace;
 };
 
@@ -72,8 +71,8 @@ FM_INLINE struct shadow_lane lambert_shadow_lane(double scale, enum mis_kind mis
                                                  struct rgb le, struct vec3 nl)
 {
     double cos_i = vec3_dot(wi, n);
-    return shadow_lane(scale, mis, bsdf_lambert_f(albedo), cos_i, bsdf_lambert_pdf(cos_i), n, p, wi, dist, pdf_sa,
-                       le, nl);
+    return shadow_lane(scale, mis, bsdf_lambert_f(albedo), cos_i, bsdf_lambert_pdf(cos_i), n, p, wi, dist, pdf_sa, le,
+                       nl);
 }
 
 struct bsdf_lane {
@@ -161,9 +160,9 @@ void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex
     }
     /* Any other BSDF: the same shadow ray, with its own f and pdf. */
     struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
-    struct shadow_lane l = shadow_lane(sc->scale, mis, bsdf_eval(v->m, v->wo_local, wi_local), wi_local.z,
-                                       bsdf_pdf(v->m, v->wo_local, wi_local), v->n, v->p, ls->wi, ls->dist,
-                                       ls->pdf_sa, ls->radiance, nl);
+    struct shadow_lane l =
+        shadow_lane(sc->scale, mis, bsdf_eval(v->m, v->wo_local, wi_local), wi_local.z,
+                    bsdf_pdf(v->m, v->wo_local, wi_local), v->n, v->p, ls->wi, ls->dist, ls->pdf_sa, ls->radiance, nl);
     shadow_from_lane(&l, ls->wi, true, stats, q);
 }
 
@@ -193,8 +192,31 @@ void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2
 #define LANE_BLOCK 16
 
 /* Inputs of a block, one row per scalar. */
-enum { IN_AR, IN_AG, IN_AB, IN_NX, IN_NY, IN_NZ, IN_PX, IN_PY, IN_PZ, IN_WX, IN_WY, IN_WZ, IN_DIST, IN_PDF,
-       IN_LR, IN_LG, IN_LB, IN_NLX, IN_NLY, IN_NLZ, IN_U0, IN_U1, IN_COUNT };
+enum {
+    IN_AR,
+    IN_AG,
+    IN_AB,
+    IN_NX,
+    IN_NY,
+    IN_NZ,
+    IN_PX,
+    IN_PY,
+    IN_PZ,
+    IN_WX,
+    IN_WY,
+    IN_WZ,
+    IN_DIST,
+    IN_PDF,
+    IN_LR,
+    IN_LG,
+    IN_LB,
+    IN_NLX,
+    IN_NLY,
+    IN_NLZ,
+    IN_U0,
+    IN_U1,
+    IN_COUNT
+};
 /* Outputs: the fields of shadow_lane and bsdf_lane, in order. */
 enum { SO_OX, SO_OY, SO_OZ, SO_TMAX, SO_R, SO_G, SO_B, SO_COUNTED, SO_TRACE, SO_COUNT };
 enum { BO_OX, BO_OY, BO_OZ, BO_DX, BO_DY, BO_DZ, BO_PDF, BO_TRACE, BO_COUNT };
@@ -229,9 +251,9 @@ FM_INLINE void bsdf_block(double scale, double in[IN_COUNT][LANE_BLOCK], double 
 {
 #pragma omp simd
     for (int i = 0; i < LANE_BLOCK; ++i) {
-        struct bsdf_lane l = lambert_bsdf_lane(scale, vec3_make(in[IN_NX][i], in[IN_NY][i], in[IN_NZ][i]),
-                                               vec3_make(in[IN_PX][i], in[IN_PY][i], in[IN_PZ][i]), in[IN_U0][i],
-                                               in[IN_U1][i]);
+        struct bsdf_lane l =
+            lambert_bsdf_lane(scale, vec3_make(in[IN_NX][i], in[IN_NY][i], in[IN_NZ][i]),
+                              vec3_make(in[IN_PX][i], in[IN_PY][i], in[IN_PZ][i]), in[IN_U0][i], in[IN_U1][i]);
         bo[BO_OX][i] = l.ox;
         bo[BO_OY][i] = l.oy;
         bo[BO_OZ][i] = l.oz;
@@ -337,9 +359,15 @@ void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct 
         /* mis as a constant in each copy: a select on a loop-invariant
            enum is not vectorised. */
         switch (mis) {
-        case MIS_NONE: shadow_block(scale, MIS_NONE, in, so); break;
-        case MIS_BALANCE: shadow_block(scale, MIS_BALANCE, in, so); break;
-        case MIS_POWER: shadow_block(scale, MIS_POWER, in, so); break;
+        case MIS_NONE:
+            shadow_block(scale, MIS_NONE, in, so);
+            break;
+        case MIS_BALANCE:
+            shadow_block(scale, MIS_BALANCE, in, so);
+            break;
+        case MIS_POWER:
+            shadow_block(scale, MIS_POWER, in, so);
+            break;
         }
         shadow_stream_block(in, so, shadow_rays, b);
         if (ub) {
@@ -364,13 +392,13 @@ void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct 
                 ++c.light_samples;
                 if (ls[k].light < 0) ++c.light_missed;
                 else {
-                    struct shadow_lane l = { so[SO_OX][i], so[SO_OY][i], so[SO_OZ][i], so[SO_TMAX][i], so[SO_R][i],
-                                             so[SO_G][i], so[SO_B][i], so[SO_COUNTED][i], so[SO_TRACE][i] };
+                    struct shadow_lane l = { so[SO_OX][i], so[SO_OY][i], so[SO_OZ][i],      so[SO_TMAX][i], so[SO_R][i],
+                                             so[SO_G][i],  so[SO_B][i],  so[SO_COUNTED][i], so[SO_TRACE][i] };
                     shadow_from_lane(&l, ls[k].wi, false, &c, &shadow[k]);
                 }
             }
             if (ub) {
-                struct bsdf_lane l = { bo[BO_OX][i], bo[BO_OY][i], bo[BO_OZ][i], bo[BO_DX][i],
+                struct bsdf_lane l = { bo[BO_OX][i], bo[BO_OY][i], bo[BO_OZ][i],  bo[BO_DX][i],
                                        bo[BO_DY][i], bo[BO_DZ][i], bo[BO_PDF][i], bo[BO_TRACE][i] };
                 bsdf_from_lane(&l, v[k].m, false, &c, &bsdf[k]);
             }

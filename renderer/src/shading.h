@@ -22,10 +22,10 @@
 /* The shading context of a surface hit: side, frame, ray origin. */
 struct vertex {
     const struct material *m;
-    struct vec3 n;           /* geometric normal on the side of wo */
+    struct vec3 n; /* geometric normal on the side of wo */
     struct frame frame;
     struct vec3 wo_local;
-    struct vec3 p;           /* the surface point */
+    struct vec3 p; /* the surface point */
 };
 
 /* m, n and p of a vertex: what every kind of vertex needs. Two-sided
@@ -39,8 +39,7 @@ static inline void vertex_orient(const struct scene *sc, struct vec3 p, struct v
 }
 
 /* False when wo lies in the surface's plane (nothing is reflected). */
-bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo,
-                 struct vertex *v);
+bool vertex_init(const struct scene *sc, struct vec3 p, struct vec3 ng, int material, struct vec3 wo, struct vertex *v);
 /* The same for shading_setup_many, which reads only m, n and p of a
    Lambertian point (its lanes build the frame from n): there the frame and
    wo_local are left unset, saving a division and twelve stores a point.
@@ -59,7 +58,7 @@ static inline bool vertex_init_lanes(const struct scene *sc, struct vec3 p, stru
    their struct integrator_stats. */
 struct shadow_query {
     struct scene_ray ray;
-    bool trace;               /* a segment to test (else: delivered unless value is black) */
+    bool trace; /* a segment to test (else: delivered unless value is black) */
     struct rgb value;
 };
 
@@ -72,7 +71,7 @@ void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex
 struct bsdf_query {
     struct scene_ray ray;
     bool trace;
-    struct rgb weight;        /* f cos / pdf */
+    struct rgb weight; /* f cos / pdf */
     double pdf;
 };
 

@@ -39,8 +39,8 @@ bool snapshot_schedule_due(struct snapshot_cursor *c, double elapsed_s, int64_t 
     if (spp >= c->next_doubling_spp) {
         due = true;
         /* Saturates instead of overflowing: INT64_MAX is never reached. */
-        while (c->next_doubling_spp <= spp) c->next_doubling_spp = c->next_doubling_spp > INT64_MAX / 2
-                                                                       ? INT64_MAX : 2 * c->next_doubling_spp;
+        while (c->next_doubling_spp <= spp)
+            c->next_doubling_spp = c->next_doubling_spp > INT64_MAX / 2 ? INT64_MAX : 2 * c->next_doubling_spp;
     }
     while (c->next_spp_list < sch->n_spps && spp >= sch->spps[c->next_spp_list]) {
         due = true;

@@ -16,12 +16,12 @@
    the first pass boundary at or after a due point. */
 struct snapshot_cursor {
     const struct snapshot_schedule *schedule;
-    double next_every_s;          /* render time; INFINITY when off */
-    double next_doubling_s;       /* render time; INFINITY when off */
-    int next_time;                /* index of the next of schedule->times_s */
-    int next_spp_list;            /* index of the next of schedule->spps */
-    int64_t next_every_spp;       /* passes; INT64_MAX when off */
-    int64_t next_doubling_spp;    /* passes; INT64_MAX when off */
+    double next_every_s;       /* render time; INFINITY when off */
+    double next_doubling_s;    /* render time; INFINITY when off */
+    int next_time;             /* index of the next of schedule->times_s */
+    int next_spp_list;         /* index of the next of schedule->spps */
+    int64_t next_every_spp;    /* passes; INT64_MAX when off */
+    int64_t next_doubling_spp; /* passes; INT64_MAX when off */
 };
 
 /* A cursor at the start of a render (0 s, 0 spp). The schedule must

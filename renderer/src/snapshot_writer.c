@@ -6,8 +6,7 @@
 #include "render_events.h"
 #include "timing.h"
 
-bool snapshot_writer_init(struct snapshot_writer *w, int width, int height, bool regions, FILE *json,
-                          struct error *err)
+bool snapshot_writer_init(struct snapshot_writer *w, int width, int height, bool regions, FILE *json, struct error *err)
 {
     memset(w, 0, sizeof *w);
     pthread_mutex_init(&w->lock, NULL);

@@ -23,13 +23,13 @@ struct snapshot_writer {
     pthread_mutex_t lock;
     pthread_cond_t cond;
     bool busy, quit, failed;
-    struct error err;            /* the first failure */
+    struct error err; /* the first failure */
     FILE *json;
-    struct film_image image;     /* the pending snapshot; free for the caller once stopped */
+    struct film_image image; /* the pending snapshot; free for the caller once stopped */
     struct snapshot_info info;
     char path[CONFIG_PATH_MAX + 64];
     int index;
-    double cpu_s;                /* CPU time spent writing snapshots */
+    double cpu_s; /* CPU time spent writing snapshots */
 };
 
 /* An idle writer (no thread yet) with a width x height image, with the

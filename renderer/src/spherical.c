@@ -78,8 +78,8 @@ FM_INLINE void rect_constants(double z0, double x0, double y0, double exl, doubl
     double zx0 = z0sq + x0 * x0, a = zx0 * ry0 * ry1, bl = l00 * l10 * l11;
     double inv_ab = 1.0 / (a * bl);
     double m = bl * inv_ab, inv_ry01 = zx0 * m;
-    r->b0 = -y0 * ry1 * inv_ry01; /* n0.z = -y0 / ry0 */
-    r->b1 = y1 * ry0 * inv_ry01;  /* n2.z = y1 / ry1 */
+    r->b0 = -y0 * ry1 * inv_ry01;                                   /* n0.z = -y0 / ry0 */
+    r->b1 = y1 * ry0 * inv_ry01;                                    /* n2.z = y1 / ry1 */
     r->one_minus_b0sq = z0sq * (ry1 * inv_ry01) * (ry1 * inv_ry01); /* z0^2 / ry0^2 */
     r->cos_k = -(x0 * x0 * y0 * y1 + z0sq * l00 * l01) * m;
     r->sin_k = az0 * x0 * (y0 * l01 - y1 * l00) * m;
@@ -196,11 +196,46 @@ struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, doub
    doing both). The stages read and write arrays of scalars indexed by
    lane, so that the loops have no local whose address is taken (OpenMP
    would turn those into per-lane arrays and defeat the vectoriser). */
-enum { RF_CX, RF_CY, RF_CZ, RF_XX, RF_XY, RF_XZ, RF_YX, RF_YY, RF_YZ, RF_ZX, RF_ZY, RF_ZZ, RF_EXL, RF_EYL, RF_OX,
-       RF_OY, RF_OZ, RF_U, RF_V, RF_COUNT };
+enum {
+    RF_CX,
+    RF_CY,
+    RF_CZ,
+    RF_XX,
+    RF_XY,
+    RF_XZ,
+    RF_YX,
+    RF_YY,
+    RF_YZ,
+    RF_ZX,
+    RF_ZY,
+    RF_ZZ,
+    RF_EXL,
+    RF_EYL,
+    RF_OX,
+    RF_OY,
+    RF_OZ,
+    RF_U,
+    RF_V,
+    RF_COUNT
+};
 /* The sphrect fields stage one hands to stage two (o, x and y are inputs). */
-enum { RS_ZX, RS_ZY, RS_ZZ, RS_Z0, RS_X0, RS_Y0, RS_X1, RS_Y1, RS_B0, RS_B1, RS_OMB, RS_COSK, RS_SINK, RS_SA,
-       RS_COUNT };
+enum {
+    RS_ZX,
+    RS_ZY,
+    RS_ZZ,
+    RS_Z0,
+    RS_X0,
+    RS_Y0,
+    RS_X1,
+    RS_Y1,
+    RS_B0,
+    RS_B1,
+    RS_OMB,
+    RS_COSK,
+    RS_SINK,
+    RS_SA,
+    RS_COUNT
+};
 
 /* Lanes per block: enough iterations for the stages to overlap. */
 #define RECT_BLOCK 64
@@ -289,8 +324,10 @@ void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct
         for (int i = 1; i < m; ++i) shared &= frames[b + i] == frames[b];
         for (int i = 0; i < (shared ? 1 : mv); ++i) {
             const struct sphrect_frame *f = frames[b + (i < m ? i : 0)];
-            const double fields[RF_OX] = { f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x,
-                                           f->y.y, f->y.z, f->z.x, f->z.y, f->z.z, f->ex_len, f->ey_len };
+            const double fields[RF_OX] = {
+                f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z,    f->y.x,
+                f->y.y,      f->y.z,      f->z.x,      f->z.y, f->z.z, f->ex_len, f->ey_len
+            };
             for (int j = 0; j < RF_OX; ++j) in[j][i] = fields[j];
         }
         if (shared)

@@ -24,11 +24,11 @@ bool sphrect_frame_init(struct sphrect_frame *f, struct vec3 s, struct vec3 ex, 
 
 /* Spherical rectangle seen from o. Precomputation per shading point. */
 struct sphrect {
-    struct vec3 o, x, y, z;       /* local frame at o (z flipped towards o's side) */
-    double z0, x0, y0, x1, y1;    /* rectangle in that frame */
-    double b0, b1;                /* Urena's constants */
-    double one_minus_b0sq;        /* 1 - b0^2 = z0^2 / (z0^2 + y0^2) */
-    double cos_k, sin_k;          /* Urena's k = 2 pi - g2 - g3, as cosine and sine */
+    struct vec3 o, x, y, z;    /* local frame at o (z flipped towards o's side) */
+    double z0, x0, y0, x1, y1; /* rectangle in that frame */
+    double b0, b1;             /* Urena's constants */
+    double one_minus_b0sq;     /* 1 - b0^2 = z0^2 / (z0^2 + y0^2) */
+    double cos_k, sin_k;       /* Urena's k = 2 pi - g2 - g3, as cosine and sine */
     double solid_angle;
 };
 
@@ -58,10 +58,10 @@ void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct
 /* Spherical triangle with unit vertex directions a, b, c. */
 struct sphtri {
     struct vec3 a, b, c;
-    double area;             /* solid angle */
-    double alpha;            /* interior angle at a */
+    double area;  /* solid angle */
+    double alpha; /* interior angle at a */
     double sin_alpha, cos_alpha;
-    double cos_c;            /* cosine of the arc from a to b */
+    double cos_c; /* cosine of the arc from a to b */
 };
 
 /* False for a degenerate triangle (area below 1e-16 sr). Either winding.
@@ -73,9 +73,9 @@ struct vec3 sphtri_sample(const struct sphtri *t, double u, double v);
 /* Convex polygon seen from o as a fan of spherical triangles; a triangle is
    chosen with probability proportional to its solid angle. */
 struct sphpoly {
-    int n;                               /* number of usable triangles */
+    int n; /* number of usable triangles */
     struct sphtri tri[POLYGON_MAX - 2];
-    double cdf[POLYGON_MAX - 2];         /* normalised, cdf[n-1] == 1 */
+    double cdf[POLYGON_MAX - 2]; /* normalised, cdf[n-1] == 1 */
     double solid_angle;
 };
 

@@ -72,7 +72,8 @@ static bool build_bvh(struct strategy *s, struct error *err)
                 struct plane q = sc->portals[k].antishadow.portal_plane;
                 side[m++] = (struct plane){ vec3_neg(q.normal), -q.offset };
             }
-            if (!l->two_sided) side[m++] = (struct plane){ l->target.normal, vec3_dot(l->target.normal, l->target.polygon.v[0]) };
+            if (!l->two_sided)
+                side[m++] = (struct plane){ l->target.normal, vec3_dot(l->target.normal, l->target.polygon.v[0]) };
             struct aabb inside, shade = s->shade[pair->light];
             shade.lo = vec3_make(fmax(shade.lo.x, scene_box.lo.x), fmax(shade.lo.y, scene_box.lo.y),
                                  fmax(shade.lo.z, scene_box.lo.z));
@@ -357,8 +358,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     return 0.0;
 }
 
-double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n,
-                                enum region *region)
+double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, enum region *region)
 {
     const struct scene *sc = s->scene;
     const struct strategy_pair *pair = &s->pairs[i];
@@ -492,8 +492,7 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
 {
     const struct light *l = &s->scene->lights[light];
     double pdf = 0.0;
-    if (s->defensive > 0.0)
-        pdf += s->defensive * s->power.prob[light] * target_pdf_solid_angle(&l->target, pt->p, wi);
+    if (s->defensive > 0.0) pdf += s->defensive * s->power.prob[light] * target_pdf_solid_angle(&l->target, pt->p, wi);
     if (pt->total > 0.0) {
         double mix = 0.0;
         for (int i = s->first_pair[light]; i < s->first_pair[light + 1]; ++i) {
@@ -528,7 +527,8 @@ static int cdf_find(const double *cdf, int n, double x)
     int lo = 0, hi = n - 1;
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        if (cdf[mid] > x) hi = mid; else lo = mid + 1;
+        if (cdf[mid] > x) hi = mid;
+        else lo = mid + 1;
     }
     return lo;
 }

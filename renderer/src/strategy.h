@@ -23,32 +23,32 @@
 struct render_desc; /* config.h */
 
 enum technique {
-    TECHNIQUE_NONE,           /* no direction can reach the light through this pair */
-    TECHNIQUE_LIGHT_AREA,     /* uniform area on the light */
-    TECHNIQUE_LIGHT_SOLID,    /* uniform solid angle of the light */
-    TECHNIQUE_PORTAL_AREA,    /* uniform area on the portal, continue to the light */
-    TECHNIQUE_PORTAL_SOLID,   /* uniform solid angle of the portal */
-    TECHNIQUE_VISIBLE_AREA,   /* uniform area on the light's projection clipped to the portal */
-    TECHNIQUE_VISIBLE_SOLID   /* uniform solid angle of that clipped projection */
+    TECHNIQUE_NONE,         /* no direction can reach the light through this pair */
+    TECHNIQUE_LIGHT_AREA,   /* uniform area on the light */
+    TECHNIQUE_LIGHT_SOLID,  /* uniform solid angle of the light */
+    TECHNIQUE_PORTAL_AREA,  /* uniform area on the portal, continue to the light */
+    TECHNIQUE_PORTAL_SOLID, /* uniform solid angle of the portal */
+    TECHNIQUE_VISIBLE_AREA, /* uniform area on the light's projection clipped to the portal */
+    TECHNIQUE_VISIBLE_SOLID /* uniform solid angle of that clipped projection */
 };
 
 struct strategy_pair {
     int light;
-    int portal;               /* -1: the light alone */
+    int portal; /* -1: the light alone */
 };
 
 struct strategy {
     enum strategy_kind kind;
     enum portal_weight_kind weight;
-    double defensive;         /* probability of plain `light` sampling */
+    double defensive; /* probability of plain `light` sampling */
     const struct scene *scene;
     struct alias_table power; /* lights by power */
     int n_pairs;
     struct strategy_pair *pairs;
-    int *first_pair;          /* per light: index of its first pair */
-    bool use_bvh;             /* antishadow strategies: candidates from the BVH */
-    struct aabb *shade;       /* per light: where a point counts as inside its shade */
-    struct pair_bvh bvh;      /* over the pairs' lit regions */
+    int *first_pair;     /* per light: index of its first pair */
+    bool use_bvh;        /* antishadow strategies: candidates from the BVH */
+    struct aabb *shade;  /* per light: where a point counts as inside its shade */
+    struct pair_bvh bvh; /* over the pairs' lit regions */
 };
 
 bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err);
@@ -72,9 +72,9 @@ void strategy_scratch_free(struct strategy_scratch *scratch);
 /* A shading point with its pair distribution, prepared once and used for
    both sampling and pdf evaluation there. */
 struct strategy_point {
-    struct vec3 p;            /* world position (offset origin for rays) */
-    struct vec3 n;            /* unit normal of the receiving side, or zero */
-    double total;             /* sum of pair weights (portal strategies) */
+    struct vec3 p; /* world position (offset origin for rays) */
+    struct vec3 n; /* unit normal of the receiving side, or zero */
+    double total;  /* sum of pair weights (portal strategies) */
     struct strategy_scratch *scratch;
 };
 
@@ -123,8 +123,7 @@ int strategy_candidates(const struct strategy *s, struct vec3 p, int *out);
    inside the light's shade (REGION_ANTI_UMBRA for a light without
    portals, which p sees whole). Needs a strategy whose pairs include the
    portals (strategy_kind_uses_portals); s->weight is not read. */
-double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n,
-                                enum region *region);
+double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, enum region *region);
 
 /* Inline: a film row prepares every shading point, and for the light-only
    strategies this is all there is to it. */
@@ -139,11 +138,11 @@ static inline void strategy_prepare(const struct strategy *s, struct strategy_sc
 }
 
 struct light_sample {
-    struct vec3 wi;           /* unit */
-    double pdf_sa;            /* density of wi under the whole strategy */
-    int light;                /* light reached along wi, -1 when wi misses every target light */
-    double dist;              /* distance to the point on that light */
-    struct rgb radiance;      /* emitted towards p (black from the back) */
+    struct vec3 wi;      /* unit */
+    double pdf_sa;       /* density of wi under the whole strategy */
+    int light;           /* light reached along wi, -1 when wi misses every target light */
+    double dist;         /* distance to the point on that light */
+    struct rgb radiance; /* emitted towards p (black from the back) */
 };
 
 /* Samples with four uniforms. False when the strategy produced nothing

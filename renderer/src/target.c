@@ -6,7 +6,7 @@
    the polygon's size, the spherical parametrisations lose precision; area
    sampling is then safe and nearly optimal (tiny or edge-on polygons). */
 #define TARGET_MIN_SOLID_ANGLE 1e-7
-#define TARGET_MIN_REL_HEIGHT 1e-6
+#define TARGET_MIN_REL_HEIGHT  1e-6
 
 /* Drops vertices that repeat or lie on the segment between their
    neighbours (relative tolerance), preserving order. */
@@ -64,7 +64,8 @@ static struct vec3 sample_point(const struct target *t, double u_tri, double u, 
     double goal = u_tri * t->area, acc = 0.0;
     int k = 1;
     for (; k < poly->n - 2; ++k) {
-        double a = 0.5 * vec3_length(vec3_cross(vec3_sub(poly->v[k], poly->v[0]), vec3_sub(poly->v[k + 1], poly->v[0])));
+        double a =
+            0.5 * vec3_length(vec3_cross(vec3_sub(poly->v[k], poly->v[0]), vec3_sub(poly->v[k + 1], poly->v[0])));
         if (acc + a > goal) break;
         acc += a;
     }
@@ -166,8 +167,8 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
 /* Lanes per call of sphrect_sample_many (stack arrays, no allocation). */
 #define TARGET_MANY_CHUNK 64
 
-void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3],
-                                    int n, struct target_point *out, bool *ok)
+void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3], int n,
+                                    struct target_point *out, bool *ok)
 {
     for (int b = 0; b < n; b += TARGET_MANY_CHUNK) {
         int m = n - b < TARGET_MANY_CHUNK ? n - b : TARGET_MANY_CHUNK;

@@ -13,7 +13,7 @@
 
 struct target {
     struct polygon polygon;
-    struct vec3 normal;         /* unit, by winding */
+    struct vec3 normal; /* unit, by winding */
     double area;
     double min_height;          /* below this distance from the plane, area sampling */
     bool is_rectangle;          /* spherical-rectangle sampling applies */
@@ -27,10 +27,10 @@ bool target_init(struct target *t, const struct polygon *poly);
 
 /* A direction towards the target and the point where it meets the target. */
 struct target_point {
-    struct vec3 wi;   /* unit, from p */
-    struct vec3 y;    /* point on the target */
-    double dist;      /* |y - p| */
-    double pdf_sa;    /* solid-angle density of wi */
+    struct vec3 wi; /* unit, from p */
+    struct vec3 y;  /* point on the target */
+    double dist;    /* |y - p| */
+    double pdf_sa;  /* solid-angle density of wi */
 };
 
 /* Uniform point by area; pdf dist^2 / (area |cos|). */
@@ -48,7 +48,7 @@ double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3
 /* target_sample_solid_angle for n independent lanes (target t[i] from p[i]
    with the uniforms u[i]), out[i] and ok[i] as it would give them, bit for
    bit; the rectangles among them are sampled in vectorised batches. */
-void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3],
-                                    int n, struct target_point *out, bool *ok);
+void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3], int n,
+                                    struct target_point *out, bool *ok);
 
 #endif

@@ -17,7 +17,7 @@
 /* Grid cells per axis at most 2^21, so that a cell's key packs into 64
    bits; the cell size grows when the scene would need more. */
 #define GRID_BITS 21
-#define GRID_MAX ((int64_t)1 << GRID_BITS)
+#define GRID_MAX  ((int64_t)1 << GRID_BITS)
 
 static int cmp_vec3(const void *pa, const void *pb)
 {
@@ -77,8 +77,7 @@ static int grid_lower_bound(const struct grid *g, uint64_t k)
     return lo;
 }
 
-static bool grid_build(const struct watertight_face *faces, int n, double *eps_out, struct grid *g,
-                       struct error *err)
+static bool grid_build(const struct watertight_face *faces, int n, double *eps_out, struct grid *g, struct error *err)
 {
     memset(g, 0, sizeof *g);
     size_t n_corners = 0;
@@ -128,7 +127,8 @@ static bool grid_build(const struct watertight_face *faces, int n, double *eps_o
         /* eps is far below a cell, so the box touches at most 2 cells per axis. */
         for (int64_t z = z0; z <= z1 && z <= z0 + 1; ++z)
             for (int64_t y = y0; y <= y1 && y <= y0 + 1; ++y)
-                for (int64_t x = x0; x <= x1 && x <= x0 + 1; ++x) g->entries[m++] = (struct cell_entry){ cell_key(x, y, z), i };
+                for (int64_t x = x0; x <= x1 && x <= x0 + 1; ++x)
+                    g->entries[m++] = (struct cell_entry){ cell_key(x, y, z), i };
     }
     g->n_entries = m;
     qsort(g->entries, (size_t)m, sizeof *g->entries, cmp_entry);
@@ -188,9 +188,12 @@ static bool edge_find(const struct grid *g, double eps, struct vec3 a, struct ve
     int steps = steps_d < 1.0 ? 1 : steps_d > 4.0 * (double)GRID_MAX ? (int)(4 * GRID_MAX) : (int)steps_d;
     for (int s = 0; s < steps; ++s) {
         struct vec3 p0 = vec3_madd(a, d, (double)s / steps), p1 = vec3_madd(a, d, (double)(s + 1) / steps);
-        int64_t x0 = cell_coord(fmin(p0.x, p1.x), g->lo.x, g->cell), x1 = cell_coord(fmax(p0.x, p1.x), g->lo.x, g->cell);
-        int64_t y0 = cell_coord(fmin(p0.y, p1.y), g->lo.y, g->cell), y1 = cell_coord(fmax(p0.y, p1.y), g->lo.y, g->cell);
-        int64_t z0 = cell_coord(fmin(p0.z, p1.z), g->lo.z, g->cell), z1 = cell_coord(fmax(p0.z, p1.z), g->lo.z, g->cell);
+        int64_t x0 = cell_coord(fmin(p0.x, p1.x), g->lo.x, g->cell),
+                x1 = cell_coord(fmax(p0.x, p1.x), g->lo.x, g->cell);
+        int64_t y0 = cell_coord(fmin(p0.y, p1.y), g->lo.y, g->cell),
+                y1 = cell_coord(fmax(p0.y, p1.y), g->lo.y, g->cell);
+        int64_t z0 = cell_coord(fmin(p0.z, p1.z), g->lo.z, g->cell),
+                z1 = cell_coord(fmax(p0.z, p1.z), g->lo.z, g->cell);
         for (int64_t z = z0; z <= z1; ++z)
             for (int64_t y = y0; y <= y1; ++y)
                 for (int64_t x = x0; x <= x1; ++x) {
@@ -211,7 +214,8 @@ static bool edge_find(const struct grid *g, double eps, struct vec3 a, struct ve
     int u = 0;
     for (int i = 0; i < l->n; ++i) {
         bool seen = false;
-        for (int j = u - 1; j >= 0 && l->items[j].t == l->items[i].t; --j) seen |= l->items[j].point == l->items[i].point;
+        for (int j = u - 1; j >= 0 && l->items[j].t == l->items[i].t; --j)
+            seen |= l->items[j].point == l->items[i].point;
         if (!seen) l->items[u++] = l->items[i];
     }
     l->n = u;

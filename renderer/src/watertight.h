@@ -20,7 +20,7 @@ struct watertight_face {
 };
 
 struct watertight_triangle {
-    struct vec3 v[3];             /* in the winding of the face it comes from */
+    struct vec3 v[3]; /* in the winding of the face it comes from */
 };
 
 /* The stitched faces. A face that gained no vertex is left as it was (no
@@ -28,10 +28,10 @@ struct watertight_triangle {
    tris[first[f]] .. tris[first[f + 1] - 1], which cover exactly the face. */
 struct watertight {
     int n_faces;
-    int *first;                   /* n_faces + 1 entries */
+    int *first; /* n_faces + 1 entries */
     int n_triangles;
     struct watertight_triangle *tris;
-    int n_inserted;               /* vertices inserted into edges, over all faces */
+    int n_inserted; /* vertices inserted into edges, over all faces */
 };
 
 /* A vertex counts as lying on an edge when it is within this distance,

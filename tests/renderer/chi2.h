@@ -66,10 +66,10 @@ typedef bool (*chi2_sample_fn)(void *ctx, double u1, double u2, double u3, struc
 typedef double (*chi2_pdf_fn)(void *ctx, struct vec3 dir);
 
 struct chi2_config {
-    struct frame frame;  /* cap axis is frame.z; phi starts at frame.x */
-    double cap_angle;    /* half-angle of the cap in radians, (0, pi] */
-    int theta_bins;      /* rings, equal in cos(theta) */
-    int phi_bins;        /* sectors, equal in phi */
+    struct frame frame; /* cap axis is frame.z; phi starts at frame.x */
+    double cap_angle;   /* half-angle of the cap in radians, (0, pi] */
+    int theta_bins;     /* rings, equal in cos(theta) */
+    int phi_bins;       /* sectors, equal in phi */
     long samples;
     uint64_t seed;
     double significance; /* reject when p < significance */
@@ -77,9 +77,9 @@ struct chi2_config {
     int fine;            /* points in a cell that holds an edge (Fibonacci) */
 };
 
-#define CHI2_NORM_TOL 1e-3
+#define CHI2_NORM_TOL     1e-3
 #define CHI2_MIN_EXPECTED 5.0
-#define CHI2_MAX_RINGS 1024
+#define CHI2_MAX_RINGS    1024
 
 /* Defaults: 20 x 40 bins, 200000 samples, seed 1, significance 0.01,
    8 x 8 integration cells per bin, 233 points per resolved cell. */
@@ -212,7 +212,8 @@ static inline double chi2_lattice_sum_(const double *v, int k, double th0, doubl
         double ta = th0 + (th1 - th0) * i / k, tb = th0 + (th1 - th0) * (i + 1) / k;
         double row = 0.0;
         for (int j = 0; j < k; ++j)
-            row += v[i * (k + 1) + j] + v[(i + 1) * (k + 1) + j] + v[i * (k + 1) + j + 1] + v[(i + 1) * (k + 1) + j + 1];
+            row +=
+                v[i * (k + 1) + j] + v[(i + 1) * (k + 1) + j] + v[i * (k + 1) + j + 1] + v[(i + 1) * (k + 1) + j + 1];
         sum += 0.25 * row * chi2_cell_area_(ta, tb, ph0, ph0 + (ph1 - ph0) / k);
     }
     return sum;
@@ -270,7 +271,8 @@ static inline bool chi2_masses_(const struct chi2_integrand_ *f, const double *t
         }
         for (size_t a = 0; a < lrows; ++a) {
             double st = sin(th[a]), ct = cos(th[a]);
-            for (size_t b = 0; b < lcols; ++b) lat[a * lcols + b] = chi2_pdf_sc_(f, st, ct, trig[2 * b], trig[2 * b + 1]);
+            for (size_t b = 0; b < lcols; ++b)
+                lat[a * lcols + b] = chi2_pdf_sc_(f, st, ct, trig[2 * b], trig[2 * b + 1]);
         }
         size_t head = 0, tail = 0;
         for (size_t r = 0; r < (size_t)rows; ++r) {
@@ -295,7 +297,8 @@ static inline bool chi2_masses_(const struct chi2_integrand_ *f, const double *t
                 for (int dc = -1; dc <= 1; ++dc) {
                     long rr = (long)r + dr;
                     if (rr < 0 || rr >= rows) continue;
-                    size_t cc = (c + (size_t)cols + (size_t)(long)dc) % (size_t)cols, nb = (size_t)rr * (size_t)cols + cc;
+                    size_t cc = (c + (size_t)cols + (size_t)(long)dc) % (size_t)cols,
+                           nb = (size_t)rr * (size_t)cols + cc;
                     if (state[nb]) continue;
                     double ph0 = 2.0 * M_PI * (double)cc / cols, ph1 = 2.0 * M_PI * (double)(cc + 1) / cols;
                     val[nb] = chi2_cell_fine_(f, th[2 * rr], th[2 * rr + 2], ph0, ph1);
@@ -309,7 +312,8 @@ static inline bool chi2_masses_(const struct chi2_integrand_ *f, const double *t
         }
         for (int b = 0; b < nr * ns; ++b) mass[b] = 0.0;
         for (size_t r = 0; r < (size_t)rows; ++r)
-            for (size_t c = 0; c < (size_t)cols; ++c) mass[(r / sub) * (size_t)ns + c / sub] += val[r * (size_t)cols + c];
+            for (size_t c = 0; c < (size_t)cols; ++c)
+                mass[(r / sub) * (size_t)ns + c / sub] += val[r * (size_t)cols + c];
     }
     free(val);
     free(coarse_est);
@@ -440,8 +444,8 @@ static inline bool chi2_test(const struct chi2_config *cfg, chi2_sample_fn sampl
         snprintf(report, report_len,
                  "chi2 = %.1f, dof = %d, p = %.3g (%s %.3g); N = %ld, %d cells (%d pooled); "
                  "pdf integral %.6f (cap %.6f)%s; in zero-pdf cells %ld, invalid %ld",
-                 stat, dof, p, p >= cfg->significance ? ">=" : "<", cfg->significance, cfg->samples, nbins + 2,
-                 pooled, total, cap_mass, normalized ? "" : " > 1: pdf not normalised", zero_pdf_hits, invalid);
+                 stat, dof, p, p >= cfg->significance ? ">=" : "<", cfg->significance, cfg->samples, nbins + 2, pooled,
+                 total, cap_mass, normalized ? "" : " > 1: pdf not normalised", zero_pdf_hits, invalid);
     }
     free(cells);
     return ok;

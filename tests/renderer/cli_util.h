@@ -20,7 +20,6 @@
 
 static char render_bin[PATH_MAX];
 
-
 static inline void find_binary(void)
 {
     char self[PATH_MAX - 16];
@@ -35,9 +34,9 @@ static inline void find_binary(void)
 }
 
 struct run {
-    int status;          /* exit code, or 128 + signal */
-    char out[65536];     /* stdout */
-    char err[8192];      /* stderr */
+    int status;      /* exit code, or 128 + signal */
+    char out[65536]; /* stdout */
+    char err[8192];  /* stderr */
 };
 
 static inline void read_all(int fd, char *buf, size_t cap)

@@ -16,10 +16,10 @@ struct jval {
     enum jtype type;
     bool boolean;
     double number;
-    char *text;          /* J_NUMBER: the number as written; J_STRING: decoded, NUL-terminated */
-    size_t length;       /* of text */
-    int n;               /* J_ARRAY, J_OBJECT: items */
-    char **keys;         /* J_OBJECT: decoded keys, in order */
+    char *text;    /* J_NUMBER: the number as written; J_STRING: decoded, NUL-terminated */
+    size_t length; /* of text */
+    int n;         /* J_ARRAY, J_OBJECT: items */
+    char **keys;   /* J_OBJECT: decoded keys, in order */
     struct jval *items;
 };
 
@@ -58,7 +58,10 @@ static inline int jhex4(const char *s)
     int v = 0;
     for (int i = 0; i < 4; ++i) {
         char c = s[i];
-        int d = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
+        int d = c >= '0' && c <= '9'   ? c - '0'
+                : c >= 'a' && c <= 'f' ? c - 'a' + 10
+                : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                       : -1;
         if (d < 0) return -1;
         v = v * 16 + d;
     }

@@ -40,8 +40,8 @@ static inline bool render_to_image(const char *path, const struct config_overrid
             struct render_result local;
             /* The fault hooks from the environment, as the CLI reads them. */
             struct render_options opt = { &cfg, &scene, NULL, json, { 0, false, STRATEGY_LIGHT_AREA, 1.0 } };
-            ok = json && render_faults_parse(getenv("PORTAL_LIGHTS_FAULT_NONFINITE"), getenv("PORTAL_LIGHTS_FAULT_BIAS"),
-                                             &opt.faults, &err);
+            ok = json && render_faults_parse(getenv("PORTAL_LIGHTS_FAULT_NONFINITE"),
+                                             getenv("PORTAL_LIGHTS_FAULT_BIAS"), &opt.faults, &err);
             ok = ok && render_run(&opt, res ? res : &local, &err);
             if (json) fclose(json);
             scene_destroy(&scene);

@@ -21,7 +21,9 @@ struct test_scene {
 static inline struct polygon square_y(double cx, double y, double cz, double side, bool facing_down)
 {
     double h = side / 2;
-    struct polygon p = { 4, { { cx - h, y, cz - h }, { cx + h, y, cz - h }, { cx + h, y, cz + h }, { cx - h, y, cz + h } } };
+    struct polygon p = {
+        4, { { cx - h, y, cz - h }, { cx + h, y, cz - h }, { cx + h, y, cz + h }, { cx - h, y, cz + h } }
+    };
     if (!facing_down) {
         struct vec3 t = p.v[1];
         p.v[1] = p.v[3];
@@ -83,10 +85,10 @@ struct strategy_chi2 {
     const struct test_scene *ts;
     const struct strategy *s;
     struct strategy_point pt;
-    struct rng rng;            /* the fourth uniform */
-    long successes;            /* samples that reached a light */
-    long pdf_mismatches;       /* samples whose reported pdf differs from strategy_pdf */
-    long light_mismatches;     /* samples whose light is not the first light along wi */
+    struct rng rng;        /* the fourth uniform */
+    long successes;        /* samples that reached a light */
+    long pdf_mismatches;   /* samples whose reported pdf differs from strategy_pdf */
+    long light_mismatches; /* samples whose light is not the first light along wi */
 };
 
 static inline bool strategy_chi2_sample(void *ctx, double u1, double u2, double u3, struct vec3 *dir)

@@ -34,8 +34,8 @@ static struct polygon ngon(struct vec3 c, struct vec3 u, struct vec3 v, double r
 /* Square of the given side, edges along u and v. */
 static struct polygon square(struct vec3 c, struct vec3 u, struct vec3 v, double side)
 {
-    return ngon(c, vec3_scale(vec3_add(u, v), sqrt(0.5)), vec3_scale(vec3_sub(v, u), sqrt(0.5)),
-                side * sqrt(0.5), 4, 0.0);
+    return ngon(c, vec3_scale(vec3_add(u, v), sqrt(0.5)), vec3_scale(vec3_sub(v, u), sqrt(0.5)), side * sqrt(0.5), 4,
+                0.0);
 }
 
 static struct polygon reversed(const struct polygon *p)
@@ -123,17 +123,17 @@ static struct vec3 polygon_uniform(const struct polygon *poly, struct rng *r)
                                          vec3_scale(vec3_sub(poly->v[k + 1], poly->v[0]), b2)));
 }
 
-#define BF_LIGHT_SAMPLES 24
+#define BF_LIGHT_SAMPLES  24
 #define BF_PORTAL_SAMPLES 24
 /* Margin (metres) under which a brute-force decision counts as ambiguous. */
-#define BF_DELTA 1e-4
+#define BF_DELTA     1e-4
 #define BF_MAX_DEPTH 14
 #define BF_MAX_EVALS 3000
 
 struct brute {
     struct polygon light, portal;
     struct flat light_flat, portal_flat;
-    struct vec3 beyond;     /* unit normal of the portal plane, away from the light */
+    struct vec3 beyond; /* unit normal of the portal plane, away from the light */
     double beyond_offset;
     struct vec3 light_samples[BF_LIGHT_SAMPLES + POLYGON_INPUT_MAX];
     struct vec3 portal_samples[BF_PORTAL_SAMPLES + POLYGON_INPUT_MAX];
@@ -266,15 +266,13 @@ static int brute_region(const struct brute *b, struct vec3 p)
        vertices among the samples make this exact: the margin is concave on
        the portal plane, so its minimum over the convex L' is at a vertex. */
     double m_min = INFINITY;
-    for (int i = 0; i < b->n_light_samples; ++i)
-        m_min = fmin(m_min, light_point_margin(b, p, dp, b->light_samples[i]));
+    for (int i = 0; i < b->n_light_samples; ++i) m_min = fmin(m_min, light_point_margin(b, p, dp, b->light_samples[i]));
     enum tri_state umbra = m_min >= BF_DELTA ? TRI_YES : m_min <= -BF_DELTA ? TRI_NO : TRI_UNSURE;
 
     /* Whole portal filled: every ray through a portal sample hits the light
        (exact at the vertices for the same reason, in the light's plane). */
     double u_min = INFINITY;
-    for (int i = 0; i < b->n_portal_samples; ++i)
-        u_min = fmin(u_min, portal_point_margin(b, p, b->portal_samples[i]));
+    for (int i = 0; i < b->n_portal_samples; ++i) u_min = fmin(u_min, portal_point_margin(b, p, b->portal_samples[i]));
     enum tri_state antumbra = u_min >= BF_DELTA ? TRI_YES : u_min <= -BF_DELTA ? TRI_NO : TRI_UNSURE;
 
     if (umbra == TRI_YES) return antumbra == TRI_YES ? -1 : REGION_ANTI_UMBRA;
@@ -294,7 +292,7 @@ static int brute_region(const struct brute *b, struct vec3 p)
 struct pair_setup {
     const char *name;
     struct polygon light, portal;
-    struct vec3 box_lo, box_hi; /* the room */
+    struct vec3 box_lo, box_hi;     /* the room */
     struct vec3 focus_lo, focus_hi; /* around and below the portal */
     struct vec3 near_lo, near_hi;   /* just beyond the portal, where the anti-umbra is */
     struct vec3 axis;               /* unit, from the light's centroid through the portal's */
@@ -337,8 +335,8 @@ static void fixed_setups(struct pair_setup *c)
     struct polygon l, p;
     lampshade(0.6, &l, &p);
     c[5] = setup_make("portal tilted 30 deg", l, rotated(&p, vec3_make(0, 2.2, 0), X, M_PI / 6.0), true);
-    c[6] = setup_make("portal turned 20 deg about y", l, rotated(&p, vec3_make(0, 2.2, 0), Y, 20.0 * M_PI / 180.0),
-                       true);
+    c[6] =
+        setup_make("portal turned 20 deg about y", l, rotated(&p, vec3_make(0, 2.2, 0), Y, 20.0 * M_PI / 180.0), true);
     /* Triangle light, slightly tilted, over a pentagon portal. */
     struct polygon tri = ngon(vec3_make(0.05, 2.6, 0), X, Z, 0.45, 3, 0.3);
     tri = rotated(&tri, vec3_make(0.05, 2.6, 0), vec3_normalize(vec3_make(1, 0, 1)), 0.2);
@@ -429,8 +427,8 @@ static void test_build_plane_counts(void)
         bool ok = antishadow_build(&c[i].light, &c[i].portal, &a, &err);
         CHECK_MSG(ok, "%s: %s", c[i].name, err.message);
         if (!ok) continue;
-        printf("  %-50s separating %2d  umbra %d  antumbra %d%s\n", c[i].name, a.n_separating, a.n_umbra,
-               a.n_antumbra, a.has_antumbra ? "" : " (empty)");
+        printf("  %-50s separating %2d  umbra %d  antumbra %d%s\n", c[i].name, a.n_separating, a.n_umbra, a.n_antumbra,
+               a.has_antumbra ? "" : " (empty)");
         CHECK(a.n_umbra == c[i].portal.n);
         CHECK(a.has_antumbra && a.n_antumbra == c[i].light.n);
         CHECK(a.n_separating >= c[i].portal.n && a.n_separating <= c[i].portal.n + 2 * c[i].light.n);
@@ -470,8 +468,9 @@ static void test_lampshade_hand_checked(void)
         /* Near the walls and on the ceiling, between portal and light: outside.
            (From (2.9, 1, 0) the segment to the farthest light corner,
            x = -0.6, meets y = 2.2 at x = 2.9 - 0.75 * 3.5 = 0.275 > 0.15.) */
-        static const double outside[][3] = { { 2.9, 1.0, 0.0 }, { -2.9, 2.0, 1.0 }, { 0.5, 1.5, -2.9 }, { 0.0, 4.0, 0.0 },
-                                             { 1.0, 4.0, -1.0 }, { 0.0, 2.4, 0.0 }, { 0.05, 2.25, 0.0 } };
+        static const double outside[][3] = { { 2.9, 1.0, 0.0 },  { -2.9, 2.0, 1.0 }, { 0.5, 1.5, -2.9 },
+                                             { 0.0, 4.0, 0.0 },  { 1.0, 4.0, -1.0 }, { 0.0, 2.4, 0.0 },
+                                             { 0.05, 2.25, 0.0 } };
         for (size_t k = 0; k < sizeof outside / sizeof outside[0]; ++k) {
             struct vec3 p = vec3_make(outside[k][0], outside[k][1], outside[k][2]);
             CHECK_MSG(antishadow_classify(&a, p) == REGION_OUTSIDE, "s_L %g, p (%g, %g, %g)", s, p.x, p.y, p.z);
@@ -512,10 +511,8 @@ static void test_brute_force_fixed(void)
         /* The comparison must be nearly exhaustive and see every region. */
         CHECK(g.skipped < n / 50);
         CHECK(g.count[REGION_OUTSIDE] > 100 && g.count[REGION_ANTI_UMBRA] > 50 && g.count[REGION_ANTI_PENUMBRA] > 100);
-        if (c[i].expect_antumbra)
-            CHECK(g.count[REGION_ANTI_ANTUMBRA] > 100);
-        else
-            CHECK(g.count[REGION_ANTI_ANTUMBRA] == 0);
+        if (c[i].expect_antumbra) CHECK(g.count[REGION_ANTI_ANTUMBRA] > 100);
+        else CHECK(g.count[REGION_ANTI_ANTUMBRA] == 0);
         total_compared += g.compared;
         total_disagree += g.disagreements;
     }
@@ -560,7 +557,8 @@ static void test_brute_force_random_pairs(void)
     int configs = 0, compared = 0, skipped = 0, disagree = 0, with_antumbra = 0, count[4] = { 0, 0, 0, 0 };
     while (configs < 40) {
         struct polygon light = random_polygon(&r, vec3_make(0, 0, 0), 0.1 + 0.4 * rng_uniform(&r));
-        struct vec3 dir = vec3_normalize(vec3_make(rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5));
+        struct vec3 dir =
+            vec3_normalize(vec3_make(rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5));
         struct vec3 centre = vec3_scale(dir, 0.3 + 0.9 * rng_uniform(&r));
         struct polygon portal = random_polygon(&r, centre, 0.08 + 0.3 * rng_uniform(&r));
         if (rng_uniform(&r) < 0.5) portal = reversed(&portal);
@@ -667,7 +665,8 @@ static void test_visible_polygon(void)
                 CHECK(flat_inside(&b.portal_flat, y) >= -1e-9);
                 CHECK(portal_point_margin(&b, p, y) >= -1e-9);
                 double t;
-                CHECK(polygon_intersect_ray(&c[i].light, p, vec3_sub(y, p), &t) || portal_point_margin(&b, p, y) < 1e-7);
+                CHECK(polygon_intersect_ray(&c[i].light, p, vec3_sub(y, p), &t) ||
+                      portal_point_margin(&b, p, y) < 1e-7);
                 ++rays;
             }
             /* Portal points: a ray that hits the light passes through the
@@ -688,8 +687,8 @@ static void test_visible_polygon(void)
                         (int)reg, n);
         }
     }
-    printf("  visible polygon at %d outside, %d umbra, %d penumbra, %d antumbra points; %d ray checks\n",
-           checked[0], checked[1], checked[2], checked[3], rays);
+    printf("  visible polygon at %d outside, %d umbra, %d penumbra, %d antumbra points; %d ray checks\n", checked[0],
+           checked[1], checked[2], checked[3], rays);
     CHECK(checked[REGION_ANTI_UMBRA] > 100 && checked[REGION_ANTI_PENUMBRA] > 100 &&
           checked[REGION_ANTI_ANTUMBRA] > 100);
 }

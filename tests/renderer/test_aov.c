@@ -151,8 +151,8 @@ static void test_points_by_ratio(void)
         double x;
         enum aov_region want;
     } cases[] = {
-        { "0.075", 0.0, AOV_REGION_ANTI_UMBRA },  { "0.075", -2.0, AOV_REGION_OUTSIDE },
-        { "1.2", 0.0, AOV_REGION_ANTI_ANTUMBRA }, { "1.2", -2.0, AOV_REGION_ANTI_ANTUMBRA },
+        { "0.075", 0.0, AOV_REGION_ANTI_UMBRA },   { "0.075", -2.0, AOV_REGION_OUTSIDE },
+        { "1.2", 0.0, AOV_REGION_ANTI_ANTUMBRA },  { "1.2", -2.0, AOV_REGION_ANTI_ANTUMBRA },
         { "0.6", -2.0, AOV_REGION_ANTI_PENUMBRA },
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
@@ -249,8 +249,9 @@ static void test_render_points_by_ratio(void)
         { "1.2", 0.0, AOV_REGION_ANTI_ANTUMBRA },
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
-        struct config_override ov[] = { { "params.s_L", cases[i].s_L }, { "film.width", "64" }, { "film.height", "64" },
-                                        { "render.spp", "4" } };
+        struct config_override ov[] = {
+            { "params.s_L", cases[i].s_L }, { "film.width", "64" }, { "film.height", "64" }, { "render.spp", "4" }
+        };
         struct fixture f;
         struct film_image img = { 0 };
         if (!fixture_load(&f, SCENE, ov, 4) || !render_aov(SCENE, ov, 4, &img, NULL)) {
@@ -274,7 +275,8 @@ static void test_render_points_by_ratio(void)
    one-sided light and the plate's underside are outside). */
 static void test_render_matches_classifier(void)
 {
-    static const struct config_override scene_camera[] = { { "film.width", "32" }, { "film.height", "32" },
+    static const struct config_override scene_camera[] = { { "film.width", "32" },
+                                                           { "film.height", "32" },
                                                            { "render.spp", "8" } };
     static const struct config_override below[] = {
         { "film.width", "32" },         { "film.height", "32" },        { "render.spp", "8" },
@@ -282,9 +284,9 @@ static void test_render_matches_classifier(void)
         { "camera.look_at.2", "-0.2" },
     };
     static const struct config_override beside[] = {
-        { "film.width", "32" },         { "film.height", "32" },        { "render.spp", "8" },
+        { "film.width", "32" },          { "film.height", "32" },        { "render.spp", "8" },
         { "camera.position.0", "-1.5" }, { "camera.position.1", "1.2" }, { "camera.position.2", "0" },
-        { "camera.look_at.0", "0.2" }, { "camera.look_at.1", "2.35" }, { "camera.look_at.2", "0" },
+        { "camera.look_at.0", "0.2" },   { "camera.look_at.1", "2.35" }, { "camera.look_at.2", "0" },
         { "camera.fov_y", "12" },
     };
     static const struct {
@@ -328,9 +330,9 @@ static void test_bit_identical(void)
 {
     static const char *const strategies[] = { "antishadow", "light", "antishadow_exact", "portal" };
     struct film_image base = { 0 };
-    struct config_override ov[] = { { "film.width", "32" },      { "film.height", "32" },
-                                    { "render.spp", "4" },       { "render.strategy", "antishadow" },
-                                    { "render.threads", "2" },   { "render.integrator", "direct" },
+    struct config_override ov[] = { { "film.width", "32" },          { "film.height", "32" },
+                                    { "render.spp", "4" },           { "render.strategy", "antishadow" },
+                                    { "render.threads", "2" },       { "render.integrator", "direct" },
                                     { "render.aov.region", "false" } };
     CHECK(render_to_image(SCENE, ov, 7, &base, NULL));
     CHECK(base.rgb && base.region == NULL);

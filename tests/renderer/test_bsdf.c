@@ -143,10 +143,7 @@ static void test_lambert_inline(void)
 }
 
 static const struct test_case tests[] = {
-    { "chi2_sampling", test_chi2_sampling },
-    { "sample_consistent", test_sample_consistent },
-    { "energy", test_energy },
-    { "below_surface", test_below_surface },
-    { "lambert_inline", test_lambert_inline },
+    { "chi2_sampling", test_chi2_sampling }, { "sample_consistent", test_sample_consistent }, { "energy", test_energy },
+    { "below_surface", test_below_surface }, { "lambert_inline", test_lambert_inline },
 };
 TEST_MAIN(tests)

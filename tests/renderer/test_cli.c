@@ -63,9 +63,14 @@ static void test_render_outputs(void)
     char dir[] = "/tmp/portal-cli-XXXXXX";
     make_tmpdir(dir);
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "6", "--threads", "2",
-                  "--set", "film.width=24", "--set", "film.height=16", "--set", "render.snapshots.every_spp=2",
-                  "--quiet", NULL };
+    char *a[] = { NULL,        "configs/scenes/lampshade.yaml",
+                  "--out",     dir,
+                  "--spp",     "6",
+                  "--threads", "2",
+                  "--set",     "film.width=24",
+                  "--set",     "film.height=16",
+                  "--set",     "render.snapshots.every_spp=2",
+                  "--quiet",   NULL };
     run_render(a, 0, 0, &r);
     CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
     int lines = 0, snaps = 0, finals = 0, starts = 0;
@@ -92,11 +97,11 @@ static void test_render_outputs(void)
     CHECK(starts == 1 && finals == 1);
     /* The render threads' CPU time: some, and no more than two threads can
        spend in the render time (plus the clocks' granularity). */
-    CHECK_MSG(render_cpu_s > 0.0 && time_s > 0.0 && render_cpu_s <= 2.0 * time_s + 0.002,
-              "render_cpu_s %g, time_s %g", render_cpu_s, time_s);
+    CHECK_MSG(render_cpu_s > 0.0 && time_s > 0.0 && render_cpu_s <= 2.0 * time_s + 0.002, "render_cpu_s %g, time_s %g",
+              render_cpu_s, time_s);
     /* Three snapshots were written: they took some CPU, and some pause. */
-    CHECK_MSG(snapshot_cpu_s > 0.0 && snapshot_pause_s > 0.0, "snapshot_cpu_s %g, snapshot_pause_s %g",
-              snapshot_cpu_s, snapshot_pause_s);
+    CHECK_MSG(snapshot_cpu_s > 0.0 && snapshot_pause_s > 0.0, "snapshot_cpu_s %g, snapshot_pause_s %g", snapshot_cpu_s,
+              snapshot_pause_s);
     CHECK_MSG(snaps == 3, "%d snapshots (expected at spp 2, 4, 6)", snaps);
     char path[700];
     const char *files[] = { "config.yaml", "final.exr", "snapshot_0001.exr", "snapshot_0003.exr" };
@@ -132,8 +137,14 @@ static void test_signals(void)
         char dir[] = "/tmp/portal-cli-XXXXXX";
         make_tmpdir(dir);
         struct run r;
-        char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "0", "--time", "60",
-                      "--threads", "2", "--set", "film.width=64", "--set", "film.height=64", "--quiet", NULL };
+        char *a[] = { NULL,        "configs/scenes/lampshade.yaml",
+                      "--out",     dir,
+                      "--spp",     "0",
+                      "--time",    "60",
+                      "--threads", "2",
+                      "--set",     "film.width=64",
+                      "--set",     "film.height=64",
+                      "--quiet",   NULL };
         run_render(a, 0.8, sigs[i], &r);
         CHECK_MSG(r.status == 3, "signal %d: status %d: %s", sigs[i], r.status, r.err);
         CHECK(strstr(r.out, "\"event\":\"final\"") && strstr(r.out, "\"interrupted\":true"));
@@ -155,8 +166,12 @@ static void test_signals(void)
 static void test_unwritable_output(void)
 {
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", "/proc/portal-lights-test", "--spp", "1",
-                  "--set", "film.width=8", "--set", "film.height=8", NULL };
+    char *a[] = { NULL,    "configs/scenes/lampshade.yaml",
+                  "--out", "/proc/portal-lights-test",
+                  "--spp", "1",
+                  "--set", "film.width=8",
+                  "--set", "film.height=8",
+                  NULL };
     run_render(a, 0, 0, &r);
     CHECK_MSG(r.status == 2 && strstr(r.err, "--out /proc/portal-lights-test: output folder cannot be created: No such "
                                              "file or directory (expected a folder that can be created and written)"),
@@ -183,8 +198,8 @@ static void test_output_rollback(void)
     struct run r;
     char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", out, "--quiet", NULL };
     run_render(a, 0, 0, &r);
-    CHECK_MSG(r.status == 2 && strncmp(r.err, "--out ", 6) == 0 && strstr(r.err, "File name too long"),
-              "status %d: %s", r.status, r.err);
+    CHECK_MSG(r.status == 2 && strncmp(r.err, "--out ", 6) == 0 && strstr(r.err, "File name too long"), "status %d: %s",
+              r.status, r.err);
     CHECK_MSG(!exists(first), "%s was left behind", first);
     CHECK(exists(dir));
     /* Permissions stop only non-root users: an existing folder that cannot
@@ -273,8 +288,12 @@ static void test_nonfinite_dropped(void)
     char dir[] = "/tmp/portal-cli-XXXXXX";
     make_tmpdir(dir);
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "8", "--set", "film.width=16",
-                  "--set", "film.height=16", "--quiet", NULL };
+    char *a[] = { NULL,      "configs/scenes/lampshade.yaml",
+                  "--out",   dir,
+                  "--spp",   "8",
+                  "--set",   "film.width=16",
+                  "--set",   "film.height=16",
+                  "--quiet", NULL };
     setenv("PORTAL_LIGHTS_FAULT_NONFINITE", "20", 1);
     run_render(a, 0, 0, &r);
     unsetenv("PORTAL_LIGHTS_FAULT_NONFINITE");
@@ -307,8 +326,12 @@ static bool render_biased(const char *bias, struct film_image *img)
     char dir[] = "/tmp/portal-cli-XXXXXX", path[600];
     make_tmpdir(dir);
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "4", "--set", "film.width=16",
-                  "--set", "film.height=16", "--quiet", NULL };
+    char *a[] = { NULL,      "configs/scenes/lampshade.yaml",
+                  "--out",   dir,
+                  "--spp",   "4",
+                  "--set",   "film.width=16",
+                  "--set",   "film.height=16",
+                  "--quiet", NULL };
     if (bias) setenv("PORTAL_LIGHTS_FAULT_BIAS", bias, 1);
     run_render(a, 0, 0, &r);
     unsetenv("PORTAL_LIGHTS_FAULT_BIAS");
@@ -357,7 +380,8 @@ static void test_fault_bias(void)
         setenv("PORTAL_LIGHTS_FAULT_BIAS", bad[k], 1);
         run_render(a, 0, 0, &r);
         unsetenv("PORTAL_LIGHTS_FAULT_BIAS");
-        CHECK_MSG(r.status == 2 && strstr(r.err, "PORTAL_LIGHTS_FAULT_BIAS=") && strstr(r.err, "expected STRATEGY:FACTOR"),
+        CHECK_MSG(r.status == 2 && strstr(r.err, "PORTAL_LIGHTS_FAULT_BIAS=") &&
+                      strstr(r.err, "expected STRATEGY:FACTOR"),
                   "%s: status %d: %s", bad[k], r.status, r.err);
         CHECK_MSG(!exists(out) && r.out[0] == '\0', "%s: something was written", bad[k]);
         remove_tree(dir);
@@ -372,9 +396,14 @@ static void test_doubling_spp(void)
     char dir[] = "/tmp/portal-cli-XXXXXX";
     make_tmpdir(dir);
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "20", "--threads", "2",
-                  "--set", "film.width=16", "--set", "film.height=16", "--set", "render.snapshots.doubling_spp=1",
-                  "--quiet", NULL };
+    char *a[] = { NULL,        "configs/scenes/lampshade.yaml",
+                  "--out",     dir,
+                  "--spp",     "20",
+                  "--threads", "2",
+                  "--set",     "film.width=16",
+                  "--set",     "film.height=16",
+                  "--set",     "render.snapshots.doubling_spp=1",
+                  "--quiet",   NULL };
     run_render(a, 0, 0, &r);
     CHECK_MSG(r.status == 0, "status %d: %s", r.status, r.err);
     const int expected[] = { 1, 2, 4, 8, 16 };

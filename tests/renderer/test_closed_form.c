@@ -84,7 +84,8 @@ static void check_estimates(const struct scene *sc, const struct config *cfg, in
         rd.strategy = (enum strategy_kind)k;
         struct estimate e = estimate_at(sc, &rd, p, ng, material, 40000, 17 + (uint64_t)k);
         double tol = 5.0 * e.se + exact_err + 1e-12 * fabs(exact);
-        if (getenv("VERBOSE")) fprintf(stderr, "  %s %s: %.8g +- %.2g exact %.8g\n", what, strategy_names[k], e.mean, e.se, exact);
+        if (getenv("VERBOSE"))
+            fprintf(stderr, "  %s %s: %.8g +- %.2g exact %.8g\n", what, strategy_names[k], e.mean, e.se, exact);
         CHECK_MSG(fabs(e.mean - exact) <= tol, "%s (%.3f, %.3f, %.3f) %s: %.6g +- %.2g vs exact %.6g (+- %.2g)", what,
                   p.x, p.y, p.z, strategy_names[k], e.mean, e.se, exact, exact_err);
         /* An estimate that is exactly right with zero variance is fine; one
@@ -102,11 +103,11 @@ static void test_lampshade_closed_form(void)
         const char *s_l;
         struct vec3 p;
     } cases[] = {
-        { "0.6", { 0, 0, 0 } },        { "0.6", { -0.3, 0, 0.2 } },   { "0.6", { -0.676, 0, 0 } },
-        { "0.6", { -1.0, 0, 0.4 } },   { "0.6", { 0, 0, 2.0 } },      { "0.6", { -2.55, 0, 0.3 } },
-        { "0.6", { -2.9, 0, 0 } },     { "0.15", { 0.2, 0, 0.1 } },   { "0.15", { -0.5625, 0, 0 } },
-        { "0.15", { -0.9, 0, 0.3 } },  { "0.15", { -2.0, 0, 0 } },    { "1.2", { 0, 0, -0.4 } },
-        { "1.2", { -1.6, 0, 1.2 } },   { "0.3", { -0.25, 0, 0.25 } }, { "0.075", { 0.3, 0, -0.2 } },
+        { "0.6", { 0, 0, 0 } },       { "0.6", { -0.3, 0, 0.2 } },   { "0.6", { -0.676, 0, 0 } },
+        { "0.6", { -1.0, 0, 0.4 } },  { "0.6", { 0, 0, 2.0 } },      { "0.6", { -2.55, 0, 0.3 } },
+        { "0.6", { -2.9, 0, 0 } },    { "0.15", { 0.2, 0, 0.1 } },   { "0.15", { -0.5625, 0, 0 } },
+        { "0.15", { -0.9, 0, 0.3 } }, { "0.15", { -2.0, 0, 0 } },    { "1.2", { 0, 0, -0.4 } },
+        { "1.2", { -1.6, 0, 1.2 } },  { "0.3", { -0.25, 0, 0.25 } }, { "0.075", { 0.3, 0, -0.2 } },
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
         struct config cfg;
@@ -180,7 +181,8 @@ static double brute_force(const struct scene *sc, struct vec3 p, double albedo, 
                 double cos_p = vec3_dot(w, n);
                 double le = light_emitted(li, vec3_neg(w)).r;
                 if (cos_p <= 0.0 || le == 0.0) continue;
-                if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w)))) continue;
+                if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w))))
+                    continue;
                 sum += le * cos_p * fabs(vec3_dot(w, li->target.normal)) / r2 * da;
             }
     }

@@ -12,10 +12,10 @@
 #include "expr.h"
 #include "testlib.h"
 
-#define LAMPSHADE "configs/scenes/lampshade.yaml"
-#define GOOD_DIR "tests/configs/good"
-#define BAD_DIR "tests/configs/bad"
-#define FUZZ_DIR "tests/configs/fuzz"
+#define LAMPSHADE   "configs/scenes/lampshade.yaml"
+#define GOOD_DIR    "tests/configs/good"
+#define BAD_DIR     "tests/configs/bad"
+#define FUZZ_DIR    "tests/configs/fuzz"
 #define COUNT_OF(a) ((int)(sizeof(a) / sizeof((a)[0])))
 
 static bool is_zeroed(const struct config *c)
@@ -24,8 +24,14 @@ static bool is_zeroed(const struct config *c)
     return memcmp(c, &zero, sizeof zero) == 0;
 }
 
-static bool vec3_eq(struct vec3 a, struct vec3 b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
-static bool rgb_eq(struct rgb a, struct rgb b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+static bool vec3_eq(struct vec3 a, struct vec3 b)
+{
+    return a.x == b.x && a.y == b.y && a.z == b.z;
+}
+static bool rgb_eq(struct rgb a, struct rgb b)
+{
+    return a.r == b.r && a.g == b.g && a.b == b.b;
+}
 
 static bool polygon_eq(const struct polygon *a, const struct polygon *b)
 {
@@ -112,7 +118,6 @@ static void check_round_trip(const struct config *c, const char *label)
     config_free(&back);
 }
 
-
 static void test_lampshade_defaults(void)
 {
     struct config c;
@@ -191,19 +196,18 @@ static void test_lampshade_sweep_override(void)
     config_free(&c);
 }
 
-
 static void test_overrides_apply(void)
 {
     const struct config_override o[] = {
-        { "camera.position.1", "3" },         /* a sequence item */
+        { "camera.position.1", "3" }, /* a sequence item */
         { "render.spp", "1" },
-        { "render.spp", "128" },              /* the later one wins */
-        { "render.time", "5" },               /* absent: added */
-        { "shapes.3.material", "white" },     /* index, then key */
+        { "render.spp", "128" },          /* the later one wins */
+        { "render.time", "5" },           /* absent: added */
+        { "shapes.3.material", "white" }, /* index, then key */
         { "lights.0.two_sided", "true" },
         { "render.strategy", "portal" },
-        { "render.output", "123" },           /* a plain scalar read as a string */
-        { "params.s_P", "=0.2 * 2" },         /* an expression */
+        { "render.output", "123" },   /* a plain scalar read as a string */
+        { "params.s_P", "=0.2 * 2" }, /* an expression */
         { "render.snapshots.every", "2" },
         { "render.snapshots.every_spp", "8" },
         { "portals.0.name", "hole" },
@@ -262,9 +266,11 @@ static void test_override_errors(void)
     } cases[] = {
         { "camera.pos.1", "0", "--set camera.pos.1: no key \"pos\" in camera" },
         { "nothing.x", "0", "--set nothing.x: no key \"nothing\" in the top level" },
-        { "shapes.99.material", "white", "--set shapes.99.material: index 99 out of range in shapes (expected 0 to 14)" },
+        { "shapes.99.material", "white",
+          "--set shapes.99.material: index 99 out of range in shapes (expected 0 to 14)" },
         { "shapes.x.material", "white", "--set shapes.x.material: \"x\" is not an index (shapes is a sequence)" },
-        { "camera.position", "1", "--set camera.position: camera.position is a sequence (only scalars can be overridden)" },
+        { "camera.position", "1",
+          "--set camera.position: camera.position is a sequence (only scalars can be overridden)" },
         { "camera", "1", "--set camera: camera is a mapping (only scalars can be overridden)" },
         { "camera.fov_y.x", "1", "--set camera.fov_y.x: camera.fov_y is a scalar" },
         { "camera..x", "1", "--set camera..x: empty key in the path" },
@@ -272,18 +278,24 @@ static void test_override_errors(void)
         { "render.spp", "-3", "--set render.spp=-3: expected a non-negative integer, got -3" },
         { "render.tme", "5", "--set render.tme=5: unknown key \"tme\" in render (expected integrator," },
         /* render.aov is created when missing, then checked like the file's. */
-        { "render.aov.regon", "true", "--set render.aov.regon=true: unknown key \"regon\" in render.aov (expected region)" },
+        { "render.aov.regon", "true",
+          "--set render.aov.regon=true: unknown key \"regon\" in render.aov (expected region)" },
         { "render.aov.region", "3", "--set render.aov.region=3: expected true or false, got \"3\"" },
         { "render.aov", "true", "--set render.aov=true: expected a mapping, got \"true\"" },
         { "render.aovs.region", "true", "--set render.aovs.region: no key \"aovs\" in render" },
-        { "render.strategy", "prtal", "--set render.strategy=prtal: unknown strategy \"prtal\" (expected one of: light_area, light, portal, projection, antishadow, antishadow_exact)" },
+        { "render.strategy", "prtal",
+          "--set render.strategy=prtal: unknown strategy \"prtal\" (expected one of: light_area, light, portal, "
+          "projection, antishadow, antishadow_exact)" },
         { "lights.0.two_sided", "yes", "--set lights.0.two_sided=yes: expected true or false, got \"yes\"" },
-        { "params.s_L", "=s_Q", "--set params.s_L==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: pi)" },
-        { "params.h", "=s_Q", "--set params.h==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: s_L, s_P, a, pi)" },
+        { "params.s_L", "=s_Q",
+          "--set params.s_L==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: pi)" },
+        { "params.h", "=s_Q",
+          "--set params.h==s_Q: expression \"=s_Q\": unknown name \"s_Q\" (expected one of: s_L, s_P, a, pi)" },
         { "camera.fov_y", ".nan", "--set camera.fov_y=.nan: expected a finite number, got .nan" },
         { "render.output", "\xff", "--set render.output=\xff: not valid UTF-8" },
         /* An override can make a value in the file fail: reported in the file. */
-        { "params.s_L", "0", "lampshade.yaml:71:15: light \"lamp\" is degenerate (expected a polygon with non-zero area)" },
+        { "params.s_L", "0",
+          "lampshade.yaml:71:15: light \"lamp\" is degenerate (expected a polygon with non-zero area)" },
         { "lights.0.vertices.0.1", "2.7", "lampshade.yaml:71:15: light \"lamp\" is not planar" },
         { "render.spp", "0", "lampshade.yaml:83:3: spp and time are both 0" },
         { "portals.0.light", "lmp", "portal \"opening\" refers to unknown light \"lmp\" (expected one of: lamp)" },
@@ -304,7 +316,6 @@ static void test_override_errors(void)
     struct error err = { "" };
     CHECK(!config_load(LAMPSHADE, &missing, 1, &c, &err) && strstr(err.message, "--set") != NULL);
 }
-
 
 static void test_effective_round_trip_and_hash(void)
 {
@@ -349,7 +360,6 @@ static void test_effective_round_trip_and_hash(void)
     config_free(&a);
     config_free(&b);
 }
-
 
 static int compare_names(const void *a, const void *b)
 {
@@ -491,7 +501,6 @@ static void test_good_values(void)
     }
 }
 
-
 /* A light whose last vertex is lifted out of the plane by eps times the
    light's size, in a scene scaled by `scale`. */
 static bool load_scaled_light(double scale, double eps, struct error *err)
@@ -557,7 +566,6 @@ static void test_load_string_and_files(void)
     config_free(&c); /* freeing an empty config is harmless */
     CHECK(is_zeroed(&c));
 }
-
 
 /* include: the merged result of good/include_merge.yaml (two includes, one
    of them nested) equals the same config written out by hand, and every
@@ -633,8 +641,8 @@ static void test_include_lampshade(void)
 static void test_include_overrides(void)
 {
     const struct config_override o[] = {
-        { "camera.position.1", "3" },  /* camera.position is only in base_room.yaml */
-        { "params.y", "2.5" },         /* a param of base_room.yaml that only it uses */
+        { "camera.position.1", "3" }, /* camera.position is only in base_room.yaml */
+        { "params.y", "2.5" },        /* a param of base_room.yaml that only it uses */
         { "materials.red.albedo.0", "0.25" },
     };
     struct config c;
@@ -749,8 +757,7 @@ static void test_include_files(void)
     CHECK(write_text(dir, "bomb_top.yaml", "include: bomb.yaml\n"));
     snprintf(path, sizeof path, "%s/bomb_top.yaml", dir);
     CHECK(!config_load(path, NULL, 0, &c, &err));
-    CHECK_MSG(strstr(err.message, "bomb.yaml:2:7: expected a number, got a mapping (included from"), "%s",
-              err.message);
+    CHECK_MSG(strstr(err.message, "bomb.yaml:2:7: expected a number, got a mapping (included from"), "%s", err.message);
 
     const char text[] = "# a comment\ninclude: d.yaml\n";
     CHECK(!config_load_string(text, strlen(text), "memory", NULL, 0, &c, &err));
@@ -798,12 +805,12 @@ static void test_expressions(void)
         const char *text;
         double value;
     } ok_cases[] = {
-        { "1 + 2 * 3", 7.0 },       { "(1 + 2) * 3", 9.0 },     { "2 ^ 3 ^ 2", 512.0 }, /* right-assoc */
-        { "-2 ^ 2", -4.0 },         { "2 ^ -1", 0.5 },          { "a * b_2 - 1", 5.0 },
-        { "8 / 4 / 2", 1.0 },       { "1 - 2 - 3", -4.0 },      { "--a", 2.0 },
-        { "min(3, a, 7)", 2.0 },    { "max(1, b_2)", 3.0 },     { "abs(-a)", 2.0 },
-        { "sqrt(16)", 4.0 },        { "cos(pi)", -1.0 },        { "sin(0)", 0.0 },
-        { "tan(0)", 0.0 },          { ".5e1 + 1.5E-1", 5.15 },  { " 7 ", 7.0 },
+        { "1 + 2 * 3", 7.0 },    { "(1 + 2) * 3", 9.0 },    { "2 ^ 3 ^ 2", 512.0 }, /* right-assoc */
+        { "-2 ^ 2", -4.0 },      { "2 ^ -1", 0.5 },         { "a * b_2 - 1", 5.0 },
+        { "8 / 4 / 2", 1.0 },    { "1 - 2 - 3", -4.0 },     { "--a", 2.0 },
+        { "min(3, a, 7)", 2.0 }, { "max(1, b_2)", 3.0 },    { "abs(-a)", 2.0 },
+        { "sqrt(16)", 4.0 },     { "cos(pi)", -1.0 },       { "sin(0)", 0.0 },
+        { "tan(0)", 0.0 },       { ".5e1 + 1.5E-1", 5.15 }, { " 7 ", 7.0 },
     };
     for (int i = 0; i < COUNT_OF(ok_cases); ++i) {
         double v = NAN;

@@ -40,10 +40,10 @@ static void test_describe_lists_the_tables(void)
 {
     struct jval d;
     if (!describe(&d)) return;
-    static const char *const keys[] = { "program",        "version",      "strategies", "integrators",
-                                        "materials",      "mis",          "portal_weights", "samplers",
-                                        "aov",            "exr_channels", "exr_attributes", "snapshot_keys",
-                                        "exit_codes",     "json_events" };
+    static const char *const keys[] = { "program",    "version",      "strategies",     "integrators",
+                                        "materials",  "mis",          "portal_weights", "samplers",
+                                        "aov",        "exr_channels", "exr_attributes", "snapshot_keys",
+                                        "exit_codes", "json_events" };
     CHECK_MSG(d.n == COUNT(keys), "%d keys", d.n);
     for (int i = 0; i < d.n && i < COUNT(keys); ++i) CHECK_MSG(!strcmp(d.keys[i], keys[i]), "key %d: %s", i, d.keys[i]);
     const struct jval *v = json_get(&d, "program");
@@ -63,8 +63,8 @@ static void test_describe_lists_the_tables(void)
     CHECK(json_is_names(json_get(&d, "exr_attributes"), NULL, film_attribute_names, FILM_ATTRIBUTE_COUNT));
     CHECK(json_is_names(json_get(&d, "json_events"), NULL, render_event_names, RENDER_EVENT_COUNT));
     /* The spellings the harness is written against, pinned once here. */
-    static const char *const strategies[] = { "light_area", "light", "portal", "projection", "antishadow",
-                                              "antishadow_exact" };
+    static const char *const strategies[] = { "light_area", "light",      "portal",
+                                              "projection", "antishadow", "antishadow_exact" };
     CHECK(json_is_names(json_get(&d, "strategies"), NULL, strategies, COUNT(strategies)));
 
     const struct jval *sk = json_get(&d, "snapshot_keys");
@@ -76,12 +76,16 @@ static void test_describe_lists_the_tables(void)
     }
     const struct jval *ec = json_get(&d, "exit_codes");
     CHECK(ec && ec->type == J_OBJECT && ec->n == EXIT_CODE_COUNT);
-    static const struct { const char *name; int code; } codes[] = {
+    static const struct {
+        const char *name;
+        int code;
+    } codes[] = {
         { "done", EXIT_DONE }, { "runtime", EXIT_RUNTIME }, { "usage", EXIT_USAGE }, { "interrupted", EXIT_INTERRUPTED }
     };
     for (int i = 0; i < COUNT(codes); ++i) {
         const struct jval *c = json_get(ec, codes[i].name);
-        CHECK_MSG(c && c->type == J_NUMBER && c->number == codes[i].code && !strcmp(exit_code_names[codes[i].code], codes[i].name),
+        CHECK_MSG(c && c->type == J_NUMBER && c->number == codes[i].code &&
+                      !strcmp(exit_code_names[codes[i].code], codes[i].name),
                   "exit code %s", codes[i].name);
     }
     jfree(&d);
@@ -175,7 +179,8 @@ static int check_events(char *out, const struct jval *events)
         CHECK_MSG(ok, "%s in %s", why, line);
         const struct jval *e = ok ? json_get(&v, "event") : NULL;
         bool listed = false;
-        for (int i = 0; e && e->type == J_STRING && i < events->n; ++i) listed |= !strcmp(events->items[i].text, e->text);
+        for (int i = 0; e && e->type == J_STRING && i < events->n; ++i)
+            listed |= !strcmp(events->items[i].text, e->text);
         CHECK_MSG(!ok || listed, "event not listed by --describe: %s", line);
         if (ok) jfree(&v);
         line = nl + 1;
@@ -200,9 +205,15 @@ static void test_every_listed_strategy_renders(void)
         char dir[] = "/tmp/portal-describe-XXXXXX";
         make_tmpdir(dir);
         struct run r;
-        char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--strategy", strategies->items[s].text,
-                      "--spp", "2", "--set", "film.width=12", "--set", "film.height=8", "--set",
-                      "render.snapshots.every_spp=1", "--threads", "1", "--quiet", NULL };
+        char *a[] = { NULL,         "configs/scenes/lampshade.yaml",
+                      "--out",      dir,
+                      "--strategy", strategies->items[s].text,
+                      "--spp",      "2",
+                      "--set",      "film.width=12",
+                      "--set",      "film.height=8",
+                      "--set",      "render.snapshots.every_spp=1",
+                      "--threads",  "1",
+                      "--quiet",    NULL };
         run_render(a, 0, 0, &r);
         CHECK_MSG(r.status == EXIT_DONE, "--strategy %s: status %d: %s", strategies->items[s].text, r.status, r.err);
         CHECK_MSG(check_events(r.out, events) == 4, "--strategy %s: not start, 2 snapshots, final",
@@ -239,8 +250,13 @@ static void test_listed_aov_channels_are_written(void)
     char dir[] = "/tmp/portal-describe-XXXXXX";
     make_tmpdir(dir);
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "1", "--set", "film.width=12",
-                  "--set", "film.height=8", "--set", "render.aov.region=true", "--quiet", NULL };
+    char *a[] = { NULL,      "configs/scenes/lampshade.yaml",
+                  "--out",   dir,
+                  "--spp",   "1",
+                  "--set",   "film.width=12",
+                  "--set",   "film.height=8",
+                  "--set",   "render.aov.region=true",
+                  "--quiet", NULL };
     run_render(a, 0, 0, &r);
     CHECK_MSG(r.status == EXIT_DONE, "status %d: %s", r.status, r.err);
     char path[600];
@@ -259,9 +275,21 @@ static void test_listed_aov_channels_are_written(void)
 /* The test reader itself: what it must refuse. */
 static void test_json_reader_is_strict(void)
 {
-    static const char *const bad[] = { "",        "{",         "{\"a\":1,}", "[1,]",       "{\"a\":1,\"a\":2}",
-                                       "\"\x01\"", "\"\\x\"",   "\"\\ud800\"", "01",        "1.",
-                                       "{} {}",    "[\"a\" \"b\"]", "tru",    "\"abc",      "\"\\" };
+    static const char *const bad[] = { "",
+                                       "{",
+                                       "{\"a\":1,}",
+                                       "[1,]",
+                                       "{\"a\":1,\"a\":2}",
+                                       "\"\x01\"",
+                                       "\"\\x\"",
+                                       "\"\\ud800\"",
+                                       "01",
+                                       "1.",
+                                       "{} {}",
+                                       "[\"a\" \"b\"]",
+                                       "tru",
+                                       "\"abc",
+                                       "\"\\" };
     for (int i = 0; i < COUNT(bad); ++i) {
         struct jval v;
         CHECK_MSG(!json_parse(bad[i], &v, NULL), "accepted %s", bad[i]);

@@ -73,10 +73,10 @@ static double symmetric(struct rng *r, double a)
 #define SINCOS_NEAR_ZERO_ABS 2e-23
 
 struct sincos_stats {
-    double max_ulp;          /* over all points with |result| > 1e-6 */
+    double max_ulp; /* over all points with |result| > 1e-6 */
     double max_ulp_at;
-    double near_zero_ulp;    /* ulps where |result| <= 1e-6 (informative) */
-    double near_zero_abs;    /* absolute error there */
+    double near_zero_ulp; /* ulps where |result| <= 1e-6 (informative) */
+    double near_zero_abs; /* absolute error there */
     long violations;
 };
 
@@ -184,8 +184,9 @@ static void test_sincos_absolute(void)
         pyth = fmax(pyth, pythagoras_error(s, c));
     }
     /* The ends of the range and the multiples of pi/2 near them. */
-    const double edge[] = { top, -top, nextafter(top, 0.0), 667544.0 * (M_PI / 2.0), -667544.0 * (M_PI / 2.0),
-                            667543.5 * (M_PI / 2.0) };
+    const double edge[] = {
+        top, -top, nextafter(top, 0.0), 667544.0 * (M_PI / 2.0), -667544.0 * (M_PI / 2.0), 667543.5 * (M_PI / 2.0)
+    };
     for (size_t i = 0; i < sizeof edge / sizeof edge[0]; ++i) {
         double s, c;
         fm_sincos(edge[i], &s, &c);
@@ -317,7 +318,8 @@ static long round_mismatches;
 static void round_check(double x)
 {
     double got = fm_round(x), ref = nearbyint(x);
-    if (got != ref && round_mismatches++ < 5) fprintf(stderr, "  fm_round(%.17g) = %.17g, nearbyint %.17g\n", x, got, ref);
+    if (got != ref && round_mismatches++ < 5)
+        fprintf(stderr, "  fm_round(%.17g) = %.17g, nearbyint %.17g\n", x, got, ref);
 }
 
 /* The 1.5 * 2^52 trick rounds like nearbyint in the default mode (ties to
@@ -338,8 +340,22 @@ static void test_round(void)
         /* ...and arbitrary fractions. */
         round_check(random_sign(&r, exp2(51.0 * rng_uniform(&r)) * rng_uniform(&r)));
     }
-    const double special[] = { 0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 0.49999999999999994, -0.49999999999999994,
-                               1e-300, lim - 0.5, -(lim - 0.5), lim - 1.0, -(lim - 1.0), lim - 1.5 };
+    const double special[] = { 0.0,
+                               -0.0,
+                               0.5,
+                               -0.5,
+                               1.5,
+                               -1.5,
+                               2.5,
+                               -2.5,
+                               0.49999999999999994,
+                               -0.49999999999999994,
+                               1e-300,
+                               lim - 0.5,
+                               -(lim - 0.5),
+                               lim - 1.0,
+                               -(lim - 1.0),
+                               lim - 1.5 };
     for (size_t i = 0; i < sizeof special / sizeof special[0]; ++i) round_check(special[i]);
     /* Every half-integer in a stretch just below 2^51, and near 0. */
     for (int j = 1; j < 1000; ++j) {
@@ -353,10 +369,8 @@ static void test_round(void)
 }
 
 static const struct test_case fastmath_tests[] = {
-    { "sincos_ulp", test_sincos_ulp },
-    { "sincos_absolute", test_sincos_absolute },
-    { "atan2_ulp", test_atan2_ulp },
-    { "atan2_special", test_atan2_special },
+    { "sincos_ulp", test_sincos_ulp }, { "sincos_absolute", test_sincos_absolute },
+    { "atan2_ulp", test_atan2_ulp },   { "atan2_special", test_atan2_special },
     { "round", test_round },
 };
 

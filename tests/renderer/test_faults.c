@@ -47,9 +47,14 @@ static void test_full_disk(void)
     char dir[] = "/tmp/portal-fault-XXXXXX";
     make_tmpdir(dir);
     struct run r;
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", dir, "--spp", "40", "--threads", "2",
-                  "--set", "film.width=48", "--set", "film.height=48", "--set", "render.snapshots.every_spp=4",
-                  "--quiet", NULL };
+    char *a[] = { NULL,        "configs/scenes/lampshade.yaml",
+                  "--out",     dir,
+                  "--spp",     "40",
+                  "--threads", "2",
+                  "--set",     "film.width=48",
+                  "--set",     "film.height=48",
+                  "--set",     "render.snapshots.every_spp=4",
+                  "--quiet",   NULL };
     /* 48 x 48 x 6 floats = 55 kB per uncompressed snapshot. */
     run_render_limited(a, 0, 0, 40000, &r);
     CHECK_MSG(r.status == 1, "status %d: %s", r.status, r.err);
@@ -111,12 +116,12 @@ enum kill_kind { KILL_TERM, KILL_KILL, KILL_TERM_THEN_KILL };
 
 struct kill_counts {
     int runs, by_kind[3];
-    int early;          /* SIGTERM before the signal handler: default action */
-    int exrs;           /* EXR files opened */
-    int unreadable;     /* must stay 0 */
-    int finals;         /* readable final.exr after SIGTERM (alone or followed by SIGKILL) */
-    int mid_snapshot;   /* kills that left a snapshot temporary: caught writing one */
-    int mid_final;      /* kills that left final.exr's temporary: caught writing it */
+    int early;        /* SIGTERM before the signal handler: default action */
+    int exrs;         /* EXR files opened */
+    int unreadable;   /* must stay 0 */
+    int finals;       /* readable final.exr after SIGTERM (alone or followed by SIGKILL) */
+    int mid_snapshot; /* kills that left a snapshot temporary: caught writing one */
+    int mid_final;    /* kills that left final.exr's temporary: caught writing it */
 };
 
 /* One loop: argv (argv[0] and the --out value filled in here, at index
@@ -184,8 +189,8 @@ static void kill_loop_run(const struct kill_loop *loop, int iterations, uint64_t
             k->finals += exists(path);
             break;
         case KILL_KILL:
-            CHECK_MSG(r.status == 128 + SIGKILL || r.status == 0, "%s: SIGKILL at %.3f s: status %d", loop->name,
-                      when, r.status);
+            CHECK_MSG(r.status == 128 + SIGKILL || r.status == 0, "%s: SIGKILL at %.3f s: status %d", loop->name, when,
+                      r.status);
             break;
         case KILL_TERM_THEN_KILL:
             CHECK_MSG(r.status == 128 + SIGKILL || r.status == 3 || r.status == 0 || early,
@@ -198,8 +203,8 @@ static void kill_loop_run(const struct kill_loop *loop, int iterations, uint64_t
     CHECK_MSG(k->unreadable == 0, "%s: %d of %d runs left an unreadable EXR", loop->name, k->unreadable, k->runs);
     printf("  %s: %d runs (%d SIGTERM, %d SIGKILL, %d SIGTERM then SIGKILL; %d before the handler), %d EXRs "
            "opened, %d unreadable, %d final.exr after SIGTERM, killed writing: %d snapshots, %d finals\n",
-           loop->name, k->runs, k->by_kind[KILL_TERM], k->by_kind[KILL_KILL], k->by_kind[KILL_TERM_THEN_KILL],
-           k->early, k->exrs, k->unreadable, k->finals, k->mid_snapshot, k->mid_final);
+           loop->name, k->runs, k->by_kind[KILL_TERM], k->by_kind[KILL_KILL], k->by_kind[KILL_TERM_THEN_KILL], k->early,
+           k->exrs, k->unreadable, k->finals, k->mid_snapshot, k->mid_final);
 }
 
 static int kill_iterations(int default_count)
@@ -213,8 +218,13 @@ static int kill_iterations(int default_count)
    0.65 s: half SIGKILL, half SIGTERM. */
 static void test_kill_loop(void)
 {
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", NULL, "--spp", "0", "--time", "3",
-                  "--set", "film.width=40", "--set", "film.height=40", "--set", "render.snapshots.every=0.05",
+    char *a[] = { NULL,      "configs/scenes/lampshade.yaml",
+                  "--out",   NULL,
+                  "--spp",   "0",
+                  "--time",  "3",
+                  "--set",   "film.width=40",
+                  "--set",   "film.height=40",
+                  "--set",   "render.snapshots.every=0.05",
                   "--quiet", NULL };
     struct kill_loop loop = { "kill loop", a, 3, 0.05, 0.65, 2 };
     struct kill_counts k;
@@ -229,9 +239,14 @@ static void test_kill_loop(void)
    the temporary file and its rename. */
 static void test_kill_loop_writes(void)
 {
-    char *a[] = { NULL, "configs/scenes/lampshade.yaml", "--out", NULL, "--spp", "24", "--threads", "2",
-                  "--set", "film.width=96", "--set", "film.height=96", "--set", "render.snapshots.every_spp=1",
-                  "--quiet", NULL };
+    char *a[] = { NULL,        "configs/scenes/lampshade.yaml",
+                  "--out",     NULL,
+                  "--spp",     "24",
+                  "--threads", "2",
+                  "--set",     "film.width=96",
+                  "--set",     "film.height=96",
+                  "--set",     "render.snapshots.every_spp=1",
+                  "--quiet",   NULL };
     /* The duration of an undisturbed run. */
     char dir[] = "/tmp/portal-fault-XXXXXX";
     make_tmpdir(dir);

@@ -67,7 +67,7 @@ static unsigned char *file_slurp(const char *path, size_t *size)
     long n = ftell(f);
     fseek(f, 0, SEEK_SET);
     unsigned char *buf = malloc(n > 0 ? (size_t)n : 1);
-    *size = fread(buf, 1, (size_t)n, f) ;
+    *size = fread(buf, 1, (size_t)n, f);
     fclose(f);
     if (*size != (size_t)n) {
         free(buf);
@@ -103,12 +103,18 @@ static float random_float(struct rng *r)
 {
     uint32_t u = rng_next_u32(r);
     switch (u % 16) {
-    case 0: return FLT_MAX;
-    case 1: return -FLT_MAX;
-    case 2: return -0.0f;
-    case 3: return 1e-40f;
-    case 4: return (float)(1e30 * (rng_uniform(r) - 0.5));
-    default: break;
+    case 0:
+        return FLT_MAX;
+    case 1:
+        return -FLT_MAX;
+    case 2:
+        return -0.0f;
+    case 3:
+        return 1e-40f;
+    case 4:
+        return (float)(1e30 * (rng_uniform(r) - 0.5));
+    default:
+        break;
     }
     double mag = ldexp(rng_uniform(r), (int)(u >> 8) % 80 - 40);
     return (float)((u & 0x10) ? -mag : mag);
@@ -181,8 +187,7 @@ static int exr_check_raw_chunks(const char *path, const struct film_image *img, 
             raw = -1;
             break;
         }
-        uint64_t off = (uint64_t)le32(b + i + 8 * (size_t)c) |
-                       (uint64_t)le32(b + i + 8 * (size_t)c + 4) << 32;
+        uint64_t off = (uint64_t)le32(b + i + 8 * (size_t)c) | (uint64_t)le32(b + i + 8 * (size_t)c + 4) << 32;
         if (off + 8 > n) {
             raw = -1;
             break;
@@ -367,8 +372,8 @@ static void test_snapshot_never_writes_nonfinite(void)
         film_snapshot(&f, &img);
         for (int k = 0; k < 3; ++k) {
             CHECK_MSG(isfinite(img.rgb[k]), "pass %d rgb[%d] = %g", (int)pass, k, img.rgb[k]);
-            CHECK_MSG(isfinite(img.variance[k]) && img.variance[k] >= 0.0f,
-                      "pass %d variance[%d] = %g", (int)pass, k, img.variance[k]);
+            CHECK_MSG(isfinite(img.variance[k]) && img.variance[k] >= 0.0f, "pass %d variance[%d] = %g", (int)pass, k,
+                      img.variance[k]);
         }
     }
     CHECK(isnan(f.mean[0]) || isinf(f.m2[0])); /* the case was really provoked */
@@ -597,8 +602,8 @@ static void test_exr_full_disk_keeps_old_file(void)
         if (pid == 0) full_disk_child(path, &img, limits[i]);
         int status = -1;
         CHECK(pid > 0 && waitpid(pid, &status, 0) == pid);
-        CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 0,
-                  "limit %lu: child status %d", (unsigned long)limits[i], status);
+        CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 0, "limit %lu: child status %d", (unsigned long)limits[i],
+                  status);
         size_t now_size = 0;
         unsigned char *now_bytes = file_slurp(path, &now_size);
         CHECK_MSG(now_bytes && now_size == old_size && !memcmp(now_bytes, old_bytes, old_size),
@@ -677,8 +682,8 @@ static void test_exr_read_errors(void)
             snprintf(path, sizeof path, "%s/renamed.exr", dir);
             CHECK(file_spit(path, bytes, size));
             CHECK(!film_read_exr(path, &back, &meta, &err));
-            CHECK_MSG(strstr(err.message, path) && strstr(err.message, "missing channel variance.G"),
-                      "%s", err.message);
+            CHECK_MSG(strstr(err.message, path) && strstr(err.message, "missing channel variance.G"), "%s",
+                      err.message);
         }
         free(bytes);
     }
@@ -724,8 +729,7 @@ static void test_add_row_matches_add(void)
     rng_seed(&r, 5, 0, 0);
     struct rgb c[W];
     for (int pass = 0; pass < 20; ++pass) {
-        for (int x = 0; x < W; ++x)
-            c[x] = rgb_make(rng_uniform(&r) * 10.0, rng_uniform(&r), rng_uniform(&r) * 1e-3);
+        for (int x = 0; x < W; ++x) c[x] = rgb_make(rng_uniform(&r) * 10.0, rng_uniform(&r), rng_uniform(&r) * 1e-3);
         for (int x = 0; x < W; ++x) film_add(&a, x, 1, c[x]);
         film_add_row(&b, 1, c, W);
         /* Uneven counts: some pixels get an extra sample in some passes. */
@@ -795,8 +799,14 @@ static void test_exr_region_round_trip(void)
     /* The channel names and the attribute, as bytes in the header. */
     size_t size = 0;
     unsigned char *bytes = file_slurp(path, &size);
-    const char *want[] = { "region.outside", "region.anti_umbra", "region.anti_penumbra", "region.anti_antumbra",
-                           "region.inside", "region.emitter", "region.miss", "aov_region_classes",
+    const char *want[] = { "region.outside",
+                           "region.anti_umbra",
+                           "region.anti_penumbra",
+                           "region.anti_antumbra",
+                           "region.inside",
+                           "region.emitter",
+                           "region.miss",
+                           "aov_region_classes",
                            "outside anti_umbra anti_penumbra anti_antumbra inside emitter miss" };
     for (size_t i = 0; bytes && i < sizeof want / sizeof want[0]; ++i) {
         bool found = false;

@@ -20,7 +20,7 @@
    for the comparison to cover it. */
 struct coverage {
     long light, floor, red, green, shade, other, miss;
-    long lit;   /* pixels with non-zero radiance */
+    long lit; /* pixels with non-zero radiance */
     long shadow_rays, unblocked;
 };
 
@@ -110,12 +110,13 @@ static void compare_rows(const struct config *cfg, const struct scene *sc, enum 
                 if (same && same_rng) continue;
                 struct vec3 hp = found[x] ? hits[x].p : vec3_make(0, 0, 0);
                 if (bad++ < 3)
-                    fprintf(stderr,
-                            "  %s/%s row %d pass %d pixel %d (hit %d, light %d, p (%.9g, %.9g, %.9g)): row (%.17g, %.17g, "
-                            "%.17g) vs one (%.17g, %.17g, %.17g), rng %s\n",
-                            ik, what, y, pass, x, found[x], found[x] ? hits[x].light : -1, hp.x, hp.y, hp.z,
-                            out_row[x].r, out_row[x].g, out_row[x].b, out_one[x].r, out_one[x].g,
-                            out_one[x].b, same_rng ? "same" : "differs");
+                    fprintf(
+                        stderr,
+                        "  %s/%s row %d pass %d pixel %d (hit %d, light %d, p (%.9g, %.9g, %.9g)): row (%.17g, %.17g, "
+                        "%.17g) vs one (%.17g, %.17g, %.17g), rng %s\n",
+                        ik, what, y, pass, x, found[x], found[x] ? hits[x].light : -1, hp.x, hp.y, hp.z, out_row[x].r,
+                        out_row[x].g, out_row[x].b, out_one[x].r, out_one[x].g, out_one[x].b,
+                        same_rng ? "same" : "differs");
             }
             CHECK_MSG(bad == 0, "%s/%s row %d pass %d: %d pixels differ", ik, what, y, pass, bad);
             CHECK_MSG(st_row.rays == st_one.rays && st_row.shadow_rays == st_one.shadow_rays &&
@@ -182,9 +183,10 @@ static void test_row_matches_pixels(void)
            comparison). */
         CHECK_MSG(cov.unblocked > 0, "%s: no unblocked shadow ray", strategy_names[combos[c].strategy]);
         if (c == 0)
-            printf("  scene camera, rows 60 100 128 200: floor %ld, red wall %ld, green wall %ld, shade %ld, other %ld, "
-                   "light %ld pixels\n",
-                   cov.floor, cov.red, cov.green, cov.shade, cov.other, cov.light);
+            printf(
+                "  scene camera, rows 60 100 128 200: floor %ld, red wall %ld, green wall %ld, shade %ld, other %ld, "
+                "light %ld pixels\n",
+                cov.floor, cov.red, cov.green, cov.shade, cov.other, cov.light);
     }
     scene_destroy(&sc);
     config_free(&cfg);
@@ -196,7 +198,9 @@ static void test_row_matches_pixels(void)
 static void test_row_matches_pixels_light_seen(void)
 {
     const struct config_override ov[] = {
-        { "camera.position.1", "0.5" }, { "camera.position.2", "1.0" }, { "camera.look_at.1", "2.6" },
+        { "camera.position.1", "0.5" },
+        { "camera.position.2", "1.0" },
+        { "camera.look_at.1", "2.6" },
         { "camera.look_at.2", "-0.2" },
     };
     struct config cfg;

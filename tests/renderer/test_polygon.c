@@ -19,7 +19,7 @@ static struct polygon poly_make(int n, const double (*xyz)[3])
 static struct polygon rect_xy(double x0, double x1, double y0, double y1, double z, int flip)
 {
     double v[4][3] = { { x0, y0, z }, { x1, y0, z }, { x1, y1, z }, { x0, y1, z } };
-    struct polygon p = poly_make(4, (const double (*)[3])v);
+    struct polygon p = poly_make(4, (const double(*)[3])v);
     if (flip) {
         struct vec3 t = p.v[1];
         p.v[1] = p.v[3];
@@ -327,7 +327,6 @@ static void test_intersect_contains(void)
     CHECK(polygon_contains(&sq, vec3_madd(c, x, 1.0)));
     CHECK(!polygon_contains(&sq, vec3_madd(c, x, 1.001)));
 }
-
 
 /* Solid angle of [x0,x1] x [y0,y1] in the plane z = h seen from the origin:
    the integral of h / r^3 over the rectangle, whose antiderivative is

@@ -33,18 +33,23 @@ static char *slurp(const char *path)
 
 /* argv for a render of lampshade with overrides into out, with `extra`
    (NULL-terminated, at most 4) appended. */
-#define LAMPSHADE_ARGS(out)                                                                                       \
-    "configs/scenes/lampshade.yaml", "--set", "params.s_L=1.2", "--strategy", "antishadow", "--spp", "2", "--out", \
-        out, "--set", "film.width=8", "--set", "film.height=6", "--set", "render.snapshots.doubling_spp=1",        \
+#define LAMPSHADE_ARGS(out)                                                                                            \
+    "configs/scenes/lampshade.yaml", "--set", "params.s_L=1.2", "--strategy", "antishadow", "--spp", "2", "--out",     \
+        out, "--set", "film.width=8", "--set", "film.height=6", "--set", "render.snapshots.doubling_spp=1",            \
         "--threads", "1", "--quiet"
 
 /* The overrides of LAMPSHADE_ARGS, for config_load in this process. */
 static void lampshade_overrides(struct config_override ov[8], const char *out)
 {
     const struct config_override o[8] = {
-        { "params.s_L", "1.2" },   { "render.strategy", "antishadow" }, { "render.spp", "2" },
-        { "render.output", out },  { "film.width", "8" },               { "film.height", "6" },
-        { "render.snapshots.doubling_spp", "1" }, { "render.threads", "1" },
+        { "params.s_L", "1.2" },
+        { "render.strategy", "antishadow" },
+        { "render.spp", "2" },
+        { "render.output", out },
+        { "film.width", "8" },
+        { "film.height", "6" },
+        { "render.snapshots.doubling_spp", "1" },
+        { "render.threads", "1" },
     };
     memcpy(ov, o, sizeof o);
 }
@@ -324,7 +329,8 @@ static void test_json_escapes_names(void)
     CHECK_MSG(r.status == EXIT_DONE, "%d: %s", r.status, r.err);
     /* ASCII only, no raw control character. */
     bool ascii = true;
-    for (const unsigned char *p = (const unsigned char *)r.out; *p; ++p) ascii &= (*p >= 0x20 && *p < 0x7F) || *p == '\n';
+    for (const unsigned char *p = (const unsigned char *)r.out; *p; ++p)
+        ascii &= (*p >= 0x20 && *p < 0x7F) || *p == '\n';
     CHECK(ascii);
     struct jval v;
     char why[200];

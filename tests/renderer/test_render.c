@@ -7,11 +7,13 @@
 #define SCENE "configs/scenes/lampshade.yaml"
 
 static const struct config_override small[] = {
-    { "film.width", "32" }, { "film.height", "32" }, { "render.snapshots.every_spp", "1000000" },
+    { "film.width", "32" },
+    { "film.height", "32" },
+    { "render.snapshots.every_spp", "1000000" },
 };
 
-static bool render_small(const char *k1, const char *v1, const char *k2, const char *v2, const char *k3,
-                         const char *v3, struct film_image *img)
+static bool render_small(const char *k1, const char *v1, const char *k2, const char *v2, const char *k3, const char *v3,
+                         struct film_image *img)
 {
     struct config_override ov[8];
     int n = 0;
@@ -59,12 +61,21 @@ static void test_direct_equals_path_depth1(void)
     static const char *strategies[] = { "light", "antishadow_exact" };
     for (int s = 0; s < 2; ++s) {
         struct film_image a = { 0 }, b = { 0 };
-        struct config_override ov[] = { small[0], small[1], small[2], { "render.spp", "8" },
-                                        { "render.strategy", strategies[s] }, { "render.integrator", "direct" } };
+        struct config_override ov[] = { small[0],
+                                        small[1],
+                                        small[2],
+                                        { "render.spp", "8" },
+                                        { "render.strategy", strategies[s] },
+                                        { "render.integrator", "direct" } };
         CHECK(render_to_image(SCENE, ov, 6, &a, NULL));
-        struct config_override ov2[] = { small[0], small[1], small[2], { "render.spp", "8" },
-                                         { "render.strategy", strategies[s] }, { "render.integrator", "path" },
-                                         { "render.max_depth", "1" }, { "render.rr_depth", "5" } };
+        struct config_override ov2[] = { small[0],
+                                         small[1],
+                                         small[2],
+                                         { "render.spp", "8" },
+                                         { "render.strategy", strategies[s] },
+                                         { "render.integrator", "path" },
+                                         { "render.max_depth", "1" },
+                                         { "render.rr_depth", "5" } };
         CHECK(render_to_image(SCENE, ov2, 8, &b, NULL));
         CHECK_MSG(bit_identical(&a, &b), "strategy %s", strategies[s]);
         film_image_free(&a), film_image_free(&b);
@@ -79,7 +90,9 @@ static void test_estimators_agree(void)
     struct film_image ref = { 0 };
     CHECK(render_small("render.spp", "256", "render.mis", "power", "render.strategy", "light", &ref));
     static const char *const variants[][2] = {
-        { "mis", "none" }, { "mis", "balance" }, { "strategy", "light_area" },
+        { "mis", "none" },
+        { "mis", "balance" },
+        { "strategy", "light_area" },
     };
     for (int v = 0; v < 3; ++v) {
         struct film_image img = { 0 };
@@ -106,9 +119,13 @@ static void test_strategies_same_image(void)
         { "configs/scenes/multi_lamp.yaml", NULL },
     };
     for (int sc = 0; sc < 3; ++sc) {
-        struct config_override base[] = { small[0], small[1], small[2], { "render.spp", "512" },
-                                           { "render.integrator", "direct" }, { "render.strategy", "light" },
-                                           { "params.s_L", scenes[sc][1] } };
+        struct config_override base[] = { small[0],
+                                          small[1],
+                                          small[2],
+                                          { "render.spp", "512" },
+                                          { "render.integrator", "direct" },
+                                          { "render.strategy", "light" },
+                                          { "params.s_L", scenes[sc][1] } };
         int nb = scenes[sc][1] ? 7 : 6;
         struct film_image ref = { 0 };
         CHECK(render_to_image(scenes[sc][0], base, nb, &ref, NULL));

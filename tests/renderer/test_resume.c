@@ -220,14 +220,15 @@ static void test_image_hash(void)
     struct config base, other;
     struct error err;
     CHECK_MSG(config_load(scene, NULL, 0, &base, &err), "%s", err.message);
-    struct config_override same[] = { { "render.spp", "99" },        { "render.time", "3" },
-                                      { "render.threads", "3" },     { "render.output", "/tmp/elsewhere" },
+    struct config_override same[] = { { "render.spp", "99" },         { "render.time", "3" },
+                                      { "render.threads", "3" },      { "render.output", "/tmp/elsewhere" },
                                       { "render.resumable", "true" }, { "render.snapshots.every_spp", "2" } };
     CHECK(config_load(scene, same, 6, &other, &err));
     CHECK(other.image_hash == base.image_hash && other.hash != base.hash && other.render.resumable);
     config_free(&other);
-    const char *const changes[][2] = { { "render.seed", "2" }, { "film.width", "17" }, { "render.strategy", "portal" },
-                                       { "params.s_L", "1.2" } };
+    const char *const changes[][2] = {
+        { "render.seed", "2" }, { "film.width", "17" }, { "render.strategy", "portal" }, { "params.s_L", "1.2" }
+    };
     for (int i = 0; i < 4; ++i) {
         struct config_override o = { changes[i][0], changes[i][1] };
         CHECK(config_load(scene, &o, 1, &other, &err));
@@ -252,11 +253,10 @@ static void run_words(const char *const *args, struct run *r)
 }
 
 /* A fresh render of the 32x32 lampshade into dir with `extra` words. */
-static bool render_fresh(const char *dir, const char *spp, const char *threads, const char *const *extra,
-                         struct run *r)
+static bool render_fresh(const char *dir, const char *spp, const char *threads, const char *const *extra, struct run *r)
 {
-    const char *args[40] = { SCENE, "--out", dir, "--spp", spp, "--threads", threads, "--set", "film.width=32",
-                             "--set", "film.height=32", "--quiet" };
+    const char *args[40] = { SCENE,   "--out",         dir,     "--spp",          spp,      "--threads", threads,
+                             "--set", "film.width=32", "--set", "film.height=32", "--quiet" };
     int n = 12;
     for (int i = 0; extra && extra[i] && n < 39; ++i) args[n++] = extra[i];
     args[n] = NULL;
@@ -327,9 +327,10 @@ static void check_equals_fresh(const char *dir, const char *spp, const char *con
     struct final a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
-    if (render_fresh(ref, spp, "3", extra, &r) && read_final(dir, "final.exr", &a) && read_final(ref, "final.exr", &b)) {
-        CHECK_MSG(same_image(&a, &b), "%s: resumed image differs from a fresh render of %s spp (spp %lld vs %lld)",
-                  dir, spp, (long long)a.meta.info.spp, (long long)b.meta.info.spp);
+    if (render_fresh(ref, spp, "3", extra, &r) && read_final(dir, "final.exr", &a) &&
+        read_final(ref, "final.exr", &b)) {
+        CHECK_MSG(same_image(&a, &b), "%s: resumed image differs from a fresh render of %s spp (spp %lld vs %lld)", dir,
+                  spp, (long long)a.meta.info.spp, (long long)b.meta.info.spp);
         CHECK(a.meta.info.spp == atoll(spp));
         CHECK(a.meta.info.rays == b.meta.info.rays && a.meta.info.nonfinite_samples == b.meta.info.nonfinite_samples);
         if (resumed) {
@@ -543,8 +544,9 @@ static void test_resume_refusals(void)
 
     /* A render made without --resumable. */
     const char *nostate[] = { "--resume", plain, "--spp", "20", NULL };
-    check_refused(plain, nostate, "final.state is missing: only a render made with render.resumable: true "
-                                  "(--resumable) can be resumed");
+    check_refused(plain, nostate,
+                  "final.state is missing: only a render made with render.resumable: true "
+                  "(--resumable) can be resumed");
 
     /* Limits that leave nothing to render (they are totals). */
     const char *same_spp[] = { "--resume", dir, "--spp", "8", NULL };
@@ -641,7 +643,8 @@ static void test_resume_snapshots(void)
             if (read_final(dir, "snapshot_0004.exr", &a) && read_final(dir, "snapshot_0005.exr", &b)) {
                 CHECK_MSG(a.meta.info.spp == 8 && b.meta.info.spp == 10, "spp %lld, %lld", (long long)a.meta.info.spp,
                           (long long)b.meta.info.spp);
-                CHECK(a.meta.info.render_time_s >= first_time && b.meta.info.render_time_s >= a.meta.info.render_time_s);
+                CHECK(a.meta.info.render_time_s >= first_time &&
+                      b.meta.info.render_time_s >= a.meta.info.render_time_s);
             }
             final_free(&a);
             final_free(&b);

@@ -8,16 +8,28 @@
 
 struct golden {
     uint64_t seed, pixel, sample;
-    uint64_t state, inc;     /* right after seeding */
-    double u[3];             /* the first three uniforms */
+    uint64_t state, inc; /* right after seeding */
+    double u[3];         /* the first three uniforms */
 };
 
 static const struct golden goldens[] = {
-    { 1, 2, 3, 0xa2f50779fc89a28bull, 0x4a00e66a7f1bf331ull,
+    { 1,
+      2,
+      3,
+      0xa2f50779fc89a28bull,
+      0x4a00e66a7f1bf331ull,
       { 0x1.7e25d7ab5280cp-2, 0x1.ae41a0ee08975p-1, 0x1.93eab7262285ap-2 } },
-    { 0, 0, 0, 0xf1e1bcec6a786771ull, 0x8784acc700588421ull,
+    { 0,
+      0,
+      0,
+      0xf1e1bcec6a786771ull,
+      0x8784acc700588421ull,
       { 0x1.e180940181526p-1, 0x1.0f21639183837p-1, 0x1.dbdef1520b73dp-1 } },
-    { 0xdeadbeefull, 123456789ull, 77, 0x6ae4984da81c6a05ull, 0x72c6230edcb5cf69ull,
+    { 0xdeadbeefull,
+      123456789ull,
+      77,
+      0x6ae4984da81c6a05ull,
+      0x72c6230edcb5cf69ull,
       { 0x1.e915c9043a9f8p-1, 0x1.580d6c5f96621p-1, 0x1.8a731d6151d5p-3 } },
 };
 

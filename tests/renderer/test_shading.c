@@ -20,7 +20,7 @@ enum { N_POINTS = 1003, N_MATERIALS = 4, N_LIGHTS = 2 };
 static const struct material materials[N_MATERIALS] = {
     { MATERIAL_DIFFUSE, { 0.5, 0.5, 0.5 }, 0.0 },
     { MATERIAL_DIFFUSE, { 0.63, 0.065, 0.05 }, 0.0 },
-    { MATERIAL_DIFFUSE, { 0.0, 0.0, 0.0 }, 0.0 },  /* black: no shadow ray */
+    { MATERIAL_DIFFUSE, { 0.0, 0.0, 0.0 }, 0.0 }, /* black: no shadow ray */
     { MATERIAL_GGX, { 0.9, 0.6, 0.3 }, 0.3 },
 };
 
@@ -76,8 +76,9 @@ static void fixture_init(struct fixture *f, uint64_t seed)
         ls->wi = unit(&r);
         ls->dist = kind < 0.13 ? 1e-9 : exp(uniform(&r, log(1e-3), log(10.0)));
         ls->pdf_sa = kind < 0.16 ? 0.0 : (kind < 0.18 ? INFINITY : exp(uniform(&r, log(1e-3), log(1e6))));
-        ls->radiance = kind >= 0.18 && kind < 0.22 ? rgb_make(0, 0, 0)
-                                                   : rgb_make(uniform(&r, 0, 50), uniform(&r, 0, 40), uniform(&r, 0, 30));
+        ls->radiance = kind >= 0.18 && kind < 0.22
+                           ? rgb_make(0, 0, 0)
+                           : rgb_make(uniform(&r, 0, 50), uniform(&r, 0, 40), uniform(&r, 0, 30));
         f->ub[f->n][0] = rng_uniform(&r);
         f->ub[f->n][1] = rng_uniform(&r);
         if (materials[material].kind == MATERIAL_DIFFUSE) ++f->diffuse;
@@ -114,9 +115,8 @@ static bool stream_holds(const struct ray_stream *r, int k, bool trace, const st
     struct ray_stream one;
     if (!ray_stream_init(&one, 1, NULL)) return false;
     ray_stream_set(&one, 0, ray->o, ray->d, ray->tmax);
-    bool same = same_float(r->ox[k], one.ox[0]) && same_float(r->oy[k], one.oy[0]) &&
-                same_float(r->oz[k], one.oz[0]) && same_float(r->dx[k], one.dx[0]) &&
-                same_float(r->dy[k], one.dy[0]) && same_float(r->dz[k], one.dz[0]) &&
+    bool same = same_float(r->ox[k], one.ox[0]) && same_float(r->oy[k], one.oy[0]) && same_float(r->oz[k], one.oz[0]) &&
+                same_float(r->dx[k], one.dx[0]) && same_float(r->dy[k], one.dy[0]) && same_float(r->dz[k], one.dz[0]) &&
                 same_float(r->tnear[k], one.tnear[0]) && same_float(r->tfar[k], one.tfar[0]);
     ray_stream_free(&one);
     return same;
@@ -131,19 +131,18 @@ static void stream_scribble(struct ray_stream *r, int n)
 
 /* The row's queries hold no rays (the streams do), except the BSDF ray's
    direction. */
-static bool same_shadow(const struct shadow_query *one, const struct shadow_query *many,
-                        const struct ray_stream *rays, int k)
+static bool same_shadow(const struct shadow_query *one, const struct shadow_query *many, const struct ray_stream *rays,
+                        int k)
 {
     return one->trace == many->trace && same_rgb(one->value, many->value) &&
            stream_holds(rays, k, one->trace, &one->ray);
 }
 
-static bool same_bsdf(const struct bsdf_query *one, const struct bsdf_query *many, const struct ray_stream *rays,
-                      int k)
+static bool same_bsdf(const struct bsdf_query *one, const struct bsdf_query *many, const struct ray_stream *rays, int k)
 {
     if (one->trace != many->trace || !stream_holds(rays, k, one->trace, &one->ray)) return false;
-    return !one->trace || (same_vec(one->ray.d, many->ray.d) && same_rgb(one->weight, many->weight) &&
-                           same_bits(one->pdf, many->pdf));
+    return !one->trace ||
+           (same_vec(one->ray.d, many->ray.d) && same_rgb(one->weight, many->weight) && same_bits(one->pdf, many->pdf));
 }
 
 static struct shadow_query shadow_one[N_POINTS], shadow_many[N_POINTS];
@@ -173,8 +172,8 @@ static void test_many_matches_one(void)
                 /* Streams start as garbage: every ray must be written. */
                 stream_scribble(&shadow_rays, N_POINTS);
                 stream_scribble(&bsdf_rays, N_POINTS);
-                shading_setup_many(&f.sc, kinds[mk], f.v, f.ok, f.ls, ub, n, &s2, shadow_many, &shadow_rays,
-                                   bsdf_many, &bsdf_rays);
+                shading_setup_many(&f.sc, kinds[mk], f.v, f.ok, f.ls, ub, n, &s2, shadow_many, &shadow_rays, bsdf_many,
+                                   &bsdf_rays);
                 int differ = 0;
                 for (int k = 0; k < n; ++k) {
                     differ += !same_shadow(&shadow_one[k], &shadow_many[k], &shadow_rays, k);
@@ -185,8 +184,7 @@ static void test_many_matches_one(void)
                 }
                 CHECK_MSG(differ == 0, "mis %d, bsdf %d, n %d: %d queries differ", (int)kinds[mk], with_bsdf, n,
                           differ);
-                CHECK_MSG(same_stats(&s1, &s2), "mis %d, bsdf %d, n %d: counters differ", (int)kinds[mk], with_bsdf,
-                          n);
+                CHECK_MSG(same_stats(&s1, &s2), "mis %d, bsdf %d, n %d: counters differ", (int)kinds[mk], with_bsdf, n);
                 if (n == N_POINTS) counted_short += (long)s1.shadow_rays;
             }
     ray_stream_free(&shadow_rays);
@@ -225,8 +223,8 @@ static void test_lambert_matches_generic(void)
                           wi_local.z > 0.0 && !rgb_is_black(v->m->albedo);
             struct rgb fv = bsdf_eval(v->m, v->wo_local, wi_local);
             double w = mis_weight(kinds[mk], ls->pdf_sa, bsdf_pdf(v->m, v->wo_local, wi_local));
-            struct rgb want = expect ? rgb_scale(rgb_mul(fv, ls->radiance), wi_local.z * w / ls->pdf_sa)
-                                     : rgb_make(0, 0, 0);
+            struct rgb want =
+                expect ? rgb_scale(rgb_mul(fv, ls->radiance), wi_local.z * w / ls->pdf_sa) : rgb_make(0, 0, 0);
             struct rgb got = shadow_many[k].value;
             /* An infinite density weighs ~1e-150 in the lanes (0 here). */
             double tol = 1e-13 * (fabs(want.r) + fabs(want.g) + fabs(want.b)) + 1e-140;

@@ -147,15 +147,15 @@ static void test_coincident(void)
     snapshot_schedule_start(&c, &s);
     CHECK(snapshot_schedule_next_s(&c) == 1.0);
     CHECK(snapshot_schedule_next_spp(&c) == 2);
-    CHECK(snapshot_schedule_due(&c, 0.1, 2));  /* doubling_spp's first */
+    CHECK(snapshot_schedule_due(&c, 0.1, 2)); /* doubling_spp's first */
     CHECK(!snapshot_schedule_due(&c, 0.2, 3));
-    CHECK(snapshot_schedule_due(&c, 0.3, 4));  /* every_spp, doubling_spp and the list at once */
+    CHECK(snapshot_schedule_due(&c, 0.3, 4)); /* every_spp, doubling_spp and the list at once */
     CHECK(snapshot_schedule_next_spp(&c) == 8);
     CHECK(!snapshot_schedule_due(&c, 0.9, 5));
-    CHECK(snapshot_schedule_due(&c, 1.0, 6));  /* every and the time list at once */
+    CHECK(snapshot_schedule_due(&c, 1.0, 6)); /* every and the time list at once */
     CHECK(snapshot_schedule_next_s(&c) == 2.0);
     CHECK(!snapshot_schedule_due(&c, 1.5, 7));
-    CHECK(snapshot_schedule_due(&c, 1.6, 8));  /* by sample count alone */
+    CHECK(snapshot_schedule_due(&c, 1.6, 8)); /* by sample count alone */
     CHECK(snapshot_schedule_next_s(&c) == 2.0 && snapshot_schedule_next_spp(&c) == 12);
 }
 
@@ -168,8 +168,8 @@ static void test_time_and_spp(void)
     struct snapshot_cursor c;
     snapshot_schedule_start(&c, &s);
     CHECK(!snapshot_schedule_due(&c, 0.1, 1));
-    CHECK(snapshot_schedule_due(&c, 0.4, 3));  /* spp */
-    CHECK(snapshot_schedule_due(&c, 0.6, 4));  /* time */
+    CHECK(snapshot_schedule_due(&c, 0.4, 3)); /* spp */
+    CHECK(snapshot_schedule_due(&c, 0.6, 4)); /* time */
     CHECK(!snapshot_schedule_due(&c, 0.8, 5));
     CHECK(snapshot_schedule_next_s(&c) == 1.0 && snapshot_schedule_next_spp(&c) == 6);
 }
@@ -215,17 +215,10 @@ static void test_spp_limit(void)
 }
 
 static const struct test_case tests[] = {
-    { "off", test_off },
-    { "every", test_every },
-    { "doubling", test_doubling },
-    { "times", test_times },
-    { "every_spp", test_every_spp },
-    { "doubling_spp", test_doubling_spp },
-    { "spps", test_spps },
-    { "coincident", test_coincident },
-    { "time_and_spp", test_time_and_spp },
-    { "resumed", test_resumed },
-    { "spp_limit", test_spp_limit },
+    { "off", test_off },         { "every", test_every },           { "doubling", test_doubling },
+    { "times", test_times },     { "every_spp", test_every_spp },   { "doubling_spp", test_doubling_spp },
+    { "spps", test_spps },       { "coincident", test_coincident }, { "time_and_spp", test_time_and_spp },
+    { "resumed", test_resumed }, { "spp_limit", test_spp_limit },
 };
 
 TEST_MAIN(tests)

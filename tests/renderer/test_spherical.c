@@ -15,7 +15,7 @@
 #include "testlib.h"
 
 /* Chi-square tests expected to pass in this file: Bonferroni over them. */
-#define CHI2_TESTS 25
+#define CHI2_TESTS   25
 #define SIGNIFICANCE (0.01 / CHI2_TESTS)
 #define CHI2_SAMPLES 200000
 
@@ -76,11 +76,11 @@ struct sampler {
     struct sphrect rect;
     struct sphtri tri;
     struct sphpoly sp;
-    double omega;       /* polygon_solid_angle: the pdf is 1 / omega inside */
-    long misses;        /* sampled directions whose ray misses the polygon */
-    double u_exponent;  /* sample with u^exponent (1: unbiased) */
-    double fail_rate;   /* report failure when u3 < fail_rate */
-    double pdf_scale;   /* claim pdf_scale / omega */
+    double omega;      /* polygon_solid_angle: the pdf is 1 / omega inside */
+    long misses;       /* sampled directions whose ray misses the polygon */
+    double u_exponent; /* sample with u^exponent (1: unbiased) */
+    double fail_rate;  /* report failure when u3 < fail_rate */
+    double pdf_scale;  /* claim pdf_scale / omega */
 };
 
 static struct polygon rect_polygon(struct vec3 s, struct vec3 ex, struct vec3 ey)
@@ -148,8 +148,8 @@ static int scenes_make(struct scene *out)
     out[k++] = rect_scene("rect off-axis beyond extent", s0, ux, uy, vec3_make(2.5, -1.5, 1.0));
     out[k++] = rect_scene("rect other side", s0, ux, uy, vec3_make(0.3, 0.7, -0.5));
     out[k++] = rect_scene("rect near hemisphere", s0, ux, uy, vec3_make(0.45, 0.5, 0.01));
-    out[k++] = rect_scene("rect tiny (1e-6 sr)", s0, vec3_scale(ux, 1e-3), vec3_scale(uy, 1e-3),
-                          vec3_make(0.2, -0.3, 1.0));
+    out[k++] =
+        rect_scene("rect tiny (1e-6 sr)", s0, vec3_scale(ux, 1e-3), vec3_scale(uy, 1e-3), vec3_make(0.2, -0.3, 1.0));
     out[k++] = rect_scene("rect tiny (1e-9 sr)", vec3_make(5, 5, 5), vec3_scale(ux, 3e-5), vec3_scale(uy, 3e-5),
                           vec3_make(5.5, 5.2, 6.0));
     out[k++] = rect_scene("rect rotated", vec3_make(1, 2, 3), rot(vec3_make(1.5, 0, 0)), rot(vec3_make(0, 0.4, 0)),
@@ -168,10 +168,14 @@ static int scenes_make(struct scene *out)
     const struct vec3 tinier[3] = { { 1, 2, 3 }, { 1.000012, 2, 3 }, { 1, 2.000009, 3.000004 } };
     out[k++] = poly_scene("tri tiny (1e-11 sr)", SAMPLER_TRI, 3, tinier, vec3_make(0.5, 1.5, 1.0));
 
-    out[k++] = regular_scene("poly hexagon near", 6, 1.0, vec3_make(0, 0, 0), vec3_add(rot(vec3_make(0.3, -0.2, 0.25)), s0));
-    out[k++] = regular_scene("poly octagon far", 8, 0.5, vec3_make(1, 1, 1), vec3_add(vec3_make(1, 1, 1), rot(vec3_make(2, 1, -15))));
-    out[k++] = regular_scene("poly pentagon tiny (1e-8 sr)", 5, 1e-4, vec3_make(0, 0, 0), rot(vec3_make(0.5, 0.3, -2.0)));
-    out[k++] = regular_scene("poly 24-gon near hemisphere", 24, 3.0, vec3_make(0, 0, 0), rot(vec3_make(0.1, 0.2, 0.02)));
+    out[k++] =
+        regular_scene("poly hexagon near", 6, 1.0, vec3_make(0, 0, 0), vec3_add(rot(vec3_make(0.3, -0.2, 0.25)), s0));
+    out[k++] = regular_scene("poly octagon far", 8, 0.5, vec3_make(1, 1, 1),
+                             vec3_add(vec3_make(1, 1, 1), rot(vec3_make(2, 1, -15))));
+    out[k++] =
+        regular_scene("poly pentagon tiny (1e-8 sr)", 5, 1e-4, vec3_make(0, 0, 0), rot(vec3_make(0.5, 0.3, -2.0)));
+    out[k++] =
+        regular_scene("poly 24-gon near hemisphere", 24, 3.0, vec3_make(0, 0, 0), rot(vec3_make(0.1, 0.2, 0.02)));
     {
         /* The overlap of two rotated squares (an octagon from
            polygon_clip_convex), seen from below at a slant. */
@@ -311,8 +315,8 @@ static void test_init_refuses_degenerate(void)
     struct vec3 s = vec3_make(0, 0, 0), ex = vec3_make(1, 0, 0), ey = vec3_make(0, 1, 0);
     CHECK(!sphrect_init(&r, vec3_make(0.5, 0.5, 0.0), s, ex, ey));
     CHECK(!sphrect_init(&r, vec3_make(3.0, 0.5, 0.0), s, ex, ey));
-    CHECK(!sphrect_init(&r, vec3_make(0.5, 0.5, 1e6), s, ex, ey));  /* 1e-12 sr */
-    CHECK(sphrect_init(&r, vec3_make(0.5, 0.5, 1e5), s, ex, ey));   /* 1e-10 sr */
+    CHECK(!sphrect_init(&r, vec3_make(0.5, 0.5, 1e6), s, ex, ey)); /* 1e-12 sr */
+    CHECK(sphrect_init(&r, vec3_make(0.5, 0.5, 1e5), s, ex, ey));  /* 1e-10 sr */
     CHECK(!sphrect_init(&r, vec3_make(0.5, 0.5, 1.0), s, vec3_make(0, 0, 0), ey));
     struct sphtri t;
     CHECK(!sphtri_init(&t, vec3_make(1, 0, 0), vec3_make(0, 1, 0), vec3_make(1, 1, 0)));
@@ -375,9 +379,18 @@ static void chi2_scene_range(int first, int last)
     }
 }
 
-static void test_chi2_sphrect(void) { chi2_scene_range(0, 8); }
-static void test_chi2_sphtri(void) { chi2_scene_range(9, 14); }
-static void test_chi2_sphpoly(void) { chi2_scene_range(15, 20); }
+static void test_chi2_sphrect(void)
+{
+    chi2_scene_range(0, 8);
+}
+static void test_chi2_sphtri(void)
+{
+    chi2_scene_range(9, 14);
+}
+static void test_chi2_sphpoly(void)
+{
+    chi2_scene_range(15, 20);
+}
 
 /* Both windings of the same triangle, and the polygon sampler on a
    rectangle, give the same distribution. */
@@ -613,7 +626,8 @@ static struct vec3 random_view(struct rng *r, const struct sphrect_frame *f, int
                                                         vec3_scale(f->y, f->ey_len * (-1.0 + 3.0 * rng_uniform(r)))));
     switch (kind) {
     case VIEW_NEAR:
-        return vec3_madd(in_plane, f->z, (rng_uniform(r) < 0.5 ? -1.0 : 1.0) * size * pow(10.0, -3.0 + 4.0 * rng_uniform(r)));
+        return vec3_madd(in_plane, f->z,
+                         (rng_uniform(r) < 0.5 ? -1.0 : 1.0) * size * pow(10.0, -3.0 + 4.0 * rng_uniform(r)));
     case VIEW_PLANE:
         return in_plane;
     case VIEW_FAR:
@@ -639,17 +653,18 @@ static int rect_lane_check(const struct sphrect_frame *f, struct vec3 o, double 
     double d_ref;
     struct vec3 w_ref = sphrect_sample_dir(&r, u, v, &d_ref);
     if (same_vec_bits(wi, w_ref) && same_bits(dist, d_ref) && same_bits(sa, r.solid_angle)) return 1;
-    fprintf(stderr,
-            "  lane %d: corner (%.17g, %.17g, %.17g) x (%.17g, %.17g, %.17g) y (%.17g, %.17g, %.17g) lengths %.17g %.17g,\n"
-            "    o (%.17g, %.17g, %.17g), u %.17g v %.17g:\n"
-            "    many wi (%.17g, %.17g, %.17g) dist %.17g sa %.17g\n"
-            "    one  wi (%.17g, %.17g, %.17g) dist %.17g sa %.17g\n",
-            lane, f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x, f->y.y, f->y.z, f->ex_len,
-            f->ey_len, o.x, o.y, o.z, u, v, wi.x, wi.y, wi.z, dist, sa, w_ref.x, w_ref.y, w_ref.z, d_ref, r.solid_angle);
+    fprintf(
+        stderr,
+        "  lane %d: corner (%.17g, %.17g, %.17g) x (%.17g, %.17g, %.17g) y (%.17g, %.17g, %.17g) lengths %.17g %.17g,\n"
+        "    o (%.17g, %.17g, %.17g), u %.17g v %.17g:\n"
+        "    many wi (%.17g, %.17g, %.17g) dist %.17g sa %.17g\n"
+        "    one  wi (%.17g, %.17g, %.17g) dist %.17g sa %.17g\n",
+        lane, f->corner.x, f->corner.y, f->corner.z, f->x.x, f->x.y, f->x.z, f->y.x, f->y.y, f->y.z, f->ex_len,
+        f->ey_len, o.x, o.y, o.z, u, v, wi.x, wi.y, wi.z, dist, sa, w_ref.x, w_ref.y, w_ref.z, d_ref, r.solid_angle);
     return -1;
 }
 
-#define RECT_FRAMES 40
+#define RECT_FRAMES    40
 #define RECT_LANES_MAX 1000
 
 /* sphrect_sample_many on n lanes (frames from a pool, so that neighbouring
@@ -791,8 +806,8 @@ static struct vec3 random_target_view(struct rng *r, const struct target *t, int
 {
     struct vec3 c = polygon_centroid(&t->polygon);
     double size = polygon_size(&t->polygon);
-    struct vec3 in_plane = vec3_add(c, vec3_scale(vec3_sub(t->polygon.v[(int)(rng_uniform(r) * t->polygon.n)], c),
-                                                  -1.0 + 3.0 * rng_uniform(r)));
+    struct vec3 in_plane = vec3_add(
+        c, vec3_scale(vec3_sub(t->polygon.v[(int)(rng_uniform(r) * t->polygon.n)], c), -1.0 + 3.0 * rng_uniform(r)));
     double side = rng_uniform(r) < 0.5 ? -1.0 : 1.0;
     switch (kind) {
     case 0: /* near, either side */
@@ -841,7 +856,8 @@ static void test_target_many_matches_one(void)
                must then agree too. */
             memset(one, 0x5a, sizeof one);
             memset(many, 0x5a, sizeof many);
-            for (int i = 0; i < n; ++i) ok_one[i] = target_sample_solid_angle(tt[i], p[i], u[i][0], u[i][1], u[i][2], &one[i]);
+            for (int i = 0; i < n; ++i)
+                ok_one[i] = target_sample_solid_angle(tt[i], p[i], u[i][0], u[i][1], u[i][2], &one[i]);
             /* ok[] prefilled both ways: every lane must be written. */
             for (int fill = 0; fill < 2; ++fill) {
                 for (int i = 0; i < N; ++i) ok_many[i] = fill;
@@ -851,13 +867,14 @@ static void test_target_many_matches_one(void)
                     if (ok_many[i] == ok_one[i] && !memcmp(&many[i], &one[i], sizeof one[i])) continue;
                     if (bad++ < 3)
                         fprintf(stderr,
-                                "  n = %d lane %d (%s, %d vertices, case %d), p (%.17g, %.17g, %.17g), u %.17g %.17g %.17g:\n"
+                                "  n = %d lane %d (%s, %d vertices, case %d), p (%.17g, %.17g, %.17g), u %.17g %.17g "
+                                "%.17g:\n"
                                 "    many ok %d wi (%.17g, %.17g, %.17g) dist %.17g pdf %.17g\n"
                                 "    one  ok %d wi (%.17g, %.17g, %.17g) dist %.17g pdf %.17g\n",
                                 n, i, tt[i]->is_rectangle ? "rectangle" : "polygon", tt[i]->polygon.n,
-                                target_case(tt[i], p[i]), p[i].x, p[i].y, p[i].z, u[i][0], u[i][1], u[i][2],
-                                ok_many[i], many[i].wi.x, many[i].wi.y, many[i].wi.z, many[i].dist, many[i].pdf_sa,
-                                ok_one[i], one[i].wi.x, one[i].wi.y, one[i].wi.z, one[i].dist, one[i].pdf_sa);
+                                target_case(tt[i], p[i]), p[i].x, p[i].y, p[i].z, u[i][0], u[i][1], u[i][2], ok_many[i],
+                                many[i].wi.x, many[i].wi.y, many[i].wi.z, many[i].dist, many[i].pdf_sa, ok_one[i],
+                                one[i].wi.x, one[i].wi.y, one[i].wi.z, one[i].dist, one[i].pdf_sa);
                 }
                 CHECK_MSG(bad == 0, "n = %d: %d lanes differ from target_sample_solid_angle", n, bad);
                 for (int i = n; i < N; ++i) CHECK_MSG(ok_many[i] == fill, "n = %d: ok[%d] beyond n written", n, i);
@@ -867,11 +884,13 @@ static void test_target_many_matches_one(void)
         }
     /* Every way through, for rectangles and for the other polygons. */
     for (int rect = 0; rect < 2; ++rect)
-        for (int c = 0; c < 3; ++c) CHECK_MSG(cases[rect][c] > 50, "rectangle %d case %d: %ld lanes", rect, c, cases[rect][c]);
+        for (int c = 0; c < 3; ++c)
+            CHECK_MSG(cases[rect][c] > 50, "rectangle %d case %d: %ld lanes", rect, c, cases[rect][c]);
     CHECK(total_ok > 0);
-    printf("  target_sample_solid_angle_many: rectangles %ld low / %ld solid angle / %ld tiny, polygons %ld / %ld / %ld "
-           "lanes, all as the one-point sampler\n",
-           cases[1][0], cases[1][1], cases[1][2], cases[0][0], cases[0][1], cases[0][2]);
+    printf(
+        "  target_sample_solid_angle_many: rectangles %ld low / %ld solid angle / %ld tiny, polygons %ld / %ld / %ld "
+        "lanes, all as the one-point sampler\n",
+        cases[1][0], cases[1][1], cases[1][2], cases[0][0], cases[0][1], cases[0][2]);
 }
 
 static const struct test_case spherical_tests[] = {

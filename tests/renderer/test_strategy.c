@@ -73,7 +73,8 @@ static void test_tilted_pentagon(void)
     }
     int l = ts_add_light(&ts, penta, warm, false);
     /* Portal tilted by ~18 degrees about the x axis. */
-    struct polygon tilted = { 4, { { -0.2, 2.15, -0.2 }, { 0.2, 2.15, -0.2 }, { 0.2, 2.28, 0.2 }, { -0.2, 2.28, 0.2 } } };
+    struct polygon tilted = { 4,
+                              { { -0.2, 2.15, -0.2 }, { 0.2, 2.15, -0.2 }, { 0.2, 2.28, 0.2 }, { -0.2, 2.28, 0.2 } } };
     ts_add_portal(&ts, l, tilted);
     check_strategies(&ts, vec3_make(0.05, 0, 0.1), "pentagon/tilted below", 500, false);
     check_strategies(&ts, vec3_make(0.9, 0.3, -0.5), "pentagon/tilted side", 600, false);
@@ -245,7 +246,8 @@ static void test_sample_many_matches_one(void)
                     const struct light *l = &sc.lights[(int)(rng_uniform(&r) * sc.n_lights)];
                     const struct polygon *poly = &l->target.polygon;
                     struct vec3 c = polygon_centroid(poly);
-                    struct vec3 q = vec3_add(c, vec3_scale(vec3_sub(poly->v[i / 5 % poly->n], c), 3 * rng_uniform(&r) - 1));
+                    struct vec3 q =
+                        vec3_add(c, vec3_scale(vec3_sub(poly->v[i / 5 % poly->n], c), 3 * rng_uniform(&r) - 1));
                     double off[] = { 0.0, 1e-9, -1e-9, 1e-3, -1e-3, 0.5 };
                     p = vec3_madd(q, l->target.normal, off[i / 5 % 6]);
                 }
@@ -279,7 +281,8 @@ static void test_sample_many_matches_one(void)
                                 many[i].wi.z, many[i].dist, many[i].pdf_sa, ok_one[i], one[i].light, one[i].wi.x,
                                 one[i].wi.y, one[i].wi.z, one[i].dist, one[i].pdf_sa);
                 }
-                CHECK_MSG(bad == 0, "%s, n = %d: %d points differ from strategy_sample", strategy_names[kinds[k]], n, bad);
+                CHECK_MSG(bad == 0, "%s, n = %d: %d points differ from strategy_sample", strategy_names[kinds[k]], n,
+                          bad);
                 for (int i = 0; i < MANY_POINTS; ++i)
                     if (i < off || i >= off + n) CHECK_MSG(ok_many[i] == fill, "ok[%d] outside the run written", i);
                 if (bad) break;
@@ -290,7 +293,8 @@ static void test_sample_many_matches_one(void)
             }
         }
         /* Every light was sampled, and both outcomes occurred. */
-        for (int l = 0; l < sc.n_lights && l < 8; ++l) CHECK_MSG(lights_hit[l] > 0, "%s: light %d never sampled", strategy_names[kinds[k]], l);
+        for (int l = 0; l < sc.n_lights && l < 8; ++l)
+            CHECK_MSG(lights_hit[l] > 0, "%s: light %d never sampled", strategy_names[kinds[k]], l);
         CHECK(n_ok > 0);
         printf("  %s: %ld samples, %ld failures, as strategy_sample\n", strategy_names[kinds[k]], n_ok, n_fail);
         strategy_scratch_free(&scratch);

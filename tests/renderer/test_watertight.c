@@ -43,8 +43,7 @@ static int directed_edge_count(const struct watertight *w, int f, struct vec3 a,
 {
     int c = 0;
     for (int k = w->first[f]; k < w->first[f + 1]; ++k)
-        for (int e = 0; e < 3; ++e)
-            c += same_point(w->tris[k].v[e], a) && same_point(w->tris[k].v[(e + 1) % 3], b);
+        for (int e = 0; e < 3; ++e) c += same_point(w->tris[k].v[e], a) && same_point(w->tris[k].v[(e + 1) % 3], b);
     return c;
 }
 
@@ -125,8 +124,8 @@ static void test_faces_without_t_junctions_untouched(void)
    edges, so the fan is from the centroid (one triangle per boundary piece). */
 static void test_vertices_on_every_edge_fan_from_centroid(void)
 {
-    struct watertight_face faces[] = { square(0, 0, 2, 2), square(2, 0, 3, 1), square(-1, 1, 0, 2),
-                                       square(1, 2, 2, 3), square(0, -1, 1, 0) };
+    struct watertight_face faces[] = { square(0, 0, 2, 2), square(2, 0, 3, 1), square(-1, 1, 0, 2), square(1, 2, 2, 3),
+                                       square(0, -1, 1, 0) };
     struct watertight w;
     struct error err;
     CHECK(watertight_stitch(faces, 5, &w, &err));
@@ -284,9 +283,9 @@ static void test_lampshade_t_junction_lines_closed(void)
    tools/firefly/replay.c does. */
 static void test_lampshade_firefly_pass_gone(void)
 {
-    struct config_override ov[] = { { "params.s_L", "1.2" }, { "render.strategy", "antishadow_exact" },
+    struct config_override ov[] = { { "params.s_L", "1.2" },   { "render.strategy", "antishadow_exact" },
                                     { "render.mis", "power" }, { "render.integrator", "direct" },
-                                    { "film.width", "256" }, { "film.height", "256" } };
+                                    { "film.width", "256" },   { "film.height", "256" } };
     struct config cfg;
     struct scene sc;
     if (!test_scene_load(LAMPSHADE, ov, 6, &cfg, &sc)) {

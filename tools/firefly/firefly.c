@@ -17,10 +17,15 @@
 static bool hits_box(struct vec3 o, struct vec3 d, struct vec3 lo, struct vec3 hi)
 {
     double t0 = 0.0, t1 = INFINITY;
-    double oo[3] = { o.x, o.y, o.z }, dd[3] = { d.x, d.y, d.z }, l[3] = { lo.x, lo.y, lo.z }, h[3] = { hi.x, hi.y, hi.z };
+    double oo[3] = { o.x, o.y, o.z }, dd[3] = { d.x, d.y, d.z }, l[3] = { lo.x, lo.y, lo.z },
+           h[3] = { hi.x, hi.y, hi.z };
     for (int k = 0; k < 3; ++k) {
         double a = (l[k] - oo[k]) / dd[k], b = (h[k] - oo[k]) / dd[k];
-        if (a > b) { double t = a; a = b; b = t; }
+        if (a > b) {
+            double t = a;
+            a = b;
+            b = t;
+        }
         if (a > t0) t0 = a;
         if (b < t1) t1 = b;
     }
@@ -33,7 +38,8 @@ int main(int argc, char **argv)
     long n_points = argc > 2 ? atol(argv[2]) : 1000;
     double cx = argc > 3 ? atof(argv[3]) : 130.5, cy = argc > 4 ? atof(argv[4]) : 204.5;
     double half = argc > 5 ? atof(argv[5]) : 3.0;
-    struct config_override ov[] = { { "params.s_L", "1.2" }, { "render.strategy", "antishadow_exact" },
+    struct config_override ov[] = { { "params.s_L", "1.2" },
+                                    { "render.strategy", "antishadow_exact" },
                                     { "render.mis", "power" } };
     struct config cfg;
     struct scene sc;
@@ -97,22 +103,25 @@ int main(int argc, char **argv)
                 struct vec3 cf = vec3_madd(of, df, tf);
                 double ex = fabs(cf.x) - (double)0.15f, ez = fabs(cf.z) - (double)0.15f;
                 const char *where = "elsewhere";
-                if (fabs(ez) < 1e-5 && fabs(cf.x) > 0.15f) where = "T-junction |z|=h, |x|>h (bottom_back/front vs left/right)";
+                if (fabs(ez) < 1e-5 && fabs(cf.x) > 0.15f)
+                    where = "T-junction |z|=h, |x|>h (bottom_back/front vs left/right)";
                 else if (fabs(ex) < 1e-5 && fabs(cf.z) < 0.15f) where = "hole edge |x|=h";
                 else if (fabs(ez) < 1e-5 && fabs(cf.x) <= 0.15f) where = "hole edge |z|=h";
-                else if (fabs(fabs(cf.x) - (double)0.65f) < 1e-5 || fabs(fabs(cf.z) - (double)0.65f) < 1e-5) where = "plate/wall rim";
+                else if (fabs(fabs(cf.x) - (double)0.65f) < 1e-5 || fabs(fabs(cf.z) - (double)0.65f) < 1e-5)
+                    where = "plate/wall rim";
                 ++n_where[where[0] == 'T' ? 0 : where[0] == 'h' ? 1 : where[0] == 'p' ? 2 : 3];
                 printf("  float ray at y=2.2f: (%.9f, %.9f), |x|-hf=%.3g |z|-hf=%.3g: %s\n", cf.x, cf.z, ex, ez, where);
                 printf("EVENT p=(%.6f,%.6f,%.6f) region=%d d=(%.9f,%.9f,%.9f) pdf_bsdf=%.4g pdf_light=%.4g w=%.4f "
                        "y2.2:(%.9f,%.9f) y2.2f:(%.9f,%.9f) in_portal=%d\n",
-                       h.p.x, h.p.y, h.p.z, reg, q.ray.d.x, q.ray.d.y, q.ray.d.z, q.pdf, pdf, w, c.x, c.z, cf.x,
-                       cf.z, in_portal);
+                       h.p.x, h.p.y, h.p.z, reg, q.ray.d.x, q.ray.d.y, q.ray.d.z, q.pdf, pdf, w, c.x, c.z, cf.x, cf.z,
+                       in_portal);
             }
         }
     }
     printf("total=%ld traced(box)=%ld hit_light=%ld through_portal=%ld pdf0=%ld w>0.5=%ld (in_portal %ld)\n", total,
            traced, hit_light, through_portal_hits, zero, small, zero_in_portal);
-    printf("where: T-junction %ld, hole edge %ld, rim %ld, elsewhere %ld\n", n_where[0], n_where[1], n_where[2], n_where[3]);
+    printf("where: T-junction %ld, hole edge %ld, rim %ld, elsewhere %ld\n", n_where[0], n_where[1], n_where[2],
+           n_where[3]);
     printf("regions:");
     for (int i = 0; i < 8; ++i) printf(" %ld", regions[i]);
     printf("\n");

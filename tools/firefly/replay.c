@@ -21,12 +21,15 @@ int main(int argc, char **argv)
     int x = atoi(argv[2]), y = atoi(argv[3]);
     long spp = atol(argv[4]);
     double thr = argc > 5 ? atof(argv[5]) : 0.1;
-    struct config_override ov[] = { { "params.s_L", "1.2" }, { "render.strategy", "antishadow_exact" },
-                                    { "render.mis", "power" }, { "render.integrator", "direct" } };
+    struct config_override ov[] = { { "params.s_L", "1.2" },
+                                    { "render.strategy", "antishadow_exact" },
+                                    { "render.mis", "power" },
+                                    { "render.integrator", "direct" } };
     struct config cfg;
     struct scene sc;
     struct error err;
-    if (!config_load(argc > 6 ? argv[6] : "configs/scenes/lampshade.yaml", ov, 4, &cfg, &err) || !scene_create(&cfg, &sc, &err)) {
+    if (!config_load(argc > 6 ? argv[6] : "configs/scenes/lampshade.yaml", ov, 4, &cfg, &err) ||
+        !scene_create(&cfg, &sc, &err)) {
         fprintf(stderr, "%s\n", err.message);
         return 1;
     }
@@ -78,14 +81,15 @@ int main(int argc, char **argv)
             struct vec3 cr = vec3_madd(bq.ray.o, bq.ray.d, t);
             double t6 = (2.6 - bq.ray.o.y) / bq.ray.d.y;
             struct vec3 c6 = vec3_madd(bq.ray.o, bq.ray.d, t6);
-            printf("  region=%d light sample ok=%d light=%d pdf=%.5g | bsdf o=(%.9f,%.9f,%.9f) d=(%.12f,%.12f,%.12f) "
-                   "pdf=%.5g first_light=%d strategy_pdf=%.6g\n  crosses y=2.2 at (%.9f, %.9f), y=2.6 at (%.9f, %.9f)\n",
-                   scr.region[0], ok, ls.light, ls.pdf_sa, bq.ray.o.x, bq.ray.o.y, bq.ray.o.z, bq.ray.d.x, bq.ray.d.y,
-                   bq.ray.d.z, bq.pdf, l, pdf, cr.x, cr.z, c6.x, c6.z);
+            printf(
+                "  region=%d light sample ok=%d light=%d pdf=%.5g | bsdf o=(%.9f,%.9f,%.9f) d=(%.12f,%.12f,%.12f) "
+                "pdf=%.5g first_light=%d strategy_pdf=%.6g\n  crosses y=2.2 at (%.9f, %.9f), y=2.6 at (%.9f, %.9f)\n",
+                scr.region[0], ok, ls.light, ls.pdf_sa, bq.ray.o.x, bq.ray.o.y, bq.ray.o.z, bq.ray.d.x, bq.ray.d.y,
+                bq.ray.d.z, bq.pdf, l, pdf, cr.x, cr.z, c6.x, c6.z);
             struct hit h2;
             if (scene_intersect(&sc, bq.ray.o, bq.ray.d, INFINITY, &h2))
-                printf("  first hit t=%.9f p=(%.9f,%.9f,%.9f) light=%d mat=%d\n", h2.t, h2.p.x, h2.p.y, h2.p.z, h2.light,
-                       h2.material);
+                printf("  first hit t=%.9f p=(%.9f,%.9f,%.9f) light=%d mat=%d\n", h2.t, h2.p.x, h2.p.y, h2.p.z,
+                       h2.light, h2.material);
         }
     }
     double mean = sum / spp;

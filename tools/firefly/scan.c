@@ -33,7 +33,11 @@ int main(int argc, char **argv)
     strategy_prepare(&st, &scr, p, n, &sp);
     const double a = 0.65, h = 0.15;
     /* Lines: a fixed coordinate (x or z) at value c, the other running over [lo, hi]. */
-    struct { const char *name; int fixed_is_x; double c, lo, hi; } lines[] = {
+    struct {
+        const char *name;
+        int fixed_is_x;
+        double c, lo, hi;
+    } lines[] = {
         { "z=-h, x in [-a,-h]  T: bottom_back | bottom_left", 0, -h, -a, -h },
         { "z=-h, x in [h,a]    T: bottom_back | bottom_right", 0, -h, h, a },
         { "z=+h, x in [-a,-h]  T: bottom_front | bottom_left", 0, h, -a, -h },
@@ -64,15 +68,22 @@ int main(int argc, char **argv)
                     /* Diagonal v1 = (a, -a) to v3 = (-a, -h) of shade_bottom_back: z(x) = -a + (a - x) (a - h) / (2 a). */
                     tgt = vec3_make(s, 2.2, -a + (a - s) * (a - h) / (2 * a) + off);
                 } else {
-                    tgt = lines[li].fixed_is_x ? vec3_make(lines[li].c + off, 2.2, s) : vec3_make(s, 2.2, lines[li].c + off);
+                    tgt = lines[li].fixed_is_x ? vec3_make(lines[li].c + off, 2.2, s)
+                                               : vec3_make(s, 2.2, lines[li].c + off);
                 }
                 struct vec3 d = vec3_normalize(vec3_sub(tgt, p));
                 struct vec3 o = scene_offset_origin(&sc, p, n, d);
                 ++aims;
                 int l = scene_first_light(&sc, o, d, INFINITY);
-                if (l < 0) { ++blocked; continue; }
+                if (l < 0) {
+                    ++blocked;
+                    continue;
+                }
                 double pdf = strategy_pdf(&st, &sp, l, d);
-                if (pdf > 0.0) { ++light_in_portal; continue; }
+                if (pdf > 0.0) {
+                    ++light_in_portal;
+                    continue;
+                }
                 ++leaks;
                 off_min = fmin(off_min, off);
                 off_max = fmax(off_max, off);
@@ -80,7 +91,8 @@ int main(int argc, char **argv)
         }
         printf("%-70s aims %ld: blocked %ld, light pdf>0 %ld, LEAK (light, pdf 0) %ld", lines[li].name, aims, blocked,
                light_in_portal, leaks);
-        if (leaks) printf("  offsets [%.3g, %.3g], mean leak width %.3g", off_min, off_max, (double)leaks / n_along * step);
+        if (leaks)
+            printf("  offsets [%.3g, %.3g], mean leak width %.3g", off_min, off_max, (double)leaks / n_along * step);
         printf("\n");
     }
     return 0;
