@@ -46,7 +46,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
+.PHONY: all deps venv test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -62,6 +62,24 @@ $(DEPS_STAMP):
 	fi
 	@touch $@
 deps: $(DEPS_STAMP)
+
+# The C formatter (.clang-format); only the tests need it.
+CLANG_FORMAT_STAMP := renderer/build/.clang-format-installed
+$(CLANG_FORMAT_STAMP):
+	@mkdir -p $(@D)
+	@if ! command -v clang-format >/dev/null; then \
+	  echo "installing clang-format with apt-get" >&2; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq clang-format >/dev/null; \
+	fi
+	@touch $@
+
+# Every C file of the project is as clang-format writes it (make format fixes).
+C_FORMATTED = $(shell git ls-files '*.c' '*.h' 2>/dev/null || find renderer tests tools -name '*.[ch]')
+lint-c: $(CLANG_FORMAT_STAMP)
+	@clang-format --dry-run --Werror $(C_FORMATTED)
+	@echo "lint-c: $(words $(C_FORMATTED)) C files formatted"
+format: $(CLANG_FORMAT_STAMP)
+	clang-format -i $(C_FORMATTED)
 
 $(BUILD)/obj/%.o: renderer/src/%.c | $(DEPS_STAMP)
 	@mkdir -p $(@D)
@@ -133,7 +151,7 @@ lint-py: $(VENV_STAMP)
 	$(VENV)/bin/ruff format --check --config harness/pyproject.toml $(PY_LINT)
 	$(VENV)/bin/mypy --config-file harness/pyproject.toml harness/portal_harness tools/closed_form
 
-test: test-c test-c-san test-py lint-py
+test: lint-c test-c test-c-san test-py lint-py
 
 figures: $(BUILD)/render $(VENV_STAMP)
 	$(VENV)/bin/portal-harness sweep configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml
