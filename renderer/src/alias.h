@@ -1,5 +1,6 @@
 /* alias.h: Walker/Vose alias tables: O(1) sampling of a discrete
-   distribution, used for light selection by power. */
+   distribution, used for light selection by power.
+   It knows nothing of lights: it takes weights and returns indices. */
 #ifndef ALIAS_H
 #define ALIAS_H
 

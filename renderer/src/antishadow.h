@@ -13,7 +13,9 @@
      outside         L', P disjoint <=> p outside some separating plane
                                         (edge of one + vertex of the other,
                                         light and portal on opposite sides),
-   and every point on the light's side of the portal plane is outside. */
+   and every point on the light's side of the portal plane is outside.
+   Pure geometry of one pair: it traces no rays and picks no sampling
+   technique (strategy.c does). */
 #ifndef ANTISHADOW_H
 #define ANTISHADOW_H
 

@@ -2,7 +2,9 @@
    reflection (Smith height-correlated shadowing, Schlick Fresnel with the
    albedo as F0), sampled by cosine and by visible normals (Heitz 2018).
    Directions are unit vectors in the local shading frame (z = normal, the
-   side of the outgoing direction). */
+   side of the outgoing direction).
+   Local to one surface point: it traces no rays, knows no lights, and keeps
+   no random state (callers pass the numbers). */
 #ifndef BSDF_H
 #define BSDF_H
 

@@ -1,5 +1,6 @@
 /* camera.h: pinhole camera with a vertical field of view; pixel (0, 0) is at
-   the top left; box-filtered pixels are sampled by jittering inside them. */
+   the top left; box-filtered pixels are sampled by jittering inside them.
+   It keeps no film and no random state: callers pass the jitter. */
 #ifndef CAMERA_H
 #define CAMERA_H
 

@@ -2,7 +2,8 @@
    object (names of strategies, integrators, materials..., EXR channels and
    attributes, snapshot keys, exit codes, JSON events), each list read from
    the table the code itself uses, so that the harness asks instead of
-   keeping copies. */
+   keeping copies.
+   It restates no name: every list is the owning module's own table. */
 #ifndef DESCRIBE_H
 #define DESCRIBE_H
 

@@ -1,5 +1,6 @@
 /* error.h: the error value every fallible function fills, and its formatter.
-   A function that can fail returns bool and takes `struct error *err` last. */
+   A function that can fail returns bool and takes `struct error *err` last.
+   It never prints: main.c alone reports errors and picks exit codes. */
 #ifndef ERROR_H
 #define ERROR_H
 

@@ -1,7 +1,9 @@
 /* expr.h: the small arithmetic language configs may use wherever a number is
    expected ("=max(s_L, s_P) / 2 + 0.05"): + - * / ^ (right-associative),
    unary minus, parentheses, min, max (2+ arguments), abs, sqrt, sin, cos, tan
-   (radians), the constant pi and named variables (the config's params). */
+   (radians), the constant pi and named variables (the config's params).
+   It evaluates text only: it knows no config keys (the config module
+   decides where expressions may appear). */
 #ifndef EXPR_H
 #define EXPR_H
 

@@ -1,7 +1,8 @@
 /* film.h: per-pixel accumulation of radiance samples (running mean and
    second moment, Welford) and the OpenEXR snapshot format: R, G, B of the
    mean and variance.R/G/B of the mean, plus the optional region AOV
-   (aov.h) as per-class fractions, written atomically. */
+   (aov.h) as per-class fractions, written atomically.
+   It never samples or traces: it stores what the render passes in. */
 #ifndef FILM_H
 #define FILM_H
 

@@ -1,7 +1,8 @@
 /* integrator.h: radiance along a camera ray: `direct` (emission plus direct
    lighting at the first hit) and `path` (unidirectional path tracing with
    next-event estimation and Russian roulette), both combining the light
-   strategy with BSDF sampling by multiple importance sampling. */
+   strategy with BSDF sampling by multiple importance sampling.
+   It owns no threads and no film: render.c drives it row by row. */
 #ifndef INTEGRATOR_H
 #define INTEGRATOR_H
 

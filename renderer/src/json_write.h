@@ -1,6 +1,8 @@
 /* json_write.h: writing JSON values to a stream: strings (escaped, ASCII
    output), numbers that read back to the same double, arrays of names.
-   Errors are the stream's: callers check ferror() once at the end. */
+   Errors are the stream's: callers check ferror() once at the end.
+   It knows no event or config: describe.c, print_config.c and
+   render_events.c decide what to write. */
 #ifndef JSON_WRITE_H
 #define JSON_WRITE_H
 

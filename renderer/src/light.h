@@ -1,6 +1,7 @@
 /* light.h: uniform area lights on convex planar polygons: emission and the
    quantities light selection needs. Sampling goes through the light's
-   target (target.h). */
+   target (target.h).
+   It has no sampling code of its own (target.h) and never sees Embree. */
 #ifndef LIGHT_H
 #define LIGHT_H
 

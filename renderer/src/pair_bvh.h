@@ -1,7 +1,9 @@
 /* pair_bvh.h: a bounding volume hierarchy over the parts of space that each
    light/portal pair can light (a portal's anti-penumbra, a light's lit half
    space, each clipped to the scene's bounds), so that a shading point finds
-   the pairs that may reach it in O(log n + k) instead of testing them all. */
+   the pairs that may reach it in O(log n + k) instead of testing them all.
+   It only culls: the exact classification stays in antishadow.c and
+   strategy.c, and it never sees the scene's geometry. */
 #ifndef PAIR_BVH_H
 #define PAIR_BVH_H
 

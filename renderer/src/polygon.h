@@ -1,6 +1,7 @@
 /* polygon.h: convex planar polygons in 3D: the shape of every area light and
    portal. Area, plane, validity checks, Sutherland-Hodgman clipping, ray
-   intersection, solid angle and the Lambert/Arvo vector irradiance. */
+   intersection, solid angle and the Lambert/Arvo vector irradiance.
+   Pure geometry: no rays against the scene, no lights, no random state. */
 #ifndef POLYGON_H
 #define POLYGON_H
 

@@ -5,7 +5,9 @@
    call, a context and a double-to-float conversion per ray (`make bench`:
    the renderer's per-ray wrappers traced the raw ray mix 8% slower than
    Embree alone). scene.c traces a stream (scene_occluded_stream,
-   scene_first_light_stream); the types here stay free of Embree's. */
+   scene_first_light_stream); the types here stay free of Embree's.
+   It holds rays; tracing them is scene.c's job, the only place Embree is
+   seen. */
 #ifndef RAY_STREAM_H
 #define RAY_STREAM_H
 

@@ -1,6 +1,7 @@
 /* rng.h: per-sample random streams. Each (seed, pixel, sample index) triple
    seeds its own PCG32 stream through a hash, so an image rendered to a fixed
-   sample count is bit-identical whatever the number or schedule of threads. */
+   sample count is bit-identical whatever the number or schedule of threads.
+   No global state: every stream is a value its caller owns. */
 #ifndef RNG_H
 #define RNG_H
 

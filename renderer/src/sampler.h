@@ -2,7 +2,8 @@
    from. Today there is one, "independent": a PCG32 stream per (seed, pixel,
    sample index) (rng.h). This table is where a future `render.sampler`
    config key would take its names from, as render.strategy takes them from
-   strategy_names; `render --describe` lists it. */
+   strategy_names; `render --describe` lists it.
+   It holds names only; the numbers come from rng.h. */
 #ifndef SAMPLER_H
 #define SAMPLER_H
 

@@ -4,7 +4,8 @@
    against the other by MIS. Each ray is set up, traced and resolved in
    separate steps so that a film row can do every step for all its points
    in turn (integrator_radiance_row); the set-up of a whole row is
-   vectorised for Lambertian surfaces (shading_setup_many). */
+   vectorised for Lambertian surfaces (shading_setup_many).
+   It chooses no light (strategy.h) and writes no film. */
 #ifndef SHADING_H
 #define SHADING_H
 

@@ -1,7 +1,9 @@
 /* spherical.h: solid-angle sampling of planar shapes seen from a point:
    spherical rectangles (Urena, Fajardo, King 2013), spherical triangles
    (Arvo 1995), and convex polygons as fans of spherical triangles chosen by
-   solid angle. Each sampler's pdf is 1 / solid angle inside the shape. */
+   solid angle. Each sampler's pdf is 1 / solid angle inside the shape.
+   Pure geometry and sampling of one shape: no lights, no scene, no random
+   state. */
 #ifndef SPHERICAL_H
 #define SPHERICAL_H
 

@@ -7,7 +7,9 @@
    a light alone). The `light` and `light_area` strategies pick lights by
    power from a global table; the portal strategies weight pairs per shading
    point (strategy_prepare) and then sample the pair's technique, which for
-   the antishadow strategies depends on the point's region. */
+   the antishadow strategies depends on the point's region.
+   It traces no rays: the integrator traces the shadow ray a strategy
+   samples. */
 #ifndef STRATEGY_H
 #define STRATEGY_H
 

@@ -1,7 +1,9 @@
 /* target.h: a convex planar polygon prepared for sampling directions from a
    shading point, by area or by solid angle, with the matching pdfs. Lights,
    portals and the clipped visible part of a light are all targets, so every
-   strategy shares one sampling and one pdf code path per technique. */
+   strategy shares one sampling and one pdf code path per technique.
+   It knows nothing of lights or portals as such, only the polygon it was
+   built from. */
 #ifndef TARGET_H
 #define TARGET_H
 
