@@ -90,15 +90,18 @@ def _header_from(path: Path, raw: dict[str, Any]) -> SnapshotHeader:
         raise CorruptExrError(str(path), f"malformed header attribute ({bad})") from None
 
 
+def _raw_header(p: Path) -> dict[str, Any]:
+    try:
+        with OpenEXR.File(str(p), header_only=True) as f:
+            return dict(f.header())
+    except (RuntimeError, ValueError, OSError) as e:
+        raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
+
+
 def read_header(path: Path | str) -> SnapshotHeader:
     """The header of a snapshot, without reading its pixels."""
     p = Path(path)
-    try:
-        with OpenEXR.File(str(p), header_only=True) as f:
-            raw = dict(f.header())
-    except (RuntimeError, ValueError, OSError) as e:
-        raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
-    return _header_from(p, raw)
+    return _header_from(p, _raw_header(p))
 
 
 # Attributes every OpenEXR file has, whoever wrote it.
@@ -120,12 +123,7 @@ STANDARD_ATTRIBUTES = frozenset(
 def read_names(path: Path | str) -> tuple[list[str], list[str]]:
     """The channel names and the non-standard header attribute names of an
     EXR file, sorted, without reading its pixels (for contract checks)."""
-    p = Path(path)
-    try:
-        with OpenEXR.File(str(p), header_only=True) as f:
-            raw = dict(f.header())
-    except (RuntimeError, ValueError, OSError) as e:
-        raise CorruptExrError(str(p), str(e) or type(e).__name__) from None
+    raw = _raw_header(Path(path))
     channels = sorted(c.name for c in raw.get("channels", []))
     return channels, sorted(set(raw) - STANDARD_ATTRIBUTES)
 

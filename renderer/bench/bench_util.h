@@ -10,24 +10,12 @@
 #include <time.h>
 
 #include "config.h"
+#include "timing.h"
 
-/* Wall clock (monotonic), seconds. */
-static inline double bench_wall_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* CPU time of the calling thread, seconds: on a shared machine it excludes
-   the time the thread spent descheduled, so per-call costs stay comparable
-   when other work competes for the cores. */
-static inline double bench_thread_cpu_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
+/* The clocks are the renderer's own (timing.h): timing_now_s for wall time,
+   timing_thread_cpu_s for the calling thread's CPU time, which on a shared
+   machine excludes the time the thread spent descheduled, so per-call
+   costs stay comparable when other work competes for the cores. */
 
 static int bench_cmp_double(const void *a, const void *b)
 {

@@ -306,12 +306,12 @@ int main(int argc, char **argv)
             for (int c = 0; c < n_cells; ++c) {
                 struct cell *cl = &cells[s][c];
                 long calls = 0;
-                double c0 = bench_thread_cpu_s(), w0 = bench_wall_s(), c1 = c0;
+                double c0 = timing_thread_cpu_s(), w0 = timing_now_s(), c1 = c0;
                 do {
                     calls += run_cell(cl, &sets[s], &sc, strategies, scratches, &sink);
-                    c1 = bench_thread_cpu_s();
+                    c1 = timing_thread_cpu_s();
                 } while ((c1 - c0) * 1e3 < min_ms && calls < 100000000L);
-                double w1 = bench_wall_s();
+                double w1 = timing_now_s();
                 cl->ns[r] = calls ? (c1 - c0) * 1e9 / (double)calls : 0.0;
                 cl->wall_ns[r] = calls ? (w1 - w0) * 1e9 / (double)calls : 0.0;
             }

@@ -228,7 +228,7 @@ static void *worker_main(void *arg)
     _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
     _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
     pthread_barrier_wait(w->barrier);
-    double t0 = bench_wall_s(), c0 = bench_thread_cpu_s();
+    double t0 = timing_now_s(), c0 = timing_thread_cpu_s();
     int i = w->start, n = w->b->n;
     uint64_t rays = 0, hits = 0;
     double t = t0;
@@ -237,10 +237,10 @@ static void *worker_main(void *arg)
         hits += trace_range(w->sc, w->b, w->api, i, i1);
         rays += (uint64_t)(i1 - i);
         i = i1 == n ? 0 : i1;
-        t = bench_wall_s();
+        t = timing_now_s();
     }
     w->wall_s = t - t0;
-    w->cpu_s = bench_thread_cpu_s() - c0;
+    w->cpu_s = timing_thread_cpu_s() - c0;
     w->rays = rays;
     w->hits = hits;
     return NULL;
