@@ -79,7 +79,7 @@ def main() -> int:
             for name in ("base", "new"):
                 runs[name].append(samples_per_cpu_s(getattr(args, name), scene, integrator, strategy, args.time))
         b, n = statistics.median(runs["base"]), statistics.median(runs["new"])
-        ratios = [x / y for x, y in zip(runs["new"], runs["base"])]
+        ratios = [x / y for x, y in zip(runs["new"], runs["base"], strict=True)]
         print(
             f"{scene:16} {integrator:10} {strategy:17} {b / 1e6:9.3f} {n / 1e6:9.3f} {n / b:9.3f}"
             f" {min(ratios):6.3f}-{max(ratios):.3f}"

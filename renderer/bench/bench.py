@@ -31,12 +31,12 @@ import subprocess
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
-
-import numpy as np
+from typing import Any
 
 import benchlib as bl
+import numpy as np
 from benchlib import LAMPSHADE, MULTI_LAMP, STRATEGIES, TMP, Context, log, median
 
 SWEEP_S_L = (0.075, 0.15, 0.3, 0.6, 1.2)
@@ -234,25 +234,30 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         row["rays_per_sample"] = median([x["rays"] / x["samples"] for x in rs])
         # Against the raw limit next to each run: the best Embree API, and
         # single rays (rtcIntersect1/rtcOccluded1) alone.
-        row["raw_fraction_cpu_runs"] = [x["render"]["rays_per_cpu_s"] / l["best"] for x, l in zip(rs, limits[key])]
+        row["raw_fraction_cpu_runs"] = [
+            x["render"]["rays_per_cpu_s"] / lim["best"] for x, lim in zip(rs, limits[key], strict=True)
+        ]
         row["raw_fraction_cpu"] = median(row["raw_fraction_cpu_runs"])
         row["raw_fraction_cpu_single"] = median(
-            [x["render"]["rays_per_cpu_s"] / l["single"] for x, l in zip(rs, limits[key])]
+            [x["render"]["rays_per_cpu_s"] / lim["single"] for x, lim in zip(rs, limits[key], strict=True)]
         )
-        row["raw_limit_best"] = median([l["best"] for l in limits[key]])
+        row["raw_limit_best"] = median([lim["best"] for lim in limits[key]])
         # Best of the rounds: interference from other work only ever slows a
         # run, so the fastest render against the fastest raw limit next to
         # the key's renders is the closest to the undisturbed ratio.
         row["rays_per_cpu_s_best_of"] = max(x["render"]["rays_per_cpu_s"] for x in rs)
-        row["raw_limit_best_of"] = max(l["best"] for l in adjacent[key])
+        row["raw_limit_best_of"] = max(lim["best"] for lim in adjacent[key])
         row["raw_fraction_cpu_best_of"] = row["rays_per_cpu_s_best_of"] / row["raw_limit_best_of"]
         # Strategy cost: time per sample relative to `light`, same integrator, same round.
         light = runs[f"{integ}/light"]
         row["cost_vs_light_cpu"] = ratio_stats(
-            [l["render"]["samples_per_cpu_s"] / x["render"]["samples_per_cpu_s"] for x, l in zip(rs, light)]
+            [
+                lt["render"]["samples_per_cpu_s"] / x["render"]["samples_per_cpu_s"]
+                for x, lt in zip(rs, light, strict=True)
+            ]
         )
         row["cost_vs_light_wall"] = ratio_stats(
-            [(x["time_s"] / x["samples"]) / (l["time_s"] / l["samples"]) for x, l in zip(rs, light)]
+            [(x["time_s"] / x["samples"]) / (lt["time_s"] / lt["samples"]) for x, lt in zip(rs, light, strict=True)]
         )
         row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
         table[key] = row
@@ -463,7 +468,9 @@ def section_harness(ctx: Context) -> dict[str, Any]:
     out = TMP / "runs" / "harness"
     table = {}
     try:
-        from portal_harness import exr as hexr, metrics as hmet  # the harness's own code path, if installed
+        # The harness's own code path, if installed.
+        from portal_harness import exr as hexr
+        from portal_harness import metrics as hmet
     except ImportError:
         hexr = hmet = None
     for size in (256, 1024):
@@ -506,7 +513,7 @@ def section_harness(ctx: Context) -> dict[str, Any]:
         table[str(size)] = {
             "read_two_exr_ms": 1e3 * median(times_read),
             "metrics_ms": 1e3 * median(times_metric),
-            "total_ms": 1e3 * median([a + b for a, b in zip(times_read, times_metric)]),
+            "total_ms": 1e3 * median([a + b for a, b in zip(times_read, times_metric, strict=True)]),
             "portal_harness_total_ms": 1e3 * median(times_harness) if times_harness else None,
             "exr_bytes": paths[0].stat().st_size,
             "check_mse": mse,
@@ -657,7 +664,7 @@ def add_efficiency(rows: dict[str, Any]) -> None:
     """Efficiency of each row relative to rows['light'], from rel_mse_est (and
     its standard error) or rel_var, with CPU or render time."""
     base = rows["light"]
-    for name, row in rows.items():
+    for row in rows.values():
         for clock in ("cpu_s", "time_s"):
             suffix = "cpu" if clock == "cpu_s" else "wall"
             e_row = row["rel_mse_est"] * row[clock]
@@ -854,7 +861,7 @@ def main() -> int:
         log(f"== {name}")
         try:
             fn(ctx)
-        except Exception:  # noqa: BLE001 - one failing section must not lose the others
+        except Exception:  # one failing section must not lose the others
             failed.append(name)
             log(f"section {name} FAILED:\n{traceback.format_exc()}")
         log(f"== {name} done in {time.monotonic() - t0:.1f} s")

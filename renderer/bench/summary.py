@@ -9,8 +9,9 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 RESULTS = Path(__file__).resolve().parent.parent.parent / "results" / "bench"
 SWEEP = ("portal", "projection", "antishadow", "antishadow_exact")
@@ -35,7 +36,7 @@ def pct(x: float | None) -> str:
 def table(header: list[str], rows: list[list[str]]) -> list[str]:
     out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     out += ["| " + " | ".join(r) + " |" for r in rows]
-    return out + [""]
+    return [*out, ""]
 
 
 def verdict(ok: bool | None) -> str:
@@ -66,19 +67,18 @@ def raw_embree(d: dict[str, Any]) -> list[str]:
     nr = t.get("mix/embree_without_robust_flag")
     note = []
     if nr:
+        gain = nr["rays_per_cpu_s_1t"] / t["mix/embree"]["rays_per_cpu_s_1t"] - 1
         note = [
             f"The renderer's scene uses RTC_SCENE_FLAG_ROBUST; rebuilt without it, mix/embree 1T gives "
-            f"{mega(nr['rays_per_cpu_s_1t'])} M rays/CPU-s ({pct(nr['rays_per_cpu_s_1t'] / t['mix/embree']['rays_per_cpu_s_1t'] - 1)} vs robust).",
+            f"{mega(nr['rays_per_cpu_s_1t'])} M rays/CPU-s ({pct(gain)} vs robust).",
             "",
         ]
-    return (
-        [
-            f"Embree {d['results']['raw']['embree_version']}; batches: "
-            + ", ".join(f"{k} {v['rays']} rays ({pct(v['hit_fraction'])} hit)" for k, v in b.items())
-            + ".",
-            "",
-        ]
-        + table(
+    return [
+        f"Embree {d['results']['raw']['embree_version']}; batches: "
+        + ", ".join(f"{k} {v['rays']} rays ({pct(v['hit_fraction'])} hit)" for k, v in b.items())
+        + ".",
+        "",
+        *table(
             [
                 "kind",
                 "wrapper 1T M/s",
@@ -93,16 +93,14 @@ def raw_embree(d: dict[str, Any]) -> list[str]:
                 "stream / embree",
             ],
             rows,
-        )
-        + [
-            "",
-            "wrapper = the renderer's scene_intersect/scene_occluded; embree = rtcIntersect1/rtcOccluded1; "
-            "stream = rtcIntersect1M/rtcOccluded1M over chunks of 1024 rays split by kind, camera rays flagged "
-            "coherent (the renderer traces each film row's camera rays this way).",
-            "",
-        ]
-        + note
-    )
+        ),
+        "",
+        "wrapper = the renderer's scene_intersect/scene_occluded; embree = rtcIntersect1/rtcOccluded1; "
+        "stream = rtcIntersect1M/rtcOccluded1M over chunks of 1024 rays split by kind, camera rays flagged "
+        "coherent (the renderer traces each film row's camera rays this way).",
+        "",
+        *note,
+    ]
 
 
 def throughput(d: dict[str, Any]) -> list[str]:
@@ -130,7 +128,7 @@ def throughput(d: dict[str, Any]) -> list[str]:
     p = d["params"]
     # raw_limit_per_round: results written before the limit was taken next to every run.
     lims = p.get("raw_limit_per_run", {}).get("direct/light") or p.get("raw_limit_per_round", [])
-    lim_txt = ", ".join(f"{mega(l['best'])} ({mega(l['single'])} single)" for l in lims)
+    lim_txt = ", ".join(f"{mega(lim['best'])} ({mega(lim['single'])} single)" for lim in lims)
     runs_txt = ", ".join(pct(x) for x in light.get("raw_fraction_cpu_runs", []))
     cpu = (
         "CPU-second of the render threads"
@@ -165,9 +163,9 @@ def throughput(d: dict[str, Any]) -> list[str]:
         ],
         rows,
     )
+    met = None if best is None or best != best else best >= 0.7
     out.append(
-        f"Target `light` >= 70% of raw: best-of {pct(best)} -> {verdict(None if best is None or best != best else best >= 0.7)} "
-        f"(median of the runs' ratios: {pct(frac)})"
+        f"Target `light` >= 70% of raw: best-of {pct(best)} -> {verdict(met)} (median of the runs' ratios: {pct(frac)})"
     )
     out.append("")
     return out
@@ -196,17 +194,18 @@ def threads(d: dict[str, Any]) -> list[str]:
     best = None if not light else light.get("speedup_wall_best_of")
     ok = None if best is None else best >= 1.8
     p = d["params"]
-    return table(
-        [
-            "strategy",
-            "wall speedup 2T/1T, median (range)",
-            "wall speedup, best-of",
-            "CPU efficiency 2T/1T",
-            "cores used 1T / 2T",
-            "speedup if both cores were free",
-        ],
-        rows,
-    ) + [
+    return [
+        *table(
+            [
+                "strategy",
+                "wall speedup 2T/1T, median (range)",
+                "wall speedup, best-of",
+                "CPU efficiency 2T/1T",
+                "cores used 1T / 2T",
+                "speedup if both cores were free",
+            ],
+            rows,
+        ),
         f"{p.get('spp')} spp, {p.get('reps')} round(s). Target >= 1.8x (wall, `light`, best-of: the fastest run "
         f"at each thread count): {verdict(ok)}. 'Cores used' is the render threads' CPU time / render time: "
         "below 2.0 at two threads the threads waited at the per-pass barrier or the machine ran something else, "
@@ -226,23 +225,28 @@ def snapshots(d: dict[str, Any]) -> list[str]:
         t["overhead_cpu_paired"],
         t["overhead_wall_paired"],
     )
-    return table(
-        ["", "overhead (median)", "range"],
-        [
-            ["snapshot CPU / render-thread CPU, same run", pct(oc["median"]), f"{pct(oc['min'])} .. {pct(oc['max'])}"],
-            ["estimate for an idle machine (pauses + writer CPU / threads) / render time", pct(oi), ""],
+    return [
+        *table(
+            ["", "overhead (median)", "range"],
             [
-                "cross-check, samples per CPU second vs a run without",
-                pct(cp["median"]),
-                f"{pct(cp['min'])} .. {pct(cp['max'])}",
+                [
+                    "snapshot CPU / render-thread CPU, same run",
+                    pct(oc["median"]),
+                    f"{pct(oc['min'])} .. {pct(oc['max'])}",
+                ],
+                ["estimate for an idle machine (pauses + writer CPU / threads) / render time", pct(oi), ""],
+                [
+                    "cross-check, samples per CPU second vs a run without",
+                    pct(cp["median"]),
+                    f"{pct(cp['min'])} .. {pct(cp['max'])}",
+                ],
+                [
+                    "cross-check, samples per render second vs a run without",
+                    pct(wp["median"]),
+                    f"{pct(wp['min'])} .. {pct(wp['max'])}",
+                ],
             ],
-            [
-                "cross-check, samples per render second vs a run without",
-                pct(wp["median"]),
-                f"{pct(wp['min'])} .. {pct(wp['max'])}",
-            ],
-        ],
-    ) + [
+        ),
         f"{p['time_s']} s renders, {p['threads']} threads, snapshots every {p['every_s']} s "
         f"({f(t['snapshots_written'], '.0f')} written), {p['reps']} round(s); per snapshot "
         f"{f(t['cpu_per_snapshot_ms'], '.1f')} ms CPU (EXR encoding on the writer thread, the film copy on the "
@@ -276,22 +280,23 @@ def scene_scaling(d: dict[str, Any]) -> list[str]:
             ]
         )
     fl, fa = t["light"]["fit_ns_per_sample"], t["antishadow_exact"]["fit_ns_per_sample"]
-    return table(
-        [
-            "N lamps",
-            "light M samples/CPU-s",
-            "light CPU ns/sample",
-            "light cost vs N=1",
-            "light wasted",
-            "ax_exact M samples/CPU-s",
-            "ax_exact CPU ns/sample",
-            "ax_exact cost vs N=1",
-            "ax_exact wasted",
-            "load+write wall s",
-            "fixed CPU s",
-        ],
-        rows,
-    ) + [
+    return [
+        *table(
+            [
+                "N lamps",
+                "light M samples/CPU-s",
+                "light CPU ns/sample",
+                "light cost vs N=1",
+                "light wasted",
+                "ax_exact M samples/CPU-s",
+                "ax_exact CPU ns/sample",
+                "ax_exact cost vs N=1",
+                "ax_exact wasted",
+                "load+write wall s",
+                "fixed CPU s",
+            ],
+            rows,
+        ),
         f"Fit CPU ns/sample = a + b N: light a = {f(fl['a'], '.0f')}, b = {f(fl['b_per_lamp'], '.2f')} ns/lamp; "
         f"antishadow_exact a = {f(fa['a'], '.0f')}, b = {f(fa['b_per_lamp'], '.2f')} ns/lamp. Marginal cost per "
         f"lamp between the two largest N: light {f(t['light'].get('marginal_ns_per_lamp'), '.2f')} ns, "
@@ -412,8 +417,8 @@ def efficiency(d: dict[str, Any]) -> list[str]:
                 f"{light['rel_mse_est']:.3g}",
                 f"{t['reference']['spp']}",
                 pct(light["ref_noise"] / light["rel_mse"]),
+                *cells,
             ]
-            + cells
         )
         rows_var.append(
             [ratio] + [f"{f(st[s]['eff_vs_light_cpu_var'], '.3g')} (z {f(st[s]['bias_z'], '+.1f')})" for s in SWEEP]
@@ -423,7 +428,7 @@ def efficiency(d: dict[str, Any]) -> list[str]:
             cells, ok = eff_cells(room["strategies"])
             unresolved |= not ok
             rows_room.append(
-                [ratio, pct(1 - st["light"]["room_share"]), pct(1 - st["antishadow_exact"]["room_share"])] + cells
+                [ratio, pct(1 - st["light"]["room_share"]), pct(1 - st["antishadow_exact"]["room_share"]), *cells]
             )
     p = d["params"]
     out = [
@@ -433,14 +438,14 @@ def efficiency(d: dict[str, Any]) -> list[str]:
         "reference - the reference's own noise (its variance layer).",
         "",
     ]
-    out += table(["ratio s_L/s_P", "light relMSE_est", "ref spp", "ref noise / light relMSE"] + list(SWEEP), rows)
+    out += table(["ratio s_L/s_P", "light relMSE_est", "ref spp", "ref noise / light relMSE", *SWEEP], rows)
     out.append(
         "Same runs, efficiency from each render's own variance layer (mean var_x / (ref^2 + 0.01)): "
         "low noise but blind to bias; z = (relMSE_est - that) / standard error, large positive z "
         "means bias or rare high-value samples the render has not met yet."
     )
     out.append("")
-    out += table(["ratio"] + list(SWEEP), rows_var)
+    out += table(["ratio", *SWEEP], rows_var)
     if rows_room:
         r0, r1 = next(iter(res.values()))["crops"]["room"]["rows"]
         out.append(
@@ -450,9 +455,7 @@ def efficiency(d: dict[str, Any]) -> list[str]:
             "light sample (only BSDF sampling), which is where most of their whole-image error sits."
         )
         out.append("")
-        out += table(
-            ["ratio", "light error in the band", "antishadow_exact error in the band"] + list(SWEEP), rows_room
-        )
+        out += table(["ratio", "light error in the band", "antishadow_exact error in the band", *SWEEP], rows_room)
     if unresolved:
         out.append(
             "\\* the estimate is within 2 standard errors of zero (the reference's noise dominates): "
@@ -505,7 +508,8 @@ def micro(d: dict[str, Any]) -> list[str]:
         f"Thread CPU ns per call; floor points uniform over the floor (regions: {regions}); antishadow points "
         "= floor points not outside.",
         "",
-    ] + table(["cell", "floor ns", "floor x shadow ray", "antishadow ns", "antishadow x shadow ray"], rows)
+        *table(["cell", "floor ns", "floor x shadow ray", "antishadow ns", "antishadow x shadow ray"], rows),
+    ]
 
 
 def portal_weights(d: dict[str, Any]) -> list[str]:
@@ -527,17 +531,18 @@ def portal_weights(d: dict[str, Any]) -> list[str]:
         f"multi_lamp.yaml, direct, {d['params']['time_s']} s per render, reference `light` "
         f"{r['reference']['spp']} spp.",
         "",
-    ] + table(
-        [
-            "variant",
-            "relMSE_est",
-            "spp",
-            "eff vs light (reference)",
-            "eff vs light (variance layer)",
-            "wasted shadow rays",
-        ],
-        rows,
-    )
+        *table(
+            [
+                "variant",
+                "relMSE_est",
+                "spp",
+                "eff vs light (reference)",
+                "eff vs light (variance layer)",
+                "wasted shadow rays",
+            ],
+            rows,
+        ),
+    ]
 
 
 SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
