@@ -60,7 +60,8 @@ def samples_per_cpu_s(render: Path, scene: str, integrator: str, strategy: str, 
             final = event
     if start is None or final is None:
         raise RuntimeError(f"{render}: no start or final event")
-    return float(final["spp"]) * start["width"] * start["height"] / float(final["render_cpu_s"])
+    rate: float = float(final["spp"]) * start["width"] * start["height"] / float(final["render_cpu_s"])
+    return rate
 
 
 def main() -> int:

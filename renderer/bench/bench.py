@@ -471,8 +471,10 @@ def section_harness(ctx: Context) -> dict[str, Any]:
         # The harness's own code path, if installed.
         from portal_harness import exr as hexr
         from portal_harness import metrics as hmet
+
+        have_harness = True
     except ImportError:
-        hexr = hmet = None
+        have_harness = False
     for size in (256, 1024):
         paths = []
         for seed in (1, 2):
@@ -503,7 +505,7 @@ def section_harness(ctx: Context) -> dict[str, Any]:
             t2 = time.perf_counter()
             times_read.append(t1 - t0)
             times_metric.append(t2 - t1)
-            if hexr is not None:
+            if have_harness:
                 t3 = time.perf_counter()
                 a, b = hexr.read_snapshot(paths[0]), hexr.read_snapshot(paths[1])
                 hmet.mse(a.rgb, b.rgb)

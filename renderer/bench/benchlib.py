@@ -157,7 +157,8 @@ class RenderRun:
 
     @property
     def samples(self) -> float:
-        return float(self.final["spp"]) * self.start["width"] * self.start["height"]
+        samples: float = float(self.final["spp"]) * self.start["width"] * self.start["height"]
+        return samples
 
     def summary(self) -> dict[str, Any]:
         f = self.final
@@ -234,7 +235,8 @@ def run_json(cmd: list[str]) -> dict[str, Any]:
     p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed with status {p.returncode}")
-    return json.loads(p.stdout)
+    result: dict[str, Any] = json.loads(p.stdout)
+    return result
 
 
 # ---- EXR and the error metric -------------------------------------------------
