@@ -31,9 +31,25 @@ CASES = [
 
 def samples_per_cpu_s(render: Path, scene: str, integrator: str, strategy: str, time_s: float) -> float:
     with tempfile.TemporaryDirectory() as out:
-        cmd = [str(render), str(ROOT / "configs" / "scenes" / scene), "--out", out, "--time", str(time_s),
-               "--threads", "1", "--seed", "1", "--integrator", integrator, "--strategy", strategy, "--quiet",
-               "--set", "render.snapshots.every=1000000"]
+        cmd = [
+            str(render),
+            str(ROOT / "configs" / "scenes" / scene),
+            "--out",
+            out,
+            "--time",
+            str(time_s),
+            "--threads",
+            "1",
+            "--seed",
+            "1",
+            "--integrator",
+            integrator,
+            "--strategy",
+            strategy,
+            "--quiet",
+            "--set",
+            "render.snapshots.every=1000000",
+        ]
         proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
     start = final = None
     for line in proc.stdout.splitlines():
@@ -44,7 +60,8 @@ def samples_per_cpu_s(render: Path, scene: str, integrator: str, strategy: str, 
             final = event
     if start is None or final is None:
         raise RuntimeError(f"{render}: no start or final event")
-    return float(final["spp"]) * start["width"] * start["height"] / float(final["render_cpu_s"])
+    rate: float = float(final["spp"]) * start["width"] * start["height"] / float(final["render_cpu_s"])
+    return rate
 
 
 def main() -> int:
@@ -54,17 +71,20 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--time", type=float, default=2.0)
     args = ap.parse_args()
-    print(f"{'scene':16} {'integrator':10} {'strategy':17} {'base M/s':>9} {'new M/s':>9} {'new/base':>9}"
-          f" {'range':>13}")
+    print(
+        f"{'scene':16} {'integrator':10} {'strategy':17} {'base M/s':>9} {'new M/s':>9} {'new/base':>9} {'range':>13}"
+    )
     for scene, integrator, strategy in CASES:
         runs: dict[str, list[float]] = {"base": [], "new": []}
         for _ in range(args.rounds):
             for name in ("base", "new"):
                 runs[name].append(samples_per_cpu_s(getattr(args, name), scene, integrator, strategy, args.time))
         b, n = statistics.median(runs["base"]), statistics.median(runs["new"])
-        ratios = [x / y for x, y in zip(runs["new"], runs["base"])]
-        print(f"{scene:16} {integrator:10} {strategy:17} {b / 1e6:9.3f} {n / 1e6:9.3f} {n / b:9.3f}"
-              f" {min(ratios):6.3f}-{max(ratios):.3f}")
+        ratios = [x / y for x, y in zip(runs["new"], runs["base"], strict=True)]
+        print(
+            f"{scene:16} {integrator:10} {strategy:17} {b / 1e6:9.3f} {n / 1e6:9.3f} {n / b:9.3f}"
+            f" {min(ratios):6.3f}-{max(ratios):.3f}"
+        )
         sys.stdout.flush()
     return 0
 

@@ -31,12 +31,12 @@ import subprocess
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
-
-import numpy as np
+from typing import Any
 
 import benchlib as bl
+import numpy as np
 from benchlib import LAMPSHADE, MULTI_LAMP, STRATEGIES, TMP, Context, log, median
 
 SWEEP_S_L = (0.075, 0.15, 0.3, 0.6, 1.2)
@@ -64,10 +64,27 @@ def ratio_stats(xs: list[float]) -> dict[str, float]:
 
 def section_raw_embree(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
-    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "seconds_per_cell": 0.1 if q else 0.3,
-              "reps": 3 if q else 5, "spp": 1 if q else 2, "threads": [1, 2]}
-    raw = bl.run_json([str(ctx.bins["raw_embree"]), str(LAMPSHADE), "--seconds", str(params["seconds_per_cell"]),
-                       "--reps", str(params["reps"]), "--spp", str(params["spp"]), "--max-threads", "2"])
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "seconds_per_cell": 0.1 if q else 0.3,
+        "reps": 3 if q else 5,
+        "spp": 1 if q else 2,
+        "threads": [1, 2],
+    }
+    raw = bl.run_json(
+        [
+            str(ctx.bins["raw_embree"]),
+            str(LAMPSHADE),
+            "--seconds",
+            str(params["seconds_per_cell"]),
+            "--reps",
+            str(params["reps"]),
+            "--spp",
+            str(params["spp"]),
+            "--max-threads",
+            "2",
+        ]
+    )
     table: dict[str, dict[str, float]] = {}
     for c in raw["cells"]:
         row = table.setdefault(f"{c['kind']}/{c['api']}", {})
@@ -76,8 +93,10 @@ def section_raw_embree(ctx: Context) -> dict[str, Any]:
         row[f"rays_per_cpu_s_{t}t"] = c["median_rays_per_cpu_s"]
     nr = raw.get("mix_embree_1t_without_robust_flag")
     if nr:
-        table["mix/embree_without_robust_flag"] = {"rays_per_cpu_s_1t": nr["median_rays_per_cpu_s"],
-                                                   "per_thread_rays_per_s_1t": nr["median_rays_per_s"]}
+        table["mix/embree_without_robust_flag"] = {
+            "rays_per_cpu_s_1t": nr["median_rays_per_cpu_s"],
+            "per_thread_rays_per_s_1t": nr["median_rays_per_s"],
+        }
     ctx.machine["embree_version"] = raw["embree_version"]
     bl.write_result(ctx, "raw_embree", params, {"table": table, "raw": raw})
     return table
@@ -88,8 +107,21 @@ def raw_limit_now(ctx: Context) -> dict[str, float]:
     measured now, for a ratio taken right next to the renders it is compared
     with (the machine's speed drifts by tens of percent within seconds to
     minutes). 'best' is the faster of single rays and streams."""
-    raw = bl.run_json([str(ctx.bins["raw_embree"]), str(LAMPSHADE), "--seconds", "0.15", "--reps", "1",
-                       "--spp", "1", "--max-threads", "1", "--mix-only"])
+    raw = bl.run_json(
+        [
+            str(ctx.bins["raw_embree"]),
+            str(LAMPSHADE),
+            "--seconds",
+            "0.15",
+            "--reps",
+            "1",
+            "--spp",
+            "1",
+            "--max-threads",
+            "1",
+            "--mix-only",
+        ]
+    )
     cells = {c["api"]: c["median_rays_per_cpu_s"] for c in raw["cells"] if c["kind"] == "mix" and c["threads"] == 1}
     return {"single": cells["embree"], "stream": cells["stream"], "best": max(cells["embree"], cells["stream"])}
 
@@ -99,10 +131,15 @@ def raw_limit_now(ctx: Context) -> dict[str, float]:
 
 def section_micro(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
-    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "reps": 3 if q else 7, "min_ms": 5 if q else 20,
-              "floor": [-3, 3]}
-    raw = bl.run_json([str(ctx.bins["micro"]), str(LAMPSHADE), "--reps", str(params["reps"]),
-                       "--min-ms", str(params["min_ms"])])
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "reps": 3 if q else 7,
+        "min_ms": 5 if q else 20,
+        "floor": [-3, 3],
+    }
+    raw = bl.run_json(
+        [str(ctx.bins["micro"]), str(LAMPSHADE), "--reps", str(params["reps"]), "--min-ms", str(params["min_ms"])]
+    )
     table = {}
     for set_name, s in raw["sets"].items():
         shadow = s["cells"]["shadow_ray"]["median_ns"]
@@ -124,7 +161,10 @@ def wasted(run: dict[str, Any]) -> dict[str, float]:
         "wasted_fraction": (sb + lm) / denom if denom else float("nan"),
         "blocked_fraction": sb / denom if denom else float("nan"),
         "missed_fraction": lm / denom if denom else float("nan"),
-        "shadow_rays": sr, "shadow_blocked": sb, "light_samples": ls, "light_missed": lm,
+        "shadow_rays": sr,
+        "shadow_blocked": sb,
+        "light_samples": ls,
+        "light_missed": lm,
     }
 
 
@@ -153,13 +193,17 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
     # One render thread: the raw limit is one thread's, and two threads on
     # this machine's two vCPUs slow each other (raw Embree by 3-36% per
     # thread over runs, the renderer by 4-8%); section 3 measures the scaling.
-    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "spp": spp, "reps": reps, "threads": 1,
-              "order": "round-robin over (integrator, strategy) per round; seed = round",
-              "raw_limit": "raw_embree --mix-only measured before and after each (integrator, strategy) "
-                           "render; a run's ratio uses the mean of the two",
-              "best_of": "the fastest run's rate / the largest raw limit measured next to the key's runs",
-              "cpu_rates": "per CPU second of the render threads in passes (render_cpu_s in the renderer's "
-                           "final JSON line)"}
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "spp": spp,
+        "reps": reps,
+        "threads": 1,
+        "order": "round-robin over (integrator, strategy) per round; seed = round",
+        "raw_limit": "raw_embree --mix-only measured before and after each (integrator, strategy) "
+        "render; a run's ratio uses the mean of the two",
+        "best_of": "the fastest run's rate / the largest raw limit measured next to the key's runs",
+        "cpu_rates": "per CPU second of the render threads in passes (render_cpu_s in the renderer's final JSON line)",
+    }
     out = TMP / "runs" / "throughput"
     bl.run_render(ctx, LAMPSHADE, out / "warmup", "--spp", "1", "--threads", "1")
     runs: dict[str, list[dict[str, Any]]] = {}
@@ -177,7 +221,8 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
                 a = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), *common).summary()
                 after = raw_limit_now(ctx)
                 limits.setdefault(f"{integ}/{s}", []).append(
-                    {k: 0.5 * (before[k] + after[k]) for k in ("single", "stream", "best")})
+                    {k: 0.5 * (before[k] + after[k]) for k in ("single", "stream", "best")}
+                )
                 adjacent.setdefault(f"{integ}/{s}", []).extend([before, after])
                 before = after
                 runs.setdefault(f"{integ}/{s}", []).append({**a, "render": render_rates(a)})
@@ -189,31 +234,47 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         row["rays_per_sample"] = median([x["rays"] / x["samples"] for x in rs])
         # Against the raw limit next to each run: the best Embree API, and
         # single rays (rtcIntersect1/rtcOccluded1) alone.
-        row["raw_fraction_cpu_runs"] = [x["render"]["rays_per_cpu_s"] / l["best"] for x, l in zip(rs, limits[key])]
+        row["raw_fraction_cpu_runs"] = [
+            x["render"]["rays_per_cpu_s"] / lim["best"] for x, lim in zip(rs, limits[key], strict=True)
+        ]
         row["raw_fraction_cpu"] = median(row["raw_fraction_cpu_runs"])
         row["raw_fraction_cpu_single"] = median(
-            [x["render"]["rays_per_cpu_s"] / l["single"] for x, l in zip(rs, limits[key])])
-        row["raw_limit_best"] = median([l["best"] for l in limits[key]])
+            [x["render"]["rays_per_cpu_s"] / lim["single"] for x, lim in zip(rs, limits[key], strict=True)]
+        )
+        row["raw_limit_best"] = median([lim["best"] for lim in limits[key]])
         # Best of the rounds: interference from other work only ever slows a
         # run, so the fastest render against the fastest raw limit next to
         # the key's renders is the closest to the undisturbed ratio.
         row["rays_per_cpu_s_best_of"] = max(x["render"]["rays_per_cpu_s"] for x in rs)
-        row["raw_limit_best_of"] = max(l["best"] for l in adjacent[key])
+        row["raw_limit_best_of"] = max(lim["best"] for lim in adjacent[key])
         row["raw_fraction_cpu_best_of"] = row["rays_per_cpu_s_best_of"] / row["raw_limit_best_of"]
         # Strategy cost: time per sample relative to `light`, same integrator, same round.
         light = runs[f"{integ}/light"]
         row["cost_vs_light_cpu"] = ratio_stats(
-            [l["render"]["samples_per_cpu_s"] / x["render"]["samples_per_cpu_s"] for x, l in zip(rs, light)])
+            [
+                lt["render"]["samples_per_cpu_s"] / x["render"]["samples_per_cpu_s"]
+                for x, lt in zip(rs, light, strict=True)
+            ]
+        )
         row["cost_vs_light_wall"] = ratio_stats(
-            [(x["time_s"] / x["samples"]) / (l["time_s"] / l["samples"]) for x, l in zip(rs, light)])
+            [(x["time_s"] / x["samples"]) / (lt["time_s"] / lt["samples"]) for x, lt in zip(rs, light, strict=True)]
+        )
         row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
         table[key] = row
     bl.write_result(ctx, "throughput", {**params, "raw_limit_per_run": limits}, {"table": table, "runs": runs})
     # The wasted-ray table of section 9 at the default scene (s_L = 0.6).
     wasted_rows = {key: wasted(rs[0]) for key, rs in runs.items() if key.startswith("direct/")}
-    bl.write_result(ctx, "wasted_rays", {"config": params["config"], "s_L": 0.6, "integrator": "direct",
-                                         "definition": "(shadow_blocked + light_missed) / (shadow_rays + light_missed)"},
-                    {"lampshade_default": wasted_rows})
+    bl.write_result(
+        ctx,
+        "wasted_rays",
+        {
+            "config": params["config"],
+            "s_L": 0.6,
+            "integrator": "direct",
+            "definition": "(shadow_blocked + light_missed) / (shadow_rays + light_missed)",
+        },
+        {"lampshade_default": wasted_rows},
+    )
     return table
 
 
@@ -223,9 +284,14 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
 def section_threads(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     spp, reps = (4 if q else 32), (1 if q else 5)
-    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "integrator": "direct", "spp": spp, "reps": reps,
-              "clocks": "render time (time_s: passes only) and the render threads' CPU time (render_cpu_s)",
-              "best_of": "least render time at 1 thread / least at 2 threads over the rounds"}
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "integrator": "direct",
+        "spp": spp,
+        "reps": reps,
+        "clocks": "render time (time_s: passes only) and the render threads' CPU time (render_cpu_s)",
+        "best_of": "least render time at 1 thread / least at 2 threads over the rounds",
+    }
     out = TMP / "runs" / "threads"
     table, runs = {}, {}
     for s in ("light", "antishadow_exact"):
@@ -245,7 +311,8 @@ def section_threads(ctx: Context) -> dict[str, Any]:
             # Samples per render-thread CPU second at 2 threads over 1: 1.0
             # means no per-thread slow-down (locks, memory, the other thread).
             "cpu_efficiency_2t_vs_1t": ratio_stats(
-                [b["render"]["samples_per_cpu_s"] / a["render"]["samples_per_cpu_s"] for a, b in pairs]),
+                [b["render"]["samples_per_cpu_s"] / a["render"]["samples_per_cpu_s"] for a, b in pairs]
+            ),
             # Render-thread CPU time / render time: 2.0 at two threads when
             # both run all the time; less is idle time at the per-pass
             # barrier or time the machine gave to something else.
@@ -265,37 +332,48 @@ def section_snapshots(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     secs, reps, every = (1.5 if q else 2.0), (1 if q else 5), 0.25
     threads = 2
-    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "strategy": "light", "integrator": "direct",
-              "time_s": secs, "reps": reps, "every_s": every, "threads": threads,
-              "measured": "snapshot_cpu_s (writer thread + the main thread's copies) and snapshot_pause_s (render "
-                          "threads paused for the copies) from the renderer's final JSON line, per run"}
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "strategy": "light",
+        "integrator": "direct",
+        "time_s": secs,
+        "reps": reps,
+        "every_s": every,
+        "threads": threads,
+        "measured": "snapshot_cpu_s (writer thread + the main thread's copies) and snapshot_pause_s (render "
+        "threads paused for the copies) from the renderer's final JSON line, per run",
+    }
     out = TMP / "runs" / "snapshots"
     rounds = []
     for r in range(reps):
         log(f"snapshots: round {r + 1}/{reps}")
         common = ["--threads", str(threads), "--seed", str(r + 1), "--time", str(secs), "--spp", "0"]
         none = bl.run_render(ctx, LAMPSHADE, out / "none", *common).summary()
-        snap = bl.run_render(ctx, LAMPSHADE, out / "every", *common, "--set", f"render.snapshots.every={every}",
-                             snapshots=True).summary()
+        snap = bl.run_render(
+            ctx, LAMPSHADE, out / "every", *common, "--set", f"render.snapshots.every={every}", snapshots=True
+        ).summary()
         snap_cpu, pause = final_field(snap, "snapshot_cpu_s"), final_field(snap, "snapshot_pause_s")
         render_cpu = final_field(snap, "render_cpu_s")
         n = max(snap["snapshots"], 1)
-        rounds.append({
-            "none": none, "every": snap,
-            # The snapshots' CPU time over the render threads' in the same run.
-            "overhead_cpu": snap_cpu / render_cpu,
-            # On an idle machine: the pauses stop the render, the writer's
-            # CPU comes out of the render threads' cores (an upper bound: the
-            # copies' CPU is counted in both terms).
-            "overhead_idle_estimate": (pause + snap_cpu / threads) / snap["time_s"],
-            # Cross-check from two runs seconds apart: samples per CPU second
-            # (render threads + snapshots) with snapshots vs without.
-            "overhead_cpu_paired": 1 - (snap["samples"] / (render_cpu + snap_cpu))
-                                   / render_rates(none)["samples_per_cpu_s"],
-            "overhead_wall_paired": 1 - snap["samples_per_s"] / none["samples_per_s"],
-            "cpu_per_snapshot_s": snap_cpu / n,
-            "pause_per_snapshot_s": pause / n,
-        })
+        rounds.append(
+            {
+                "none": none,
+                "every": snap,
+                # The snapshots' CPU time over the render threads' in the same run.
+                "overhead_cpu": snap_cpu / render_cpu,
+                # On an idle machine: the pauses stop the render, the writer's
+                # CPU comes out of the render threads' cores (an upper bound: the
+                # copies' CPU is counted in both terms).
+                "overhead_idle_estimate": (pause + snap_cpu / threads) / snap["time_s"],
+                # Cross-check from two runs seconds apart: samples per CPU second
+                # (render threads + snapshots) with snapshots vs without.
+                "overhead_cpu_paired": 1
+                - (snap["samples"] / (render_cpu + snap_cpu)) / render_rates(none)["samples_per_cpu_s"],
+                "overhead_wall_paired": 1 - snap["samples_per_s"] / none["samples_per_s"],
+                "cpu_per_snapshot_s": snap_cpu / n,
+                "pause_per_snapshot_s": pause / n,
+            }
+        )
     table = {
         "overhead_cpu": ratio_stats([x["overhead_cpu"] for x in rounds]),
         "overhead_idle_machine_estimate": median([x["overhead_idle_estimate"] for x in rounds]),
@@ -316,13 +394,21 @@ def section_snapshots(ctx: Context) -> dict[str, Any]:
 def section_scene_scaling(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     ns, secs, reps, size = (1, 10, 100, 1000), (0.5 if q else 2.0), (1 if q else 2), 128
-    params = {"generator": "renderer/bench/gen_lamps.py", "n_lamps": list(ns), "time_s": secs, "reps": reps,
-              "film": size, "threads": 2, "integrator": "direct"}
+    params = {
+        "generator": "renderer/bench/gen_lamps.py",
+        "n_lamps": list(ns),
+        "time_s": secs,
+        "reps": reps,
+        "film": size,
+        "threads": 2,
+        "integrator": "direct",
+    }
     scenes = {}
     for n in ns:
         path = TMP / "scenes" / f"lamps_{n}.yaml"
-        subprocess.run([sys.executable, str(bl.BENCH_DIR / "gen_lamps.py"), str(n), str(path), "--size", str(size)],
-                       check=True)
+        subprocess.run(
+            [sys.executable, str(bl.BENCH_DIR / "gen_lamps.py"), str(n), str(path), "--size", str(size)], check=True
+        )
         scenes[n] = path
     out = TMP / "runs" / "scaling"
     runs: dict[str, list[dict[str, Any]]] = {}
@@ -331,8 +417,9 @@ def section_scene_scaling(ctx: Context) -> dict[str, Any]:
             for s in ("light", "antishadow_exact"):
                 log(f"scene_scaling: round {r + 1}/{reps} N={n} {s}")
                 common = ["--threads", "2", "--strategy", s, "--seed", str(r + 1)]
-                a = bl.run_render(ctx, scenes[n], out / f"{n}_{s}", "--time", str(secs), "--spp", "0",
-                                  *common).summary()
+                a = bl.run_render(
+                    ctx, scenes[n], out / f"{n}_{s}", "--time", str(secs), "--spp", "0", *common
+                ).summary()
                 b = bl.run_render(ctx, scenes[n], out / f"{n}_{s}_1", "--spp", "1", *common).summary()
                 runs.setdefault(f"{n}/{s}", []).append({**a, "diff": bl.differential(a, b)})
     table: dict[str, Any] = {}
@@ -358,8 +445,11 @@ def section_scene_scaling(ctx: Context) -> dict[str, Any]:
         # Marginal cost per added lamp between the two largest N: the
         # asymptotic slope, free of the near-lamp costs that saturate early.
         marginal = (y[-1] - y[-2]) / (x[-1] - x[-2])
-        table[s] = {"by_n": rows, "fit_ns_per_sample": {"a": float(a), "b_per_lamp": float(b)},
-                    "marginal_ns_per_lamp": float(marginal)}
+        table[s] = {
+            "by_n": rows,
+            "fit_ns_per_sample": {"a": float(a), "b_per_lamp": float(b)},
+            "marginal_ns_per_lamp": float(marginal),
+        }
     bl.write_result(ctx, "scene_scaling", params, {"table": table, "runs": runs})
     return table
 
@@ -370,19 +460,39 @@ def section_scene_scaling(ctx: Context) -> dict[str, Any]:
 def section_harness(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     reps = 3 if q else 7
-    params = {"what": "read snapshot + reference EXR (openexr bindings), MSE and relMSE (+ reference noise)",
-              "reps": reps, "sizes": [256, 1024]}
+    params = {
+        "what": "read snapshot + reference EXR (openexr bindings), MSE and relMSE (+ reference noise)",
+        "reps": reps,
+        "sizes": [256, 1024],
+    }
     out = TMP / "runs" / "harness"
     table = {}
     try:
-        from portal_harness import exr as hexr, metrics as hmet  # the harness's own code path, if installed
+        # The harness's own code path, if installed.
+        from portal_harness import exr as hexr
+        from portal_harness import metrics as hmet
+
+        have_harness = True
     except ImportError:
-        hexr = hmet = None
+        have_harness = False
     for size in (256, 1024):
         paths = []
         for seed in (1, 2):
-            run = bl.run_render(ctx, LAMPSHADE, out / f"{size}_{seed}", "--spp", "2", "--threads", "2",
-                                "--seed", str(seed), "--set", f"film.width={size}", "--set", f"film.height={size}")
+            run = bl.run_render(
+                ctx,
+                LAMPSHADE,
+                out / f"{size}_{seed}",
+                "--spp",
+                "2",
+                "--threads",
+                "2",
+                "--seed",
+                str(seed),
+                "--set",
+                f"film.width={size}",
+                "--set",
+                f"film.height={size}",
+            )
             paths.append(Path(run.final["path"]))
         times_read, times_metric, times_harness = [], [], []
         for _ in range(reps):
@@ -395,7 +505,7 @@ def section_harness(ctx: Context) -> dict[str, Any]:
             t2 = time.perf_counter()
             times_read.append(t1 - t0)
             times_metric.append(t2 - t1)
-            if hexr is not None:
+            if have_harness:
                 t3 = time.perf_counter()
                 a, b = hexr.read_snapshot(paths[0]), hexr.read_snapshot(paths[1])
                 hmet.mse(a.rgb, b.rgb)
@@ -405,7 +515,7 @@ def section_harness(ctx: Context) -> dict[str, Any]:
         table[str(size)] = {
             "read_two_exr_ms": 1e3 * median(times_read),
             "metrics_ms": 1e3 * median(times_metric),
-            "total_ms": 1e3 * median([a + b for a, b in zip(times_read, times_metric)]),
+            "total_ms": 1e3 * median([a + b for a, b in zip(times_read, times_metric, strict=True)]),
             "portal_harness_total_ms": 1e3 * median(times_harness) if times_harness else None,
             "exr_bytes": paths[0].stat().st_size,
             "check_mse": mse,
@@ -455,8 +565,19 @@ def sweep_overhead(ctx: Context) -> dict[str, Any]:
     exp = folder / "bench_sweep.yaml"
     exp.write_text(SWEEP_EXPERIMENT.format(scene=LAMPSHADE, time_s=time_s, ref_s=ref_s))
     results = folder / "results"
-    cmd = [sys.executable, "-m", "portal_harness", "sweep", str(exp), "--results", str(results),
-           "--renderer", str(ctx.render), "--jobs", "1"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "portal_harness",
+        "sweep",
+        str(exp),
+        "--results",
+        str(results),
+        "--renderer",
+        str(ctx.render),
+        "--jobs",
+        "1",
+    ]
     w0 = time.monotonic()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.monotonic() - w0
@@ -468,8 +589,12 @@ def sweep_overhead(ctx: Context) -> dict[str, Any]:
     render = sum(m["timings"]["render_time_s"] for m in manifests)
     process = sum(m["timings"]["wall_s"] for m in manifests)
     return {
-        "renders": len(manifests), "run_time_s": time_s, "reference_time_s": ref_s,
-        "sweep_wall_s": wall, "render_s": render, "renderer_process_s": process,
+        "renders": len(manifests),
+        "run_time_s": time_s,
+        "reference_time_s": ref_s,
+        "sweep_wall_s": wall,
+        "render_s": render,
+        "renderer_process_s": process,
         # Shares of the sweep's wall time.
         "not_rendering_share": 1 - render / wall,
         "renderer_overhead_share": (process - render) / wall,
@@ -488,7 +613,9 @@ def reference(ctx: Context, config: Path, sets: list[str], secs: float, tag: str
     """A long `light` render, cached under results/bench/tmp/refs keyed by the
     scene file, the overrides and the renderer version; reused when it was
     rendered for at least `secs`."""
-    key = hashlib.sha1(json.dumps([file_digest(config), sets, ctx.version, "light", REF_SEED]).encode()).hexdigest()[:12]
+    key = hashlib.sha1(json.dumps([file_digest(config), sets, ctx.version, "light", REF_SEED]).encode()).hexdigest()[
+        :12
+    ]
     folder = TMP / "refs" / f"{tag}_v{ctx.version}_{key}"
     meta_path = folder / "meta.json"
     binary = file_digest(ctx.render)
@@ -497,16 +624,40 @@ def reference(ctx: Context, config: Path, sets: list[str], secs: float, tag: str
         if meta.get("time_target_s", 0) >= secs and (folder / "final.exr").exists():
             log(f"reference {folder.name}: cached ({meta['time_target_s']} s, {meta['spp']} spp)")
             if meta.get("render_binary_sha1") != binary:
-                log(f"reference {folder.name}: note: rendered by another build of renderer {ctx.version}; "
-                    "if images changed, bump RENDERER_VERSION or set BENCH_FRESH_REFS=1")
+                log(
+                    f"reference {folder.name}: note: rendered by another build of renderer {ctx.version}; "
+                    "if images changed, bump RENDERER_VERSION or set BENCH_FRESH_REFS=1"
+                )
             return folder / "final.exr", meta
     log(f"reference {folder.name}: rendering {secs} s")
     args = [a for s in sets for a in ("--set", s)]
-    run = bl.run_render(ctx, config, folder, "--strategy", "light", "--time", str(secs), "--spp", "0",
-                        "--threads", "2", "--seed", str(REF_SEED), *args)
-    meta = {"config": str(config), "sets": sets, "renderer_version": ctx.version, "time_target_s": secs,
-            "time_s": run.time_s, "cpu_s": run.cpu_s, "spp": run.final["spp"], "seed": REF_SEED,
-            "render_binary_sha1": binary}
+    run = bl.run_render(
+        ctx,
+        config,
+        folder,
+        "--strategy",
+        "light",
+        "--time",
+        str(secs),
+        "--spp",
+        "0",
+        "--threads",
+        "2",
+        "--seed",
+        str(REF_SEED),
+        *args,
+    )
+    meta = {
+        "config": str(config),
+        "sets": sets,
+        "renderer_version": ctx.version,
+        "time_target_s": secs,
+        "time_s": run.time_s,
+        "cpu_s": run.cpu_s,
+        "spp": run.final["spp"],
+        "seed": REF_SEED,
+        "render_binary_sha1": binary,
+    }
     meta_path.write_text(json.dumps(meta, indent=1) + "\n")
     return folder / "final.exr", meta
 
@@ -515,7 +666,7 @@ def add_efficiency(rows: dict[str, Any]) -> None:
     """Efficiency of each row relative to rows['light'], from rel_mse_est (and
     its standard error) or rel_var, with CPU or render time."""
     base = rows["light"]
-    for name, row in rows.items():
+    for row in rows.values():
         for clock in ("cpu_s", "time_s"):
             suffix = "cpu" if clock == "cpu_s" else "wall"
             e_row = row["rel_mse_est"] * row[clock]
@@ -529,14 +680,23 @@ def add_efficiency(rows: dict[str, Any]) -> None:
         row["eff_vs_light_cpu_var"] = e_base_var / e_row_var if e_row_var > 0 else float("inf")
         # Relative standard error of the ratio, from the two estimates' errors.
         if row["rel_mse_est"] > 0 and base["rel_mse_est"] > 0:
-            row["eff_vs_light_rel_se"] = math.hypot(row["rel_mse_est_se"] / row["rel_mse_est"],
-                                                    base["rel_mse_est_se"] / base["rel_mse_est"])
+            row["eff_vs_light_rel_se"] = math.hypot(
+                row["rel_mse_est_se"] / row["rel_mse_est"], base["rel_mse_est_se"] / base["rel_mse_est"]
+            )
         else:
             row["eff_vs_light_rel_se"] = float("nan")
 
 
-def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants: dict[str, list[str]], secs: float,
-                          ref_exr: Path, out: Path, crops: dict[str, tuple[int, int]] | None = None) -> dict[str, Any]:
+def measure_at_equal_time(
+    ctx: Context,
+    config: Path,
+    sets: list[str],
+    variants: dict[str, list[str]],
+    secs: float,
+    ref_exr: Path,
+    out: Path,
+    crops: dict[str, tuple[int, int]] | None = None,
+) -> dict[str, Any]:
     """Renders each variant for `secs` (2 threads) and measures its error
     against the reference and its efficiency relative to the variant 'light',
     on the whole image and on each crop (name -> rows [r0, r1))."""
@@ -545,8 +705,9 @@ def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants:
     crop_rows: dict[str, dict[str, Any]] = {c: {} for c in (crops or {})}
     for name, extra in variants.items():
         args = [a for s in sets for a in ("--set", s)]
-        run = bl.run_render(ctx, config, out / name, "--time", str(secs), "--spp", "0", "--threads", "2",
-                            "--seed", "1", *args, *extra)
+        run = bl.run_render(
+            ctx, config, out / name, "--time", str(secs), "--spp", "0", "--threads", "2", "--seed", "1", *args, *extra
+        )
         x, x_var, _ = bl.read_exr(Path(run.final["path"]))
         err = bl.rel_error(x, x_var, ref, ref_var)
         summ = run.summary()
@@ -571,23 +732,43 @@ def measure_at_equal_time(ctx: Context, config: Path, sets: list[str], variants:
 def section_efficiency(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     secs, ref_secs = (1.0 if q else 4.0), (6.0 if q else 60.0)
-    params = {"config": str(LAMPSHADE.relative_to(bl.ROOT)), "s_L": list(SWEEP_S_L), "s_P": S_P,
-              "strategies": list(SWEEP_STRATEGIES), "integrator": "direct", "time_s": secs, "threads": 2,
-              "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
-              "rel_mse": "mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)",
-              "rel_mse_est": "rel_mse - mean(var_ref / (ref^2 + 0.01))",
-              "crops": {"room": {"rows": list(ROOM_ROWS), "what": "rows below the lampshade (floor, walls, box): "
-                                 "excludes the band where the camera sees into the shade through its opening"}},
-              "efficiency": "1 / (rel_mse_est * cpu_s); eff_vs_light_wall uses render time_s instead; "
-                            "eff_vs_light_cpu_var uses rel_var (the render's own variance layer) instead of "
-                            "rel_mse_est"}
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "s_L": list(SWEEP_S_L),
+        "s_P": S_P,
+        "strategies": list(SWEEP_STRATEGIES),
+        "integrator": "direct",
+        "time_s": secs,
+        "threads": 2,
+        "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
+        "rel_mse": "mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)",
+        "rel_mse_est": "rel_mse - mean(var_ref / (ref^2 + 0.01))",
+        "crops": {
+            "room": {
+                "rows": list(ROOM_ROWS),
+                "what": "rows below the lampshade (floor, walls, box): "
+                "excludes the band where the camera sees into the shade through its opening",
+            }
+        },
+        "efficiency": "1 / (rel_mse_est * cpu_s); eff_vs_light_wall uses render time_s instead; "
+        "eff_vs_light_cpu_var uses rel_var (the render's own variance layer) instead of "
+        "rel_mse_est",
+    }
     table = {}
     for s_l in SWEEP_S_L:
         sets = [f"params.s_L={s_l}", f"params.s_P={S_P}"]
         ref_exr, meta = reference(ctx, LAMPSHADE, sets, ref_secs, f"lampshade_sL{s_l}")
         log(f"efficiency: s_L={s_l} (ratio {s_l / S_P:g})")
-        rows = measure_at_equal_time(ctx, LAMPSHADE, sets, {s: ["--strategy", s] for s in SWEEP_STRATEGIES}, secs,
-                                     ref_exr, TMP / "runs" / "efficiency" / f"sL{s_l}", {"room": ROOM_ROWS})
+        rows = measure_at_equal_time(
+            ctx,
+            LAMPSHADE,
+            sets,
+            {s: ["--strategy", s] for s in SWEEP_STRATEGIES},
+            secs,
+            ref_exr,
+            TMP / "runs" / "efficiency" / f"sL{s_l}",
+            {"room": ROOM_ROWS},
+        )
         crops = rows.pop("_crops")
         table[f"{s_l / S_P:g}"] = {"s_L": s_l, "reference": meta, "strategies": rows, "crops": crops}
     bl.write_result(ctx, "efficiency", params, table)
@@ -596,10 +777,25 @@ def section_efficiency(ctx: Context) -> dict[str, Any]:
     if path.exists():
         data = json.loads(path.read_text())
         data["results"]["sweep"] = {
-            ratio: {s: {k: v for k, v in row.items() if k in (
-                "wasted_fraction", "blocked_fraction", "missed_fraction", "shadow_rays", "shadow_blocked",
-                "light_samples", "light_missed")} for s, row in t["strategies"].items()}
-            for ratio, t in table.items()}
+            ratio: {
+                s: {
+                    k: v
+                    for k, v in row.items()
+                    if k
+                    in (
+                        "wasted_fraction",
+                        "blocked_fraction",
+                        "missed_fraction",
+                        "shadow_rays",
+                        "shadow_blocked",
+                        "light_samples",
+                        "light_missed",
+                    )
+                }
+                for s, row in t["strategies"].items()
+            }
+            for ratio, t in table.items()
+        }
         data["results"]["sweep_note"] = "equal-time runs of efficiency.json (4 s full, 1 s quick)"
         path.write_text(json.dumps(data, indent=1) + "\n")
     return table
@@ -608,10 +804,16 @@ def section_efficiency(ctx: Context) -> dict[str, Any]:
 def section_portal_weights(ctx: Context) -> dict[str, Any]:
     q = ctx.quick
     secs, ref_secs = (1.0 if q else 4.0), (6.0 if q else 60.0)
-    params = {"config": str(MULTI_LAMP.relative_to(bl.ROOT)), "strategy": "antishadow_exact",
-              "weights": list(WEIGHTS), "integrator": "direct", "time_s": secs, "threads": 2,
-              "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
-              "efficiency": "relative to `light` at equal time; see efficiency.json for the definitions"}
+    params = {
+        "config": str(MULTI_LAMP.relative_to(bl.ROOT)),
+        "strategy": "antishadow_exact",
+        "weights": list(WEIGHTS),
+        "integrator": "direct",
+        "time_s": secs,
+        "threads": 2,
+        "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED},
+        "efficiency": "relative to `light` at equal time; see efficiency.json for the definitions",
+    }
     ref_exr, meta = reference(ctx, MULTI_LAMP, [], ref_secs, "multi_lamp")
     variants = {"light": ["--strategy", "light"]}
     for w in WEIGHTS:
@@ -649,8 +851,10 @@ def main() -> int:
     ctx = bl.make_context(args.build.resolve(), args.quick)
     for name in ("raw_embree", "micro"):
         ctx.bins[name] = ctx.build / "bench" / name
-    log(f"renderer {ctx.version} at {ctx.render}; {'quick' if ctx.quick else 'full'} run; "
-        f"{ctx.machine['nproc']} CPUs ({ctx.machine['cpu_model']}), load {ctx.machine['loadavg_1_5_15']}")
+    log(
+        f"renderer {ctx.version} at {ctx.render}; {'quick' if ctx.quick else 'full'} run; "
+        f"{ctx.machine['nproc']} CPUs ({ctx.machine['cpu_model']}), load {ctx.machine['loadavg_1_5_15']}"
+    )
     failed = []
     for name, fn in SECTIONS.items():
         if only and name not in only:
@@ -659,7 +863,7 @@ def main() -> int:
         log(f"== {name}")
         try:
             fn(ctx)
-        except Exception:  # noqa: BLE001 - one failing section must not lose the others
+        except Exception:  # one failing section must not lose the others
             failed.append(name)
             log(f"section {name} FAILED:\n{traceback.format_exc()}")
         log(f"== {name} done in {time.monotonic() - t0:.1f} s")

@@ -157,7 +157,8 @@ class RenderRun:
 
     @property
     def samples(self) -> float:
-        return float(self.final["spp"]) * self.start["width"] * self.start["height"]
+        samples: float = float(self.final["spp"]) * self.start["width"] * self.start["height"]
+        return samples
 
     def summary(self) -> dict[str, Any]:
         f = self.final
@@ -197,11 +198,19 @@ def differential(a: dict[str, Any], b: dict[str, Any]) -> dict[str, float]:
     Falls back to a's totals when b rendered as many samples as a."""
     ds, dr, dc = a["samples"] - b["samples"], a["rays"] - b["rays"], a["cpu_s"] - b["cpu_s"]
     if ds <= 0 or dc <= 0:
-        return {"samples_per_cpu_s": a["samples_per_cpu_s"], "rays_per_cpu_s": a["rays_per_cpu_s"],
-                "fixed_cpu_s": float("nan"), "differential": False}
+        return {
+            "samples_per_cpu_s": a["samples_per_cpu_s"],
+            "rays_per_cpu_s": a["rays_per_cpu_s"],
+            "fixed_cpu_s": float("nan"),
+            "differential": False,
+        }
     per_sample = dc / ds
-    return {"samples_per_cpu_s": ds / dc, "rays_per_cpu_s": dr / dc,
-            "fixed_cpu_s": b["cpu_s"] - b["samples"] * per_sample, "differential": True}
+    return {
+        "samples_per_cpu_s": ds / dc,
+        "rays_per_cpu_s": dr / dc,
+        "fixed_cpu_s": b["cpu_s"] - b["samples"] * per_sample,
+        "differential": True,
+    }
 
 
 def run_render(ctx: Context, config: Path, out: Path, *args: str, snapshots: bool = False) -> RenderRun:
@@ -226,7 +235,8 @@ def run_json(cmd: list[str]) -> dict[str, Any]:
     p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed with status {p.returncode}")
-    return json.loads(p.stdout)
+    result: dict[str, Any] = json.loads(p.stdout)
+    return result
 
 
 # ---- EXR and the error metric -------------------------------------------------
@@ -269,8 +279,15 @@ def rel_error(x: np.ndarray, x_var: np.ndarray, ref: np.ndarray, ref_var: np.nda
     pix = per.mean(axis=-1).ravel()
     se = float(pix.std(ddof=1) / np.sqrt(pix.size))
     rel_var = float(np.mean(x_var / d))
-    return {"rel_mse": raw, "ref_noise": noise, "rel_mse_est": est, "rel_mse_est_se": se, "resolved": est > 2 * se,
-            "rel_var": rel_var, "bias_z": (est - rel_var) / se if se > 0 else float("nan")}
+    return {
+        "rel_mse": raw,
+        "ref_noise": noise,
+        "rel_mse_est": est,
+        "rel_mse_est_se": se,
+        "resolved": est > 2 * se,
+        "rel_var": rel_var,
+        "bias_z": (est - rel_var) / se if se > 0 else float("nan"),
+    }
 
 
 def write_result(ctx: Context, name: str, params: dict[str, Any], results: Any) -> Path:

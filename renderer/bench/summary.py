@@ -9,8 +9,9 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 RESULTS = Path(__file__).resolve().parent.parent.parent / "results" / "bench"
 SWEEP = ("portal", "projection", "antishadow", "antishadow_exact")
@@ -35,7 +36,7 @@ def pct(x: float | None) -> str:
 def table(header: list[str], rows: list[list[str]]) -> list[str]:
     out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     out += ["| " + " | ".join(r) + " |" for r in rows]
-    return out + [""]
+    return [*out, ""]
 
 
 def verdict(ok: bool | None) -> str:
@@ -47,58 +48,125 @@ def raw_embree(d: dict[str, Any]) -> list[str]:
     rows = []
     for kind in ("camera", "bounce", "shadow", "mix"):
         w, e, st = t[f"{kind}/wrapper"], t[f"{kind}/embree"], t.get(f"{kind}/stream", {})
-        rows.append([kind, mega(w["per_thread_rays_per_s_1t"]), mega(w["per_thread_rays_per_s_2t"]),
-                     mega(e["per_thread_rays_per_s_1t"]), mega(e["per_thread_rays_per_s_2t"]),
-                     mega(st.get("per_thread_rays_per_s_1t")), mega(st.get("per_thread_rays_per_s_2t")),
-                     mega(w["rays_per_cpu_s_1t"]), mega(e["rays_per_cpu_s_1t"]), mega(st.get("rays_per_cpu_s_1t")),
-                     f(st["rays_per_cpu_s_1t"] / e["rays_per_cpu_s_1t"], ".2f") if st else "n/a"])
+        rows.append(
+            [
+                kind,
+                mega(w["per_thread_rays_per_s_1t"]),
+                mega(w["per_thread_rays_per_s_2t"]),
+                mega(e["per_thread_rays_per_s_1t"]),
+                mega(e["per_thread_rays_per_s_2t"]),
+                mega(st.get("per_thread_rays_per_s_1t")),
+                mega(st.get("per_thread_rays_per_s_2t")),
+                mega(w["rays_per_cpu_s_1t"]),
+                mega(e["rays_per_cpu_s_1t"]),
+                mega(st.get("rays_per_cpu_s_1t")),
+                f(st["rays_per_cpu_s_1t"] / e["rays_per_cpu_s_1t"], ".2f") if st else "n/a",
+            ]
+        )
     b = d["results"]["raw"]["batches"]
     nr = t.get("mix/embree_without_robust_flag")
     note = []
     if nr:
-        note = [f"The renderer's scene uses RTC_SCENE_FLAG_ROBUST; rebuilt without it, mix/embree 1T gives "
-                f"{mega(nr['rays_per_cpu_s_1t'])} M rays/CPU-s ({pct(nr['rays_per_cpu_s_1t'] / t['mix/embree']['rays_per_cpu_s_1t'] - 1)} vs robust).", ""]
-    return [f"Embree {d['results']['raw']['embree_version']}; batches: " +
-            ", ".join(f"{k} {v['rays']} rays ({pct(v['hit_fraction'])} hit)" for k, v in b.items()) + ".", ""] + \
-        table(["kind", "wrapper 1T M/s", "wrapper 2T M/s/thread", "embree 1T M/s", "embree 2T M/s/thread",
-               "stream 1T M/s", "stream 2T M/s/thread", "wrapper M/CPU-s", "embree M/CPU-s", "stream M/CPU-s",
-               "stream / embree"], rows) + \
-        ["", "wrapper = the renderer's scene_intersect/scene_occluded; embree = rtcIntersect1/rtcOccluded1; "
-             "stream = rtcIntersect1M/rtcOccluded1M over chunks of 1024 rays split by kind, camera rays flagged "
-             "coherent (the renderer traces each film row's camera rays this way).", ""] + note
+        gain = nr["rays_per_cpu_s_1t"] / t["mix/embree"]["rays_per_cpu_s_1t"] - 1
+        note = [
+            f"The renderer's scene uses RTC_SCENE_FLAG_ROBUST; rebuilt without it, mix/embree 1T gives "
+            f"{mega(nr['rays_per_cpu_s_1t'])} M rays/CPU-s ({pct(gain)} vs robust).",
+            "",
+        ]
+    return [
+        f"Embree {d['results']['raw']['embree_version']}; batches: "
+        + ", ".join(f"{k} {v['rays']} rays ({pct(v['hit_fraction'])} hit)" for k, v in b.items())
+        + ".",
+        "",
+        *table(
+            [
+                "kind",
+                "wrapper 1T M/s",
+                "wrapper 2T M/s/thread",
+                "embree 1T M/s",
+                "embree 2T M/s/thread",
+                "stream 1T M/s",
+                "stream 2T M/s/thread",
+                "wrapper M/CPU-s",
+                "embree M/CPU-s",
+                "stream M/CPU-s",
+                "stream / embree",
+            ],
+            rows,
+        ),
+        "",
+        "wrapper = the renderer's scene_intersect/scene_occluded; embree = rtcIntersect1/rtcOccluded1; "
+        "stream = rtcIntersect1M/rtcOccluded1M over chunks of 1024 rays split by kind, camera rays flagged "
+        "coherent (the renderer traces each film row's camera rays this way).",
+        "",
+        *note,
+    ]
 
 
 def throughput(d: dict[str, Any]) -> list[str]:
     t = d["results"]["table"]
     rows = []
     for key, r in t.items():
-        rows.append([key, mega(r["samples_per_s"]), mega(r["rays_per_s"]), mega(r["samples_per_cpu_s"]),
-                     mega(r["rays_per_cpu_s"]), f(r.get("rays_per_sample"), ".2f"), pct(r.get("raw_fraction_cpu")),
-                     pct(r.get("raw_fraction_cpu_best_of")), pct(r.get("raw_fraction_cpu_single")),
-                     f(r["cost_vs_light_cpu"]["median"], ".2f"), f(r["cost_vs_light_wall"]["median"], ".2f")])
+        rows.append(
+            [
+                key,
+                mega(r["samples_per_s"]),
+                mega(r["rays_per_s"]),
+                mega(r["samples_per_cpu_s"]),
+                mega(r["rays_per_cpu_s"]),
+                f(r.get("rays_per_sample"), ".2f"),
+                pct(r.get("raw_fraction_cpu")),
+                pct(r.get("raw_fraction_cpu_best_of")),
+                pct(r.get("raw_fraction_cpu_single")),
+                f(r["cost_vs_light_cpu"]["median"], ".2f"),
+                f(r["cost_vs_light_wall"]["median"], ".2f"),
+            ]
+        )
     light = t.get("direct/light", {})
     frac = light.get("raw_fraction_cpu")
     best = light.get("raw_fraction_cpu_best_of")
     p = d["params"]
     # raw_limit_per_round: results written before the limit was taken next to every run.
     lims = p.get("raw_limit_per_run", {}).get("direct/light") or p.get("raw_limit_per_round", [])
-    lim_txt = ", ".join(f"{mega(l['best'])} ({mega(l['single'])} single)" for l in lims)
+    lim_txt = ", ".join(f"{mega(lim['best'])} ({mega(lim['single'])} single)" for lim in lims)
     runs_txt = ", ".join(pct(x) for x in light.get("raw_fraction_cpu_runs", []))
-    cpu = ("CPU-second of the render threads" if "render_cpu_s" in p.get("cpu_rates", "")
-           else "CPU-second (process, differential)")
-    out = [f"Lampshade (s_L = 0.6), {p.get('threads', 2)} thread(s), spp {p['spp']}, {p['reps']} round(s), medians. "
-           f"'% raw' = renderer rays per {cpu} / raw Embree rays per CPU-second of the renderer's ray mix "
-           "(raw_embree mix batch, 1 thread), with the faster of single rays and streams, measured just before "
-           "and just after each render (their mean); '% raw single' uses rtcIntersect1/rtcOccluded1 "
-           f"alone. Raw limit next to the `direct/light` runs, M rays/CPU-s: {lim_txt}; their % raw: "
-           f"{runs_txt or 'n/a'}. '% raw best-of' = the fastest run's rate / the largest raw limit measured "
-           "next to the runs: interference only slows a run, so the fastest of several is the closest to the "
-           "machine's undisturbed speed (README). "
-           "Cost = time per sample / that of `light`, same integrator and round (section 5).", ""]
-    out += table(["integrator/strategy", "M samples/s", "M rays/s", "M samples/CPU-s", "M rays/CPU-s", "rays/sample",
-                  "% raw", "% raw best-of", "% raw single", "cost vs light (CPU)", "cost vs light (wall)"], rows)
-    out.append(f"Target `light` >= 70% of raw: best-of {pct(best)} -> {verdict(None if best is None or best != best else best >= 0.7)} "
-               f"(median of the runs' ratios: {pct(frac)})")
+    cpu = (
+        "CPU-second of the render threads"
+        if "render_cpu_s" in p.get("cpu_rates", "")
+        else "CPU-second (process, differential)"
+    )
+    out = [
+        f"Lampshade (s_L = 0.6), {p.get('threads', 2)} thread(s), spp {p['spp']}, {p['reps']} round(s), medians. "
+        f"'% raw' = renderer rays per {cpu} / raw Embree rays per CPU-second of the renderer's ray mix "
+        "(raw_embree mix batch, 1 thread), with the faster of single rays and streams, measured just before "
+        "and just after each render (their mean); '% raw single' uses rtcIntersect1/rtcOccluded1 "
+        f"alone. Raw limit next to the `direct/light` runs, M rays/CPU-s: {lim_txt}; their % raw: "
+        f"{runs_txt or 'n/a'}. '% raw best-of' = the fastest run's rate / the largest raw limit measured "
+        "next to the runs: interference only slows a run, so the fastest of several is the closest to the "
+        "machine's undisturbed speed (README). "
+        "Cost = time per sample / that of `light`, same integrator and round (section 5).",
+        "",
+    ]
+    out += table(
+        [
+            "integrator/strategy",
+            "M samples/s",
+            "M rays/s",
+            "M samples/CPU-s",
+            "M rays/CPU-s",
+            "rays/sample",
+            "% raw",
+            "% raw best-of",
+            "% raw single",
+            "cost vs light (CPU)",
+            "cost vs light (wall)",
+        ],
+        rows,
+    )
+    met = None if best is None or best != best else best >= 0.7
+    out.append(
+        f"Target `light` >= 70% of raw: best-of {pct(best)} -> {verdict(met)} (median of the runs' ratios: {pct(frac)})"
+    )
     out.append("")
     return out
 
@@ -106,45 +174,88 @@ def throughput(d: dict[str, Any]) -> list[str]:
 def threads(d: dict[str, Any]) -> list[str]:
     rows = []
     for s, r in d["results"]["table"].items():
-        cores = (f"{f(r['cores_1t'], '.2f')} / {f(r['cores_2t'], '.2f')}" if "cores_1t" in r
-                 else f"{f(r.get('cpu_share_1t'), '.2f')} / {f(r.get('cpu_share_2t'), '.2f')}")
-        rows.append([s, f(r["speedup_wall"]["median"], ".2f") + f" ({f(r['speedup_wall']['min'], '.2f')}-"
-                     f"{f(r['speedup_wall']['max'], '.2f')})", f(r.get("speedup_wall_best_of"), ".2f"),
-                     f(r["cpu_efficiency_2t_vs_1t"]["median"], ".2f"), cores,
-                     f(2 * r["cpu_efficiency_2t_vs_1t"]["median"], ".2f")])
+        cores = (
+            f"{f(r['cores_1t'], '.2f')} / {f(r['cores_2t'], '.2f')}"
+            if "cores_1t" in r
+            else f"{f(r.get('cpu_share_1t'), '.2f')} / {f(r.get('cpu_share_2t'), '.2f')}"
+        )
+        rows.append(
+            [
+                s,
+                f(r["speedup_wall"]["median"], ".2f") + f" ({f(r['speedup_wall']['min'], '.2f')}-"
+                f"{f(r['speedup_wall']['max'], '.2f')})",
+                f(r.get("speedup_wall_best_of"), ".2f"),
+                f(r["cpu_efficiency_2t_vs_1t"]["median"], ".2f"),
+                cores,
+                f(2 * r["cpu_efficiency_2t_vs_1t"]["median"], ".2f"),
+            ]
+        )
     light = d["results"]["table"].get("light")
     best = None if not light else light.get("speedup_wall_best_of")
     ok = None if best is None else best >= 1.8
     p = d["params"]
-    return table(["strategy", "wall speedup 2T/1T, median (range)", "wall speedup, best-of", "CPU efficiency 2T/1T",
-                  "cores used 1T / 2T", "speedup if both cores were free"], rows) + [
+    return [
+        *table(
+            [
+                "strategy",
+                "wall speedup 2T/1T, median (range)",
+                "wall speedup, best-of",
+                "CPU efficiency 2T/1T",
+                "cores used 1T / 2T",
+                "speedup if both cores were free",
+            ],
+            rows,
+        ),
         f"{p.get('spp')} spp, {p.get('reps')} round(s). Target >= 1.8x (wall, `light`, best-of: the fastest run "
         f"at each thread count): {verdict(ok)}. 'Cores used' is the render threads' CPU time / render time: "
         "below 2.0 at two threads the threads waited at the per-pass barrier or the machine ran something else, "
         "and the wall speedup says little; 'speedup if free' = 2 x CPU efficiency (ignores idle time at the "
-        "barrier).", ""]
+        "barrier).",
+        "",
+    ]
 
 
 def snapshots(d: dict[str, Any]) -> list[str]:
     t, p = d["results"]["table"], d["params"]
-    if "overhead_cpu_paired" not in t:   # results of an older bench
+    if "overhead_cpu_paired" not in t:  # results of an older bench
         return ["(old format; rerun `BENCH_ONLY=snapshots make bench`)", ""]
-    oc, oi, cp, wp = t["overhead_cpu"], t["overhead_idle_machine_estimate"], t["overhead_cpu_paired"], \
-        t["overhead_wall_paired"]
-    return table(["", "overhead (median)", "range"], [
-        ["snapshot CPU / render-thread CPU, same run", pct(oc["median"]), f"{pct(oc['min'])} .. {pct(oc['max'])}"],
-        ["estimate for an idle machine (pauses + writer CPU / threads) / render time", pct(oi), ""],
-        ["cross-check, samples per CPU second vs a run without", pct(cp["median"]),
-         f"{pct(cp['min'])} .. {pct(cp['max'])}"],
-        ["cross-check, samples per render second vs a run without", pct(wp["median"]),
-         f"{pct(wp['min'])} .. {pct(wp['max'])}"],
-    ]) + [f"{p['time_s']} s renders, {p['threads']} threads, snapshots every {p['every_s']} s "
-          f"({f(t['snapshots_written'], '.0f')} written), {p['reps']} round(s); per snapshot "
-          f"{f(t['cpu_per_snapshot_ms'], '.1f')} ms CPU (EXR encoding on the writer thread, the film copy on the "
-          f"main thread) and {f(t['pause_per_snapshot_ms'], '.2f')} ms with the render threads paused. "
-          f"Target < 2%: {verdict(oc['median'] < 0.02)} (CPU, same run), "
-          f"{verdict(oi < 0.02)} (idle-machine estimate). The cross-checks compare two runs made seconds apart "
-          "and follow the machine's load.", ""]
+    oc, oi, cp, wp = (
+        t["overhead_cpu"],
+        t["overhead_idle_machine_estimate"],
+        t["overhead_cpu_paired"],
+        t["overhead_wall_paired"],
+    )
+    return [
+        *table(
+            ["", "overhead (median)", "range"],
+            [
+                [
+                    "snapshot CPU / render-thread CPU, same run",
+                    pct(oc["median"]),
+                    f"{pct(oc['min'])} .. {pct(oc['max'])}",
+                ],
+                ["estimate for an idle machine (pauses + writer CPU / threads) / render time", pct(oi), ""],
+                [
+                    "cross-check, samples per CPU second vs a run without",
+                    pct(cp["median"]),
+                    f"{pct(cp['min'])} .. {pct(cp['max'])}",
+                ],
+                [
+                    "cross-check, samples per render second vs a run without",
+                    pct(wp["median"]),
+                    f"{pct(wp['min'])} .. {pct(wp['max'])}",
+                ],
+            ],
+        ),
+        f"{p['time_s']} s renders, {p['threads']} threads, snapshots every {p['every_s']} s "
+        f"({f(t['snapshots_written'], '.0f')} written), {p['reps']} round(s); per snapshot "
+        f"{f(t['cpu_per_snapshot_ms'], '.1f')} ms CPU (EXR encoding on the writer thread, the film copy on the "
+        f"main thread) and {f(t['pause_per_snapshot_ms'], '.2f')} ms with the render threads paused. "
+        f"Target < 2%: {verdict(oc['median'] < 0.02)} (CPU, same run), "
+        f"{verdict(oi < 0.02)} (idle-machine estimate). The cross-checks compare two runs made seconds apart "
+        "and follow the machine's load.",
+        "",
+    ]
 
 
 def scene_scaling(d: dict[str, Any]) -> list[str]:
@@ -153,13 +264,39 @@ def scene_scaling(d: dict[str, Any]) -> list[str]:
     rows = []
     for n in ns:
         a, b = t["light"]["by_n"][n], t["antishadow_exact"]["by_n"][n]
-        rows.append([n, mega(a["samples_per_cpu_s"]), f(a["cpu_ns_per_sample"], ".0f"), f(a["cost_vs_n1"], ".2f"),
-                     pct(a["wasted_fraction"]), mega(b["samples_per_cpu_s"]), f(b["cpu_ns_per_sample"], ".0f"),
-                     f(b["cost_vs_n1"], ".2f"), pct(b["wasted_fraction"]), f(a["load_and_write_s"], ".2f"), f(a.get("fixed_cpu_s"), ".2f")])
+        rows.append(
+            [
+                n,
+                mega(a["samples_per_cpu_s"]),
+                f(a["cpu_ns_per_sample"], ".0f"),
+                f(a["cost_vs_n1"], ".2f"),
+                pct(a["wasted_fraction"]),
+                mega(b["samples_per_cpu_s"]),
+                f(b["cpu_ns_per_sample"], ".0f"),
+                f(b["cost_vs_n1"], ".2f"),
+                pct(b["wasted_fraction"]),
+                f(a["load_and_write_s"], ".2f"),
+                f(a.get("fixed_cpu_s"), ".2f"),
+            ]
+        )
     fl, fa = t["light"]["fit_ns_per_sample"], t["antishadow_exact"]["fit_ns_per_sample"]
-    return table(["N lamps", "light M samples/CPU-s", "light CPU ns/sample", "light cost vs N=1", "light wasted",
-                  "ax_exact M samples/CPU-s", "ax_exact CPU ns/sample", "ax_exact cost vs N=1", "ax_exact wasted",
-                  "load+write wall s", "fixed CPU s"], rows) + [
+    return [
+        *table(
+            [
+                "N lamps",
+                "light M samples/CPU-s",
+                "light CPU ns/sample",
+                "light cost vs N=1",
+                "light wasted",
+                "ax_exact M samples/CPU-s",
+                "ax_exact CPU ns/sample",
+                "ax_exact cost vs N=1",
+                "ax_exact wasted",
+                "load+write wall s",
+                "fixed CPU s",
+            ],
+            rows,
+        ),
         f"Fit CPU ns/sample = a + b N: light a = {f(fl['a'], '.0f')}, b = {f(fl['b_per_lamp'], '.2f')} ns/lamp; "
         f"antishadow_exact a = {f(fa['a'], '.0f')}, b = {f(fa['b_per_lamp'], '.2f')} ns/lamp. Marginal cost per "
         f"lamp between the two largest N: light {f(t['light'].get('marginal_ns_per_lamp'), '.2f')} ns, "
@@ -169,23 +306,37 @@ def scene_scaling(d: dict[str, Any]) -> list[str]:
         "candidate whose antishadow contains the point (k, a fixed number here, set by the grid spacing: the "
         "cost that grows up to N ~ 100 and is flat after). `light` picks "
         "lamps from a global power table (O(1)) and only pays for the deeper BVH, but wastes almost every "
-        "shadow ray at large N.", ""]
+        "shadow ray at large N.",
+        "",
+    ]
 
 
 def harness(d: dict[str, Any]) -> list[str]:
-    rows = [[f"{s}x{s}", f(r["read_two_exr_ms"], ".1f"), f(r["metrics_ms"], ".1f"), f(r["total_ms"], ".1f"),
-             f(r.get("portal_harness_total_ms"), ".1f")] for s, r in d["results"].items() if s != "sweep"]
+    rows = [
+        [
+            f"{s}x{s}",
+            f(r["read_two_exr_ms"], ".1f"),
+            f(r["metrics_ms"], ".1f"),
+            f(r["total_ms"], ".1f"),
+            f(r.get("portal_harness_total_ms"), ".1f"),
+        ]
+        for s, r in d["results"].items()
+        if s != "sweep"
+    ]
     out = table(["image", "read 2 EXR ms", "MSE+relMSE+noise ms", "total ms", "portal_harness path ms"], rows)
     sw = d["results"].get("sweep")
     if sw:
-        out += [f"A sweep through the harness (`portal-harness sweep`, fresh results folder, one job): "
-                f"{sw['renders']} renders (2 strategies x 2 ratios at {f(sw['run_time_s'], 'g')} s, 2 references "
-                f"at {f(sw['reference_time_s'], 'g')} s, 256x256, snapshots every 0.25 s) took "
-                f"{f(sw['sweep_wall_s'], '.1f')} s of wall time, {f(sw['render_s'], '.1f')} s of it rendering: "
-                f"**{pct(sw['not_rendering_share'])} not spent rendering**, of which "
-                f"{pct(sw['renderer_overhead_share'])} in the renderer processes outside their render time (start, "
-                f"load, BVH build, snapshot pauses, final EXR write) and {pct(sw['harness_share'])} in the harness "
-                "(Python start, EXR reading, metrics, index, summary).", ""]
+        out += [
+            f"A sweep through the harness (`portal-harness sweep`, fresh results folder, one job): "
+            f"{sw['renders']} renders (2 strategies x 2 ratios at {f(sw['run_time_s'], 'g')} s, 2 references "
+            f"at {f(sw['reference_time_s'], 'g')} s, 256x256, snapshots every 0.25 s) took "
+            f"{f(sw['sweep_wall_s'], '.1f')} s of wall time, {f(sw['render_s'], '.1f')} s of it rendering: "
+            f"**{pct(sw['not_rendering_share'])} not spent rendering**, of which "
+            f"{pct(sw['renderer_overhead_share'])} in the renderer processes outside their render time (start, "
+            f"load, BVH build, snapshot pauses, final EXR write) and {pct(sw['harness_share'])} in the harness "
+            "(Python start, EXR reading, metrics, index, summary).",
+            "",
+        ]
     return out
 
 
@@ -236,8 +387,10 @@ def _targets(by_ratio: dict[str, dict[str, Any]], var: bool) -> str:
     t10 = [_vs(st["antishadow_exact"], 10.0, var) for r, st in by_ratio.items() if r == "4"]
     t1 = [_vs(st["antishadow_exact"], 1.0, var) for st in by_ratio.values()]
     ta = [_vs(st["antishadow"], st[o], var) for st in by_ratio.values() for o in ("projection", "portal")]
-    return (f"antishadow_exact >= 10x light at ratio 4: {_all(t10)}; >= 1x at every ratio: {_all(t1)}; "
-            f"antishadow >= projection and >= portal at every ratio: {_all(ta)}")
+    return (
+        f"antishadow_exact >= 10x light at ratio 4: {_all(t10)}; >= 1x at every ratio: {_all(t1)}; "
+        f"antishadow >= projection and >= portal at every ratio: {_all(ta)}"
+    )
 
 
 def eff_cells(st: dict[str, Any]) -> tuple[list[str], bool]:
@@ -258,39 +411,56 @@ def efficiency(d: dict[str, Any]) -> list[str]:
         cells, ok = eff_cells(st)
         unresolved |= not ok
         light = st["light"]
-        rows.append([ratio, f"{light['rel_mse_est']:.3g}", f"{t['reference']['spp']}",
-                     pct(light["ref_noise"] / light["rel_mse"])] + cells)
-        rows_var.append([ratio] + [f"{f(st[s]['eff_vs_light_cpu_var'], '.3g')} (z {f(st[s]['bias_z'], '+.1f')})"
-                                   for s in SWEEP])
+        rows.append(
+            [
+                ratio,
+                f"{light['rel_mse_est']:.3g}",
+                f"{t['reference']['spp']}",
+                pct(light["ref_noise"] / light["rel_mse"]),
+                *cells,
+            ]
+        )
+        rows_var.append(
+            [ratio] + [f"{f(st[s]['eff_vs_light_cpu_var'], '.3g')} (z {f(st[s]['bias_z'], '+.1f')})" for s in SWEEP]
+        )
         room = t.get("crops", {}).get("room")
         if room:
             cells, ok = eff_cells(room["strategies"])
             unresolved |= not ok
-            rows_room.append([ratio, pct(1 - st["light"]["room_share"]),
-                              pct(1 - st["antishadow_exact"]["room_share"])] + cells)
+            rows_room.append(
+                [ratio, pct(1 - st["light"]["room_share"]), pct(1 - st["antishadow_exact"]["room_share"]), *cells]
+            )
     p = d["params"]
-    out = [f"Direct integrator, {p['time_s']} s per render (2 threads), reference `light` >= "
-           f"{p['reference']['time_s_min']} s. Efficiency = 1 / (relMSE_est x CPU seconds), relative to `light` "
-           "at the same ratio; ± is the standard error from the pixel spread. relMSE_est = relMSE against the "
-           "reference - the reference's own noise (its variance layer).", ""]
-    out += table(["ratio s_L/s_P", "light relMSE_est", "ref spp", "ref noise / light relMSE"] + list(SWEEP), rows)
-    out.append("Same runs, efficiency from each render's own variance layer (mean var_x / (ref^2 + 0.01)): "
-               "low noise but blind to bias; z = (relMSE_est - that) / standard error, large positive z "
-               "means bias or rare high-value samples the render has not met yet.")
+    out = [
+        f"Direct integrator, {p['time_s']} s per render (2 threads), reference `light` >= "
+        f"{p['reference']['time_s_min']} s. Efficiency = 1 / (relMSE_est x CPU seconds), relative to `light` "
+        "at the same ratio; ± is the standard error from the pixel spread. relMSE_est = relMSE against the "
+        "reference - the reference's own noise (its variance layer).",
+        "",
+    ]
+    out += table(["ratio s_L/s_P", "light relMSE_est", "ref spp", "ref noise / light relMSE", *SWEEP], rows)
+    out.append(
+        "Same runs, efficiency from each render's own variance layer (mean var_x / (ref^2 + 0.01)): "
+        "low noise but blind to bias; z = (relMSE_est - that) / standard error, large positive z "
+        "means bias or rare high-value samples the render has not met yet."
+    )
     out.append("")
-    out += table(["ratio"] + list(SWEEP), rows_var)
+    out += table(["ratio", *SWEEP], rows_var)
     if rows_room:
         r0, r1 = next(iter(res.values()))["crops"]["room"]["rows"]
-        out.append(f"Same runs, image rows {r0}-{r1 - 1} only (the room below the lamp: floor, walls, box), i.e. "
-                   "without the band where the camera looks up through the opening into the shade. Points in "
-                   "that band lie on the light's side of the portal plane: the portal strategies give them no "
-                   "light sample (only BSDF sampling), which is where most of their whole-image error sits.")
+        out.append(
+            f"Same runs, image rows {r0}-{r1 - 1} only (the room below the lamp: floor, walls, box), i.e. "
+            "without the band where the camera looks up through the opening into the shade. Points in "
+            "that band lie on the light's side of the portal plane: the portal strategies give them no "
+            "light sample (only BSDF sampling), which is where most of their whole-image error sits."
+        )
         out.append("")
-        out += table(["ratio", "light error in the band", "antishadow_exact error in the band"] + list(SWEEP),
-                     rows_room)
+        out += table(["ratio", "light error in the band", "antishadow_exact error in the band", *SWEEP], rows_room)
     if unresolved:
-        out.append("\\* the estimate is within 2 standard errors of zero (the reference's noise dominates): "
-                   "a lower bound only; a longer reference would resolve it.")
+        out.append(
+            "\\* the estimate is within 2 standard errors of zero (the reference's noise dominates): "
+            "a lower bound only; a longer reference would resolve it."
+        )
         out.append("")
     whole = {r: t["strategies"] for r, t in res.items()}
     out.append(f"Targets, whole image (reference-based): {_targets(whole, False)}.")
@@ -305,13 +475,17 @@ def efficiency(d: dict[str, Any]) -> list[str]:
 def wasted_rays(d: dict[str, Any]) -> list[str]:
     res = d["results"]
     out = ["Wasted = (blocked + missed) / (shadow rays + missed): light samples that deliver nothing.", ""]
-    rows = [[k.split("/")[1], pct(r["wasted_fraction"]), pct(r["blocked_fraction"]), pct(r["missed_fraction"])]
-            for k, r in res["lampshade_default"].items()]
+    rows = [
+        [k.split("/")[1], pct(r["wasted_fraction"]), pct(r["blocked_fraction"]), pct(r["missed_fraction"])]
+        for k, r in res["lampshade_default"].items()
+    ]
     out += table(["strategy (s_L = 0.6)", "wasted", "blocked", "missed"], rows)
     if "sweep" in res:
         strategies = list(next(iter(res["sweep"].values())).keys())
-        rows = [[ratio] + [f"{pct(t[s]['wasted_fraction'])} ({pct(t[s]['blocked_fraction'])} b)" for s in strategies]
-                for ratio, t in res["sweep"].items()]
+        rows = [
+            [ratio] + [f"{pct(t[s]['wasted_fraction'])} ({pct(t[s]['blocked_fraction'])} b)" for s in strategies]
+            for ratio, t in res["sweep"].items()
+        ]
         out += table(["ratio"] + [f"{s} wasted (blocked)" for s in strategies], rows)
     return out
 
@@ -319,12 +493,23 @@ def wasted_rays(d: dict[str, Any]) -> list[str]:
 def micro(d: dict[str, Any]) -> list[str]:
     t = d["results"]["table"]
     names = list(t["floor"].keys())
-    rows = [[n, f(t["floor"][n]["ns"], ".0f"), f(t["floor"][n]["per_shadow_ray"], ".2f"),
-             f(t["antishadow"][n]["ns"], ".0f"), f(t["antishadow"][n]["per_shadow_ray"], ".2f")] for n in names]
+    rows = [
+        [
+            n,
+            f(t["floor"][n]["ns"], ".0f"),
+            f(t["floor"][n]["per_shadow_ray"], ".2f"),
+            f(t["antishadow"][n]["ns"], ".0f"),
+            f(t["antishadow"][n]["per_shadow_ray"], ".2f"),
+        ]
+        for n in names
+    ]
     regions = d["results"]["raw"]["sets"]["floor"]["regions"]
-    return [f"Thread CPU ns per call; floor points uniform over the floor (regions: {regions}); antishadow points "
-            "= floor points not outside.", ""] + table(
-        ["cell", "floor ns", "floor x shadow ray", "antishadow ns", "antishadow x shadow ray"], rows)
+    return [
+        f"Thread CPU ns per call; floor points uniform over the floor (regions: {regions}); antishadow points "
+        "= floor points not outside.",
+        "",
+        *table(["cell", "floor ns", "floor x shadow ray", "antishadow ns", "antishadow x shadow ray"], rows),
+    ]
 
 
 def portal_weights(d: dict[str, Any]) -> list[str]:
@@ -332,12 +517,32 @@ def portal_weights(d: dict[str, Any]) -> list[str]:
     rows = []
     for name, v in r["variants"].items():
         cell, _ = eff_cell(v)
-        rows.append([name, f(v["rel_mse_est"], ".3g"), f(v["spp"], "d"), cell,
-                     f"{f(v['eff_vs_light_cpu_var'], '.3g')} (z {f(v['bias_z'], '+.1f')})", pct(v["wasted_fraction"])])
-    return [f"multi_lamp.yaml, direct, {d['params']['time_s']} s per render, reference `light` "
-            f"{r['reference']['spp']} spp.", ""] + table(
-        ["variant", "relMSE_est", "spp", "eff vs light (reference)", "eff vs light (variance layer)",
-         "wasted shadow rays"], rows)
+        rows.append(
+            [
+                name,
+                f(v["rel_mse_est"], ".3g"),
+                f(v["spp"], "d"),
+                cell,
+                f"{f(v['eff_vs_light_cpu_var'], '.3g')} (z {f(v['bias_z'], '+.1f')})",
+                pct(v["wasted_fraction"]),
+            ]
+        )
+    return [
+        f"multi_lamp.yaml, direct, {d['params']['time_s']} s per render, reference `light` "
+        f"{r['reference']['spp']} spp.",
+        "",
+        *table(
+            [
+                "variant",
+                "relMSE_est",
+                "spp",
+                "eff vs light (reference)",
+                "eff vs light (variance layer)",
+                "wasted shadow rays",
+            ],
+            rows,
+        ),
+    ]
 
 
 SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
@@ -371,15 +576,20 @@ def main() -> int:
             lines += fn(d)
         except (KeyError, TypeError, ValueError, StopIteration) as e:
             lines += [f"(cannot summarise {path.name}: {type(e).__name__} {e})", ""]
-        lines.append(f"<sub>{path.name}: {d['date']}, {'quick' if d['quick'] else 'full'}, "
-                     f"load {d['machine'].get('loadavg_1_5_15')}</sub>")
+        lines.append(
+            f"<sub>{path.name}: {d['date']}, {'quick' if d['quick'] else 'full'}, "
+            f"load {d['machine'].get('loadavg_1_5_15')}</sub>"
+        )
         lines.append("")
     if meta:
         m = meta["machine"]
-        head = [f"Renderer {meta['renderer_version']} ({meta['renderer']}), suite started {meta['suite_started']}, "
-                f"{'quick (BENCH_QUICK=1)' if meta['quick'] else 'full'} run.",
-                f"Machine: {m['nproc']} CPUs, {m['cpu_model']}, Embree {m.get('embree_version', m['embree_package'])}, "
-                f"load average at start {m['loadavg_1_5_15']}. See README.md for how to read the numbers.", ""]
+        head = [
+            f"Renderer {meta['renderer_version']} ({meta['renderer']}), suite started {meta['suite_started']}, "
+            f"{'quick (BENCH_QUICK=1)' if meta['quick'] else 'full'} run.",
+            f"Machine: {m['nproc']} CPUs, {m['cpu_model']}, Embree {m.get('embree_version', m['embree_package'])}, "
+            f"load average at start {m['loadavg_1_5_15']}. See README.md for how to read the numbers.",
+            "",
+        ]
         lines[2:2] = head
     text = "\n".join(lines)
     (results / "summary.md").write_text(text)

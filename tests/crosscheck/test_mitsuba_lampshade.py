@@ -16,8 +16,12 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
+
+if TYPE_CHECKING:  # annotations only: without numpy the statistic tests are skipped
+    import numpy
 
 np = pytest.importorskip("numpy")
 
@@ -59,7 +63,7 @@ needs_mitsuba = pytest.mark.skipif(
 # --- 1. The statistic ------------------------------------------------------
 
 
-def synthetic(rng, bias: float):
+def synthetic(rng: numpy.random.Generator, bias: float) -> tuple[numpy.ndarray, numpy.ndarray, numpy.ndarray]:
     """Ours: one image with known per-pixel variance; Mitsuba: K runs."""
     h = w = 64
     k = 16
@@ -71,7 +75,7 @@ def synthetic(rng, bias: float):
     return ours, sigma_ours**2, runs
 
 
-def test_1_bound_is_the_bonferroni_quantile():
+def test_1_bound_is_the_bonferroni_quantile() -> None:
     # P(|Z| > 3) = 0.0027 and the bound for 3072 tests at alpha 1e-3.
     assert xcheck.normal_two_sided_quantile(math.erfc(3 / math.sqrt(2))) == pytest.approx(3.0, abs=1e-9)
     b = xcheck.normal_two_sided_quantile(1e-3 / 3072)
@@ -79,7 +83,7 @@ def test_1_bound_is_the_bonferroni_quantile():
     assert 5.0 < b < 5.2
 
 
-def test_2_unbiased_images_agree_and_z_is_standard_normal():
+def test_2_unbiased_images_agree_and_z_is_standard_normal() -> None:
     rng = np.random.default_rng(SEED)
     ours, var, runs = synthetic(rng, 0.0)
     s = xcheck.compare(ours, var, runs, 8, 1e-3)["stats"]
@@ -90,7 +94,7 @@ def test_2_unbiased_images_agree_and_z_is_standard_normal():
         assert abs(r - 1.0) < 5 * e
 
 
-def test_3_a_two_percent_bias_is_detected():
+def test_3_a_two_percent_bias_is_detected() -> None:
     # Block sigma: sqrt(0.05^2 + 0.2^2 / 16) truth / 8 = 0.0088 truth, so a
     # 10% bias shifts every block by ~11 sigma: the block test must fail. A 2%
     # bias (~2.3 sigma per block) is too small for the block test but the
@@ -107,7 +111,7 @@ def test_3_a_two_percent_bias_is_detected():
     assert all(r - 1.0 > 5 * e for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True))
 
 
-def test_4_noiseless_blocks_tolerate_float_rounding_only():
+def test_4_noiseless_blocks_tolerate_float_rounding_only() -> None:
     rng = np.random.default_rng(SEED + 3)
     ours, var, runs = synthetic(rng, 0.0)
     # Block (0, 0) black in both, block (0, 1) a noiseless emitter whose two
@@ -167,9 +171,11 @@ print(json.dumps(out))
 
 
 @needs_mitsuba
-def test_5_light_emits_towards_our_normal_and_reflects_nothing(tmp_path):
+def test_5_light_emits_towards_our_normal_and_reflects_nothing(tmp_path: Path) -> None:
+    python = mitsuba_python()
+    assert python is not None  # needs_mitsuba
     proc = subprocess.run(
-        [mitsuba_python(), "-c", PROBE, str(TOOL_DIR), str(tmp_path)], capture_output=True, text=True, timeout=120
+        [python, "-c", PROBE, str(TOOL_DIR), str(tmp_path)], capture_output=True, text=True, timeout=120
     )
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -186,10 +192,12 @@ def test_5_light_emits_towards_our_normal_and_reflects_nothing(tmp_path):
 
 @needs_mitsuba
 @pytest.mark.skipif(renderer() is None, reason="our render binary is not built")
-def test_6_small_direct_render_agrees_with_mitsuba(tmp_path):
+def test_6_small_direct_render_agrees_with_mitsuba(tmp_path: Path) -> None:
     # 64 x 64, 256 spp each: 64 blocks x 3 channels; a few seconds each.
+    python = mitsuba_python()
+    assert python is not None  # needs_mitsuba
     cmd = [
-        mitsuba_python(),
+        python,
         str(SCRIPT),
         "--renderer",
         str(renderer()),
@@ -217,7 +225,7 @@ def test_6_small_direct_render_agrees_with_mitsuba(tmp_path):
         assert abs(r - 1.0) < 5 * e
 
 
-def test_7_a_block_without_hits_tolerates_a_few_hits_worth_only():
+def test_7_a_block_without_hits_tolerates_a_few_hits_worth_only() -> None:
     # Mitsuba found no light in block (0, 0) (a thin penumbra sliver it never
     # hit); ours found a little with a tiny variance. With the spp known, the
     # zero side gets one hit's variance, (h / N)^2 with h ~ 1 and N = 64 * 256.

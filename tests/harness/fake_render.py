@@ -68,7 +68,8 @@ def true_mean(width: int, height: int, s_L: float) -> np.ndarray:
     x = (np.arange(width) + 0.5) / width
     y = (np.arange(height) + 0.5) / height
     shade = 0.2 + 0.6 * x[None, :] + 0.4 * y[:, None]
-    return shade[..., None] * COLOUR * (1.0 + 0.5 * s_L)
+    mean: np.ndarray = shade[..., None] * COLOUR * (1.0 + 0.5 * s_L)
+    return mean
 
 
 def region_fractions(channels: list[str], width: int, height: int) -> dict[str, np.ndarray]:

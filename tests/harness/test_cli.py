@@ -30,7 +30,10 @@ def test_02_console_script_is_installed() -> None:
     assert out.returncode == 0
     for command in COMMANDS:
         assert command in out.stdout
-    assert set(build_parser()._subparsers._group_actions[0].choices) == set(COMMANDS)  # type: ignore[union-attr]
+    subparsers = build_parser()._subparsers
+    assert subparsers is not None
+    choices = subparsers._group_actions[0].choices
+    assert choices is not None and set(choices) == set(COMMANDS)
 
 
 def test_03_run_shows_progress_and_reports(cli: CliRunner, fake_scene: Path) -> None:

@@ -9,6 +9,7 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -37,7 +38,7 @@ SIZE = 48
 MASK_PIXELS_48 = 428
 
 
-def _config(s_light: float, size: int) -> dict:
+def _config(s_light: float, size: int) -> dict[str, Any]:
     """The effective config of the lampshade, as a render writes it (only the keys the model reads)."""
     a, h = max(s_light, 0.3) / 2 + 0.05, 0.15
 
@@ -94,7 +95,8 @@ def test_lambert_rectangle_against_the_corner_form_factor() -> None:
     def corner(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         # pi x the form factor of [0, a] x [0, b] seen from below its corner at height h
         ra, rb = np.hypot(a, h), np.hypot(b, h)
-        return 0.5 * (a / ra * np.arctan(b / ra) + b / rb * np.arctan(a / rb))
+        value: np.ndarray = 0.5 * (a / ra * np.arctan(b / ra) + b / rb * np.arctan(a / rb))
+        return value
 
     u0, u1, w0, w1 = x0 - px, x1 - px, z0 - pz, z1 - pz
     exact = corner(u1, w1) - corner(u0, w1) - corner(u1, w0) + corner(u0, w0)
@@ -173,7 +175,8 @@ def test_mask_is_conservative_by_ray_sampling() -> None:
             t0, t1 = (box_lo - a) / dd, (box_hi - a) / dd
         lo = np.nanmax(np.minimum(t0, t1), axis=1)
         hi = np.nanmin(np.maximum(t0, t1), axis=1)
-        return (lo <= hi) & (hi >= 0) & (lo <= 1)
+        hits: np.ndarray = (lo <= hi) & (hi >= 0) & (lo <= 1)
+        return hits
 
     assert not np.any(segment_hits_box(o + 0 * p, p))
     x0, x1, z0, z1 = model.visible_rectangle(p[:, 0], p[:, 2])

@@ -35,12 +35,19 @@ def _header(spp: int = 100, time_s: float = 1.0, strategy: str = "light") -> Sna
     )
 
 
-def _snap(rgb: np.ndarray, var: np.ndarray, fractions: np.ndarray | None = None, **header: object) -> Snapshot:
+def _snap(
+    rgb: np.ndarray,
+    var: np.ndarray,
+    fractions: np.ndarray | None = None,
+    spp: int = 100,
+    time_s: float = 1.0,
+    strategy: str = "light",
+) -> Snapshot:
     return Snapshot(
         path=Path("x.exr"),
-        header=_header(**header),
+        header=_header(spp, time_s, strategy),
         rgb=rgb,
-        variance=var,  # type: ignore[arg-type]
+        variance=var,
         regions=fractions,
     )
 
@@ -295,7 +302,7 @@ def test_10_combined_reference_round_trips_through_exr(tmp_path: Path, rng: np.r
     back = exr.read_snapshot(path)
     assert back.header.spp == 200 and back.header.strategy == "antishadow_exact+light"
     assert np.allclose(back.rgb, c.rgb, rtol=1e-6) and np.allclose(back.variance, c.variance, rtol=1e-6)
-    assert back.regions is not None and np.array_equal(back.regions, c.regions)
+    assert back.regions is not None and c.regions is not None and np.array_equal(back.regions, c.regions)
     assert not list(tmp_path.glob(".*tmp*"))
 
 

@@ -150,7 +150,7 @@ def test_06_corrupt_snapshot_is_reported_not_averaged(
     rows = measure.compute(run, m, ref, regions_of(ref, (Region("a", 0, 0, 4, 4),))[::2])  # image and "a"
     bad = [r for r in rows if r.error]
     assert len(bad) == 1 and bad[0].image == victim.name and bad[0].mse is None
-    assert "corrupt" in bad[0].error
+    assert bad[0].error is not None and "corrupt" in bad[0].error
     good = [r for r in rows if not r.error]
     assert len(good) == 2 * (len(m["snapshots"]) - 1 + 1)
     final_rows = [r for r in good if r.is_final]

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 from portal_harness.spec import RunSpec, format_value
 
 
-def _spec(**changes: object) -> RunSpec:
+def _spec(**changes: Any) -> RunSpec:
     base = RunSpec(
         scene="/s.yaml",
         scene_sha256="ab" * 32,
@@ -45,7 +46,7 @@ def test_01_key_is_stable_and_depends_on_every_input() -> None:
 
 def test_02_scene_hash_ignores_sampling_settings() -> None:
     h = _spec().scene_hash()
-    same: list[dict[str, object]] = [
+    same: list[dict[str, Any]] = [
         {"strategy": "portal"},
         {"seed": 9},
         {"spp": 64},
@@ -54,7 +55,7 @@ def test_02_scene_hash_ignores_sampling_settings() -> None:
     ]
     for change in same:
         assert _spec(**change).scene_hash() == h, change
-    different: list[dict[str, object]] = [
+    different: list[dict[str, Any]] = [
         {"integrator": "path"},
         {"overrides": (("params.s_L", "0.6"),)},
         {"overrides": (("params.s_L", "0.3"), ("render.max_depth", "3"))},

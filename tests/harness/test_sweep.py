@@ -14,6 +14,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -205,8 +206,9 @@ def test_05_metrics_command(
     assert status == 2 and "does not fit" in err
 
 
-def _summary(results: Path, name: str = "tiny") -> dict:  # type: ignore[type-arg]
-    return json.loads((results / "experiments" / name / "summary.json").read_text())
+def _summary(results: Path, name: str = "tiny") -> dict[str, Any]:
+    summary: dict[str, Any] = json.loads((results / "experiments" / name / "summary.json").read_text())
+    return summary
 
 
 def test_06_a_biased_strategy_stops_the_sweep_before_any_run(

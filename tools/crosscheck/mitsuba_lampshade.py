@@ -32,7 +32,14 @@ import subprocess
 import sys
 import time
 import zlib
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # annotations only: the module imports the standard library alone
+    import numpy as np
+
+    from portal_harness.exr import Snapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 XCHECK_VENV = ROOT / ".venv-xcheck"
@@ -178,7 +185,7 @@ def ours_command(args: argparse.Namespace, out_dir: Path) -> list[str]:
     return cmd
 
 
-def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
+def run_ours(args: argparse.Namespace, out_dir: Path) -> dict[str, Any]:
     """Renders with our binary; returns its final JSON event plus wall time."""
     if not args.renderer.exists():
         raise SetupError(
@@ -191,7 +198,7 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
     wall = time.monotonic() - t0
     if proc.returncode != 0:
         raise SetupError(f"our renderer failed (exit {proc.returncode}): {' '.join(cmd)}\n{proc.stderr}")
-    final = None
+    final: dict[str, Any] | None = None
     for line in proc.stdout.splitlines():
         ev = json.loads(line)
         if ev.get("event") == "final":
@@ -203,7 +210,7 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict:
     return final
 
 
-def read_ours(path: Path):
+def read_ours(path: Path) -> Snapshot:
     """Our EXR through the harness's reader (portal_harness.exr, the one
     EXR reader): the snapshot, whose rgb and variance (of the mean) are
     (H, W, 3) float64."""
@@ -216,11 +223,11 @@ def read_ours(path: Path):
         raise SetupError(str(e)) from None
 
 
-def write_exr(path: Path, mean, var) -> None:
+def write_exr(path: Path, mean: np.ndarray, var: np.ndarray) -> None:
     """Same channel layout as our renderer's EXR (R, G, B, variance.*), no attributes."""
     from portal_harness import exr
 
-    channels = {}
+    channels: dict[str, np.ndarray] = {}
     for i, c in enumerate(exr.RGB_CHANNELS):
         channels[c] = mean[..., i]
     for i, c in enumerate(exr.VARIANCE_CHANNELS):
@@ -232,7 +239,7 @@ def write_exr(path: Path, mean, var) -> None:
 # Effective config -> Mitsuba scene
 
 
-def _triangles(vertices: list, quads: list, triangles: list) -> list[tuple[int, int, int]]:
+def _triangles(vertices: list[Any], quads: list[list[int]], triangles: list[list[int]]) -> list[tuple[int, ...]]:
     """Splits planar convex quads into two triangles, keeping the winding."""
     tris = [tuple(t) for t in triangles]
     for q in quads:
@@ -244,7 +251,7 @@ def _triangles(vertices: list, quads: list, triangles: list) -> list[tuple[int, 
     return tris
 
 
-def write_ply(path: Path, vertices: list, tris: list) -> None:
+def write_ply(path: Path, vertices: list[Any], tris: list[tuple[int, ...]]) -> None:
     """Binary little-endian PLY: float xyz, uchar-count int faces."""
     head = (
         f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
@@ -256,18 +263,18 @@ def write_ply(path: Path, vertices: list, tris: list) -> None:
     path.write_bytes(head.encode("ascii") + body)
 
 
-def _rgb(value) -> dict:
+def _rgb(value: Iterable[Any]) -> dict[str, Any]:
     return {"type": "rgb", "value": [float(x) for x in value]}
 
 
-def _bsdf(material: dict, name: str) -> dict:
+def _bsdf(material: dict[str, Any], name: str) -> dict[str, Any]:
     if material.get("type") != "diffuse":
         raise SetupError("material {!r}: only diffuse is converted (got {!r})".format(name, material.get("type")))
     # Our surfaces are two-sided; Mitsuba's diffuse is black from the back.
     return {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb(material["albedo"])}}
 
 
-def recentre_offset(cfg: dict) -> list[float]:
+def recentre_offset(cfg: dict[str, Any]) -> list[float]:
     """Centroid of the lights' vertices: the point to move to Mitsuba's origin.
 
     Mitsuba (float32) offsets every spawned ray by about 9e-5 (1 + max |p|)
@@ -284,21 +291,23 @@ def recentre_offset(cfg: dict) -> list[float]:
     return [sum(float(v[i]) for v in verts) / len(verts) for i in range(3)]
 
 
-def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int, offset: list[float] | None = None) -> dict:
+def build_scene_dict(
+    cfg: dict[str, Any], integrator: dict[str, Any], mesh_dir: Path, spp: int, offset: list[float] | None = None
+) -> dict[str, Any]:
     """Mitsuba load_dict() description of our effective config, every
     position moved by -offset (default none)."""
     import mitsuba as mi
 
     off = [0.0, 0.0, 0.0] if offset is None else [float(x) for x in offset]
 
-    def moved(points: list) -> list[list[float]]:
+    def moved(points: list[Any]) -> list[list[float]]:
         return [[float(p[i]) - off[i] for i in range(3)] for p in points]
 
     mesh_dir.mkdir(parents=True, exist_ok=True)
     cam = cfg["camera"]
     origin, target = moved([cam["position"], cam["look_at"]])
     look_at = mi.ScalarTransform4f().look_at(origin=origin, target=target, up=[float(x) for x in cam["up"]])
-    scene: dict = {
+    scene: dict[str, Any] = {
         "type": "scene",
         "integrator": integrator,
         "sensor": {
@@ -364,7 +373,7 @@ def build_scene_dict(cfg: dict, integrator: dict, mesh_dir: Path, spp: int, offs
     return scene
 
 
-def mitsuba_integrator(args: argparse.Namespace) -> dict:
+def mitsuba_integrator(args: argparse.Namespace) -> dict[str, Any]:
     if args.integrator == "direct":
         # Ours: emission seen by the camera + one light sample and one BSDF
         # sample at the first hit, combined by MIS.
@@ -374,7 +383,9 @@ def mitsuba_integrator(args: argparse.Namespace) -> dict:
     return {"type": "path", "max_depth": args.max_depth + 1, "rr_depth": args.rr_depth}
 
 
-def render_mitsuba(scene_dict: dict, runs: int, spp_each: int, seed_base: int):
+def render_mitsuba(
+    scene_dict: dict[str, Any], runs: int, spp_each: int, seed_base: int
+) -> tuple[np.ndarray, float, float]:
     """K independent renders; returns (K, H, W, 3) float64 and timings."""
     import mitsuba as mi
     import numpy as np
@@ -409,15 +420,16 @@ def normal_two_sided_quantile(p_tail: float) -> float:
     return 0.5 * (lo + hi)
 
 
-def block_mean(a, b: int):
+def block_mean(a: np.ndarray, b: int) -> np.ndarray:
     """Means over b x b blocks of (..., H, W, C); a partial border is dropped."""
     h, w = a.shape[-3] // b * b, a.shape[-2] // b * b
     a = a[..., :h, :w, :]
     shape = (*a.shape[:-3], h // b, b, w // b, b, a.shape[-1])
-    return a.reshape(shape).mean(axis=(-4, -2))
+    means: np.ndarray = a.reshape(shape).mean(axis=(-4, -2))
+    return means
 
 
-def one_hit_scale(img, var):
+def one_hit_scale(img: np.ndarray, var: np.ndarray) -> np.ndarray:
     """Per channel: the size of one nonzero sample, bounded from above by the
     99th percentile of the pixel means that have noise (emitters excluded).
 
@@ -433,8 +445,14 @@ def one_hit_scale(img, var):
 
 
 def compare(
-    ours, ours_var, mits_runs, b: int, alpha: float, ours_spp: int | None = None, mits_spp: int | None = None
-) -> dict:
+    ours: np.ndarray,
+    ours_var: np.ndarray,
+    mits_runs: np.ndarray,
+    b: int,
+    alpha: float,
+    ours_spp: int | None = None,
+    mits_spp: int | None = None,
+) -> dict[str, Any]:
     import numpy as np
 
     k = mits_runs.shape[0]
@@ -564,7 +582,7 @@ def compare(
 # Images
 
 
-def write_png(path: Path, rgb8) -> None:
+def write_png(path: Path, rgb8: np.ndarray) -> None:
     """Minimal 8-bit RGB PNG writer (zlib only)."""
     import numpy as np
 
@@ -579,7 +597,7 @@ def write_png(path: Path, rgb8) -> None:
     path.write_bytes(png)
 
 
-def _srgb8(x):
+def _srgb8(x: np.ndarray) -> np.ndarray:
     import numpy as np
 
     x = np.clip(x, 0.0, 1.0)
@@ -587,11 +605,12 @@ def _srgb8(x):
     return (y * 255 + 0.5).astype(np.uint8)
 
 
-def _luminance(img):
-    return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+def _luminance(img: np.ndarray) -> np.ndarray:
+    lum: np.ndarray = 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+    return lum
 
 
-def _diverging(v):
+def _diverging(v: np.ndarray) -> np.ndarray:
     """v in [-1, 1]: blue (negative) - white - red (positive), as uint8."""
     import numpy as np
 
@@ -602,7 +621,7 @@ def _diverging(v):
     return (np.stack([r, g, bl], axis=-1) * 255 + 0.5).astype(np.uint8)
 
 
-def write_images(out: Path, ours, mits, z, b: int, bound: float) -> dict:
+def write_images(out: Path, ours: np.ndarray, mits: np.ndarray, z: np.ndarray, b: int, bound: float) -> dict[str, Any]:
     """Tone-mapped side by side (same exposure), signed difference, z map."""
     import numpy as np
 
@@ -632,7 +651,7 @@ def write_images(out: Path, ours, mits, z, b: int, bound: float) -> dict:
 # ---------------------------------------------------------------------------
 
 
-def format_table(s: dict, info: dict) -> str:
+def format_table(s: dict[str, Any], info: dict[str, Any]) -> str:
     def row(label: str, value: str) -> str:
         return f"  {label:<34} {value}"
 
