@@ -48,7 +48,7 @@ def samples_per_cpu_s(render: Path, scene: str, integrator: str, strategy: str, 
             strategy,
             "--quiet",
             "--set",
-            "render.snapshots.every=1000000",
+            "render.snapshots.every=0",
         ]
         proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
     start = final = None

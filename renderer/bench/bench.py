@@ -37,7 +37,7 @@ from typing import Any
 
 import benchlib as bl
 import numpy as np
-from benchlib import LAMPSHADE, MULTI_LAMP, STRATEGIES, TMP, Context, log, median
+from benchlib import LAMPSHADE, MULTI_LAMP, TMP, Context, log, median
 
 SWEEP_S_L = (0.075, 0.15, 0.3, 0.6, 1.2)
 S_P = 0.3
@@ -216,7 +216,7 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         log(f"throughput: round {r + 1}/{reps}")
         before = raw_limit_now(ctx)
         for integ in ("direct", "path"):
-            for s in STRATEGIES:
+            for s in bl.strategies(ctx.render):
                 common = ["--threads", "1", "--strategy", s, "--integrator", integ, "--seed", str(r + 1)]
                 a = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), *common).summary()
                 after = raw_limit_now(ctx)

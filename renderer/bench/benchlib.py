@@ -34,11 +34,19 @@ RESULTS = ROOT / "results" / "bench"
 TMP = RESULTS / "tmp"
 LAMPSHADE = ROOT / "configs" / "scenes" / "lampshade.yaml"
 MULTI_LAMP = ROOT / "configs" / "scenes" / "multi_lamp.yaml"
-STRATEGIES = ("light_area", "light", "portal", "projection", "antishadow", "antishadow_exact")
 REL_EPSILON = 0.01
-# render.snapshots.every cannot be 0 (it must be > 0): "no snapshots" is a
-# period far beyond any benchmark run.
-NO_SNAPSHOTS = ("--set", "render.snapshots.every=1e9")
+# A scalar schedule of 0 is off (renderer/CONTRACT.md); the scenes' own
+# `every` is turned off so that only the final image is written.
+NO_SNAPSHOTS = ("--set", "render.snapshots.every=0")
+
+
+def strategies(render: Path) -> tuple[str, ...]:
+    """The renderer's strategies, in its order, from `render --describe`
+    (the one list of them)."""
+    proc = subprocess.run([str(render), "--describe"], capture_output=True, text=True, check=True, timeout=30)
+    names: list[str] = json.loads(proc.stdout)["strategies"]
+    return tuple(names)
+
 
 _T0 = time.monotonic()
 
