@@ -40,7 +40,8 @@ FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard te
 # The libFuzzer build (make fuzz): clang, the config loader's sources only.
 FUZZ_CC ?= clang
 FUZZ_BUILD := renderer/build-fuzz
-FUZZ_SRCS := $(wildcard renderer/src/config*.c) renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
+FUZZ_SRCS := $(wildcard renderer/src/config*.c) $(wildcard renderer/src/*_kind.c) renderer/src/json_write.c \
+             renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
 DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
 VENV_STAMP := $(VENV)/.installed
@@ -112,8 +113,10 @@ $(BUILD)/fuzz/%.o: renderer/fuzz/%.c | $(DEPS_STAMP)
 	@mkdir -p $(@D)
 	$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
 
-$(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(BUILD)/librender.a
-	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
+# Linked from FUZZ_SRCS alone, as the libFuzzer build is, so that make test-c
+# notices when that list misses a file the config module needs.
+$(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(FUZZ_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
+	$(CC) $(ALL_CFLAGS) $^ -o $@ -lyaml -lm -pthread
 
 # libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
 $(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*.h)
