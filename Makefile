@@ -26,7 +26,8 @@ WARN := -std=c99 -Wall -Wextra -Wpedantic -Wshadow
 MATH := -fno-math-errno -fno-trapping-math -fopenmp-simd
 CPPFLAGS := -D_POSIX_C_SOURCE=200809L -Irenderer/src -MMD -MP
 ALL_CFLAGS := $(WARN) $(MATH) $(CFLAGS) $(SAN_FLAGS) -pthread
-LDLIBS := -lembree3 -lOpenEXRCore -lyaml -lm -pthread
+# assimp (mesh_file.c): pkg-config --libs assimp gives -lassimp.
+LDLIBS := -lembree3 -lOpenEXRCore -lyaml -lassimp -lm -pthread
 
 SRCS := $(filter-out renderer/src/main.c,$(wildcard renderer/src/*.c))
 OBJS := $(SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
@@ -56,10 +57,11 @@ all: $(BUILD)/render
 $(DEPS_STAMP):
 	@mkdir -p $(@D)
 	@if [ ! -f /usr/include/embree3/rtcore.h ] || [ ! -f /usr/include/OpenEXR/openexr.h ] || \
-	    [ ! -f /usr/include/yaml.h ] || ! command -v pkg-config >/dev/null; then \
-	  echo "installing libembree-dev libopenexr-dev libyaml-dev with apt-get" >&2; \
+	    [ ! -f /usr/include/yaml.h ] || [ ! -f /usr/include/assimp/cimport.h ] || \
+	    ! command -v pkg-config >/dev/null; then \
+	  echo "installing libembree-dev libopenexr-dev libyaml-dev libassimp-dev with apt-get" >&2; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
-	    libembree-dev libopenexr-dev libyaml-dev pkg-config >/dev/null; \
+	    libembree-dev libopenexr-dev libyaml-dev libassimp-dev pkg-config >/dev/null; \
 	fi
 	@touch $@
 deps: $(DEPS_STAMP)

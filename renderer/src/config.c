@@ -111,14 +111,19 @@ static bool load_text(const char *text, size_t length, const char *name, const s
     for (int k = 0; ok && k < L.n_overrides; ++k) ok = config_apply_override(&L, k);
     ok = ok && load_sections(&L, out) && config_emit_effective(&L, out);
     if (ok) {
-        /* The file names move to the config: the locations point at them. */
-        out->files = malloc((size_t)L.n_sources * sizeof *out->files);
+        /* The file names move to the config: the locations point at them.
+           The mesh files follow the YAML files, in shape order. */
+        out->files = malloc((size_t)(L.n_sources + L.n_mesh_files) * sizeof *out->files);
         ok = out->files != NULL || error_set(err, "%s: out of memory", L.file);
         for (int i = 0; ok && i < L.n_sources; ++i) {
             out->files[i] = L.sources[i].path;
             L.sources[i].path = NULL;
         }
-        if (ok) out->n_files = L.n_sources;
+        for (int i = 0; ok && i < L.n_mesh_files; ++i) {
+            out->files[L.n_sources + i] = L.mesh_files[i];
+            L.mesh_files[i] = NULL;
+        }
+        if (ok) out->n_files = L.n_sources + L.n_mesh_files;
         ok = ok && keep_params(&L, out);
     }
 
@@ -129,6 +134,10 @@ static bool load_text(const char *text, size_t length, const char *name, const s
     free(L.marks);
     free(L.params);
     free(L.shape_names);
+    for (int i = 0; L.shape_files && i < out->n_shapes; ++i) free(L.shape_files[i].path);
+    free(L.shape_files);
+    for (int i = 0; i < L.n_mesh_files; ++i) free(L.mesh_files[i]);
+    free(L.mesh_files);
     if (!ok) config_free(out);
     return ok;
 }

@@ -147,7 +147,27 @@ static void emit_materials(struct text *t, const struct config *c)
     }
 }
 
-static void emit_shapes(struct text *t, const struct config *c, char (*names)[CONFIG_NAME_MAX])
+/* A mesh from a file stays a reference to it: its absolute path, the
+   transform as one matrix (the composition the loader applied, bit for
+   bit), and the digest of the bytes read, so that both hashes change when
+   the file does and a reload checks that it has not. */
+static void emit_shape_file(struct text *t, const struct shape_file *f)
+{
+    text_printf(t, "\n    file: ");
+    emit_string(t, f->path);
+    if (f->has_transform) {
+        text_printf(t, "\n    transform: [{matrix: [");
+        for (int i = 0; i < 16; ++i) {
+            text_printf(t, "%s", i ? ", " : "");
+            emit_number(t, i < 12 ? f->transform.m[i / 4][i % 4] : i == 15 ? 1.0 : 0.0);
+        }
+        text_printf(t, "]}]");
+    }
+    text_printf(t, "\n    digest: {fnv1a64: \"%016" PRIx64 "\", bytes: %zu}\n", f->fnv1a64, f->bytes);
+}
+
+static void emit_shapes(struct text *t, const struct config *c, char (*names)[CONFIG_NAME_MAX],
+                        const struct shape_file *files)
 {
     text_printf(t, "shapes:%s\n", c->n_shapes ? "" : " []");
     for (int i = 0; i < c->n_shapes; ++i) {
@@ -160,6 +180,10 @@ static void emit_shapes(struct text *t, const struct config *c, char (*names)[CO
         }
         text_printf(t, "type: mesh\n    material: ");
         emit_string(t, c->materials[s->material].name);
+        if (files[i].path) {
+            emit_shape_file(t, &files[i]);
+            continue;
+        }
         text_printf(t, "\n    vertices:\n");
         for (int v = 0; v < s->n_vertices; ++v) {
             text_printf(t, "      - ");
@@ -279,11 +303,12 @@ static void emit_render(struct text *t, const struct render_desc *r, bool image_
 }
 
 /* FNV-1a, 64-bit. */
-static uint64_t fnv1a64(const char *s, size_t n)
+uint64_t config_fnv1a64(const void *data, size_t n)
 {
+    const unsigned char *s = data;
     uint64_t h = 14695981039346656037ull;
     for (size_t i = 0; i < n; ++i) {
-        h ^= (unsigned char)s[i];
+        h ^= s[i];
         h *= 1099511628211ull;
     }
     return h;
@@ -294,7 +319,7 @@ static void emit_yaml(struct text *t, struct loader *L, const struct config *c, 
     text_printf(t, "# effective configuration (params substituted, overrides applied, defaults filled)\n");
     emit_camera_film(t, c);
     emit_materials(t, c);
-    emit_shapes(t, c, L->shape_names);
+    emit_shapes(t, c, L->shape_names, L->shape_files);
     emit_lights_portals(t, c);
     emit_render(t, &c->render, image_only);
 }
@@ -310,8 +335,8 @@ bool config_emit_effective(struct loader *L, struct config *c)
         return error_set(L->err, "%s: out of memory", L->file);
     }
     c->effective_yaml = t.s;
-    c->hash = fnv1a64(t.s, t.len);
-    c->image_hash = fnv1a64(image.s, image.len);
+    c->hash = config_fnv1a64(t.s, t.len);
+    c->image_hash = config_fnv1a64(image.s, image.len);
     free(image.s);
     return true;
 }

@@ -11,6 +11,7 @@
      config_emit.c     the effective YAML and its hashes
      config_scene.c    the sections camera, film, materials, shapes, lights
                        and portals
+     config_transform.c  the transform: key of shapes, lights and portals
      config_render.c   the render section
      config.c          the public API, the top level and params */
 #ifndef CONFIG_INTERNAL_H
@@ -18,6 +19,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 #include <sys/stat.h>
 #include <sys/types.h>
 
@@ -26,6 +28,7 @@
 #include "config.h"
 #include "error.h"
 #include "expr.h"
+#include "transform.h"
 #include "vec.h"
 
 #define COUNT(a) ((int)(sizeof(a) / sizeof((a)[0])))
@@ -45,6 +48,18 @@ struct source {
     bool have_id;     /* dev and ino identify the file (not for strings) */
     dev_t dev;
     ino_t ino;
+};
+
+/* A shape read from a mesh file, as the effective YAML writes it back: the
+   file (absolute, since config.yaml lives in another folder), the
+   transform, and the digest of the bytes read, so that the config's hashes
+   change with the file. */
+struct shape_file {
+    char *path; /* owned; absolute; NULL for a shape without a file */
+    bool has_transform;
+    struct transform transform;
+    uint64_t fnv1a64; /* of the file's bytes */
+    size_t bytes;
 };
 
 /* The state of one load, from reading the file to emitting the effective YAML. */
@@ -69,6 +84,9 @@ struct loader {
     struct expr_var *params; /* names point into the document */
     int n_params;
     char (*shape_names)[CONFIG_NAME_MAX]; /* "" when unnamed; only for effective_yaml */
+    struct shape_file *shape_files;       /* one per shape; only for effective_yaml */
+    char **mesh_files;                    /* owned: each mesh file once, as opened, in shape order */
+    int n_mesh_files;
 };
 
 /* config_node.c: message lists, node access, reports, typed getters. */
@@ -178,6 +196,16 @@ bool config_read_text(const char *path, char **text, size_t *length, struct stat
    own document, or the merged document of its include tree. False with
    L->err set. */
 bool config_load_document(struct loader *L, const char *text, size_t length);
+
+/* FNV-1a 64 of n bytes (the config hashes and the mesh files' digests). */
+uint64_t config_fnv1a64(const void *data, size_t n);
+
+/* config_transform.c: transform: [ops...] of the mapping map, composed in
+   order (the first applied first). *present is false, and *out the
+   identity, when the key is absent, null or an empty list. False with
+   L->err at the operation (unknown op, wrong arity, zero rotation axis,
+   singular or non-affine matrix) or the list (a singular composition). */
+bool config_get_transform(struct loader *L, const yaml_node_t *map, struct transform *out, bool *present);
 
 /* config_override.c: --set. */
 /* Applies L->overrides[k] to L->doc: replaces the scalar its path names,

@@ -1,14 +1,23 @@
 /* config_scene.c: the section loaders of what the image shows: camera,
-   film, materials, shapes (quads, boxes and meshes, all kept as meshes),
-   lights and portals, with the geometric checks on them (each polygon by
-   polygon_check, each portal on its light's emitting side). */
+   film, materials, shapes (quads, boxes and meshes, inline or from OBJ and
+   PLY files, all kept as meshes), lights and portals, each with its
+   transform applied, and the geometric checks on them (each polygon by
+   polygon_check, after the transform; each portal on its light's emitting
+   side). */
+#define _XOPEN_SOURCE 700 /* realpath, for the absolute path of a mesh file */
+
 #include "config_internal.h"
 
+#include <errno.h>
+#include <inttypes.h>
 #include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+
+#include "mesh_file.h"
 
 enum shape_kind { SHAPE_QUAD, SHAPE_BOX, SHAPE_MESH };
 static const char *const shape_kind_names[3] = { "quad", "box", "mesh" };
@@ -17,11 +26,13 @@ static const char *const camera_keys[] = { "position", "look_at", "up", "fov_y" 
 static const char *const film_keys[] = { "width", "height" };
 static const char *const diffuse_keys[] = { "type", "albedo" };
 static const char *const ggx_keys[] = { "type", "albedo", "roughness" };
-static const char *const quad_keys[] = { "name", "type", "material", "vertices" };
-static const char *const box_keys[] = { "name", "type", "material", "min", "max" };
-static const char *const mesh_keys[] = { "name", "type", "material", "vertices", "triangles", "quads" };
-static const char *const light_keys[] = { "name", "vertices", "radiance", "two_sided" };
-static const char *const portal_keys[] = { "name", "light", "vertices" };
+static const char *const quad_keys[] = { "name", "type", "material", "vertices", "transform" };
+static const char *const box_keys[] = { "name", "type", "material", "min", "max", "transform" };
+static const char *const mesh_keys[] = { "name", "type", "material", "vertices", "triangles", "quads", "transform" };
+static const char *const mesh_file_keys[] = { "name", "type", "material", "file", "transform", "digest" };
+static const char *const digest_keys[] = { "fnv1a64", "bytes" };
+static const char *const light_keys[] = { "name", "vertices", "radiance", "two_sided", "transform" };
+static const char *const portal_keys[] = { "name", "light", "vertices", "transform" };
 
 #define PARALLEL_TOL 1e-9 /* |sin| of the angle between up and the view direction */
 
@@ -44,8 +55,37 @@ static bool check_polygon(struct loader *L, const yaml_node_t *n, const char *wh
     return false;
 }
 
-/* A polygon of min..max points; checked by check_polygon. */
-static bool get_polygon(struct loader *L, const yaml_node_t *n, const char *what, int min, int max, struct polygon *out)
+/* The polygon after the transform. The renderer keeps no normals: a
+   polygon's normal is its winding's, so a mirroring transform (det < 0)
+   also reverses the order after the first vertex, which keeps the winding
+   normal along the inverse transpose of the old one (transform_normal),
+   and a one-sided light emitting towards the same side of the surface. */
+static void transform_polygon(const struct transform *t, struct polygon *p)
+{
+    for (int i = 0; i < p->n; ++i) p->v[i] = transform_point(t, p->v[i]);
+    if (transform_det(t) < 0.0)
+        for (int i = 1, j = p->n - 1; i < j; ++i, --j) {
+            struct vec3 tmp = p->v[i];
+            p->v[i] = p->v[j];
+            p->v[j] = tmp;
+        }
+}
+
+/* The same reversal for the faces of a mesh: k indices each. */
+static void reverse_faces(int *faces, int n, int k)
+{
+    for (int f = 0; f < n; ++f)
+        for (int i = 1, j = k - 1; i < j; ++i, --j) {
+            int tmp = faces[f * k + i];
+            faces[f * k + i] = faces[f * k + j];
+            faces[f * k + j] = tmp;
+        }
+}
+
+/* A polygon of min..max points, transformed by the transform of `map`
+   (the mapping that holds the vertices n), then checked by check_polygon. */
+static bool get_polygon(struct loader *L, const yaml_node_t *map, const yaml_node_t *n, const char *what, int min,
+                        int max, struct polygon *out)
 {
     char buf[64];
     memset(out, 0, sizeof *out);
@@ -60,6 +100,10 @@ static bool get_polygon(struct loader *L, const yaml_node_t *n, const char *what
     for (int i = 0; i < count; ++i)
         if (!config_get_vec3(L, config_seq_item(L, n, i), &out->v[i])) return false;
     out->n = count;
+    struct transform t;
+    bool present;
+    if (!config_get_transform(L, map, &t, &present)) return false;
+    if (present) transform_polygon(&t, out);
     return check_polygon(L, n, what, out);
 }
 
@@ -204,8 +248,19 @@ static bool load_mesh(struct loader *L, const yaml_node_t *map, const char *wher
     if (!shape_alloc(L, s, nv, nt, nq)) return false;
     for (int i = 0; i < nv; ++i)
         if (!config_get_vec3(L, config_seq_item(L, verts, i), &s->vertices[i])) return false;
-    return (!tris || get_faces(L, tris, "triangle", 3, s, &s->triangles[0][0])) &&
-           (!quads || get_faces(L, quads, "quad", 4, s, &s->quads[0][0]));
+    struct transform t;
+    bool present;
+    if (!config_get_transform(L, map, &t, &present)) return false;
+    if (present)
+        for (int i = 0; i < nv; ++i) s->vertices[i] = transform_point(&t, s->vertices[i]);
+    if (!((!tris || get_faces(L, tris, "triangle", 3, s, &s->triangles[0][0])) &&
+          (!quads || get_faces(L, quads, "quad", 4, s, &s->quads[0][0]))))
+        return false;
+    if (present && transform_det(&t) < 0.0) {
+        if (nt) reverse_faces(&s->triangles[0][0], nt, 3);
+        if (nq) reverse_faces(&s->quads[0][0], nq, 4);
+    }
+    return true;
 }
 
 /* Box corners by bits (x, y, z) of the index; faces wound counter-clockwise
@@ -222,14 +277,20 @@ static bool load_box(struct loader *L, const yaml_node_t *map, const char *where
     if (!(lo.x < hi.x && lo.y < hi.y && lo.z < hi.z))
         return config_fail(L, nmax, "expected max > min on every axis, got min [%g, %g, %g] and max [%g, %g, %g]", lo.x,
                            lo.y, lo.z, hi.x, hi.y, hi.z);
+    struct transform t;
+    bool present;
+    if (!config_get_transform(L, map, &t, &present)) return false;
     if (!shape_alloc(L, s, 8, 0, 6)) return false;
-    for (int i = 0; i < 8; ++i)
+    for (int i = 0; i < 8; ++i) {
         s->vertices[i] = vec3_make(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
+        if (present) s->vertices[i] = transform_point(&t, s->vertices[i]);
+    }
+    memcpy(s->quads, faces, sizeof faces);
+    if (present && transform_det(&t) < 0.0) reverse_faces(&s->quads[0][0], 6, 4);
     char what[CONFIG_NAME_MAX + 48];
     for (int f = 0; f < 6; ++f) {
-        memcpy(s->quads[f], faces[f], sizeof faces[f]);
         snprintf(what, sizeof what, "%s face %d", where, f);
-        if (!check_face(L, map, what, s, faces[f], 4)) return false;
+        if (!check_face(L, map, what, s, s->quads[f], 4)) return false;
     }
     return true;
 }
@@ -238,13 +299,128 @@ static bool load_quad(struct loader *L, const yaml_node_t *map, const char *wher
 {
     yaml_node_t *n;
     struct polygon poly;
-    if (!(n = config_need(L, map, "vertices", where)) || !get_polygon(L, n, where, 4, 4, &poly)) return false;
+    if (!(n = config_need(L, map, "vertices", where)) || !get_polygon(L, map, n, where, 4, 4, &poly)) return false;
     if (!shape_alloc(L, s, 4, 0, 1)) return false;
     for (int i = 0; i < 4; ++i) {
         s->vertices[i] = poly.v[i];
         s->quads[0][i] = i;
     }
     return true;
+}
+
+/* digest: {fnv1a64: "16 hex digits", bytes: N}, as the effective YAML
+   writes it: when given, the file must still be the one it was made from. */
+static bool check_digest(struct loader *L, const yaml_node_t *map, const char *name, uint64_t hash, size_t bytes)
+{
+    yaml_node_t *d, *h, *b;
+    char hex[24], have[24];
+    double n;
+    if (!config_get_optional(L, map, "digest", YAML_MAPPING_NODE, &d)) return false;
+    if (!d) return true;
+    if (!config_check_keys(L, d, "digest", digest_keys, COUNT(digest_keys)) ||
+        !(h = config_need(L, d, "fnv1a64", "digest")) || !config_get_string(L, h, hex, sizeof hex) ||
+        !(b = config_need(L, d, "bytes", "digest")) ||
+        !config_get_number_in(L, b, 0.0, false, 9007199254740992.0, false, &n))
+        return false;
+    snprintf(have, sizeof have, "%016" PRIx64, hash);
+    if (strcmp(hex, have) != 0 || n != (double)bytes)
+        return config_fail(L, d,
+                           "mesh \"%s\" has changed: fnv1a64 %s and %zu bytes now, the config says %s and %.0f "
+                           "(expected the file the config was made with)",
+                           name, have, bytes, hex, n);
+    return true;
+}
+
+/* Remembers a mesh file for config.files, once. */
+static bool add_mesh_file(struct loader *L, const char *path)
+{
+    for (int i = 0; i < L->n_mesh_files; ++i)
+        if (strcmp(L->mesh_files[i], path) == 0) return true;
+    char **grown = realloc(L->mesh_files, (size_t)(L->n_mesh_files + 1) * sizeof *grown);
+    if (!grown) return error_set(L->err, "%s: out of memory", L->file);
+    L->mesh_files = grown;
+    if (!(L->mesh_files[L->n_mesh_files] = strdup(path))) return error_set(L->err, "%s: out of memory", L->file);
+    ++L->n_mesh_files;
+    return true;
+}
+
+/* The mesh's triangles after the transform, each checked as an inline
+   triangle is, then moved into s. */
+static bool take_mesh(struct loader *L, const yaml_node_t *file, const char *name, const struct transform *t,
+                      bool present, struct mesh_data *m, struct shape_desc *s)
+{
+    if (present) {
+        for (int i = 0; i < m->n_vertices; ++i) m->vertices[i] = transform_point(t, m->vertices[i]);
+        if (transform_det(t) < 0.0) reverse_faces(&m->triangles[0][0], m->n_triangles, 3);
+    }
+    s->vertices = m->vertices;
+    s->n_vertices = m->n_vertices;
+    s->triangles = m->triangles;
+    s->n_triangles = m->n_triangles;
+    memset(m, 0, sizeof *m);
+    char what[CONFIG_PATH_MAX + 64];
+    for (int f = 0; f < s->n_triangles; ++f) {
+        snprintf(what, sizeof what, "mesh \"%s\": triangle %d (after triangulation)", name, f);
+        if (!check_face(L, file, what, s, s->triangles[f], 3)) return false;
+    }
+    return true;
+}
+
+/* A mesh from an OBJ or PLY file (mesh_file.h), its path relative to the
+   folder of the config file that names it, as include: paths are. */
+static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_node_t *file, int index,
+                           struct config *c)
+{
+    struct shape_desc *s = &c->shapes[index];
+    struct shape_file *sf = &L->shape_files[index];
+    char name[CONFIG_PATH_MAX];
+    struct transform t;
+    bool present;
+    enum mesh_format format;
+    if (!config_get_string(L, file, name, sizeof name) || !config_get_transform(L, map, &t, &present)) return false;
+    if (!mesh_format_from_path(name, &format)) {
+        const char *dot = strrchr(name, '.'), *slash = strrchr(name, '/');
+        bool ext = dot && (!slash || dot > slash);
+        return config_fail(L, file, "mesh \"%s\": unknown mesh format %s%.16s%s (expected a .obj or .ply file)", name,
+                           ext ? "\"" : "", ext ? dot : "(no extension)", ext ? "\"" : "");
+    }
+    if (name[0] != '/' && L->from_string)
+        return config_fail(L, file,
+                           "mesh \"%s\": a relative path in a config given as a string (expected an absolute path: "
+                           "there is no folder to resolve it against)",
+                           name);
+    const char *parent = L->sources[config_source_of(L, file)].path, *slash = strrchr(parent, '/');
+    size_t dir_len = name[0] == '/' || !slash ? 0 : (size_t)(slash - parent) + 1;
+    char path[2 * CONFIG_PATH_MAX];
+    snprintf(path, sizeof path, "%.*s%s", (int)dir_len, parent, name);
+
+    char *text;
+    size_t length;
+    struct stat st;
+    const char *why;
+    if (!config_read_text(path, &text, &length, &st, &why))
+        return config_fail(L, file,
+                           "mesh \"%s\": cannot read %s: %s (expected an OBJ or PLY file; a relative path is relative "
+                           "to the folder of the config file that names it)",
+                           name, path, why);
+    sf->fnv1a64 = config_fnv1a64(text, length);
+    sf->bytes = length;
+    sf->has_transform = present;
+    sf->transform = t;
+    struct mesh_data m;
+    struct error merr = { "" };
+    bool ok = check_digest(L, map, name, sf->fnv1a64, sf->bytes);
+    ok = ok && (mesh_file_parse(text, length, format, &m, &merr) ||
+                config_fail(L, file, "mesh \"%s\": %s", name, merr.message));
+    free(text);
+    if (!ok) return false;
+    ok = take_mesh(L, file, name, &t, present, &m, s);
+    mesh_data_free(&m);
+    if (!ok) return false;
+    /* Absolute: the effective YAML is written into the output folder. */
+    if (!(sf->path = realpath(path, NULL)))
+        return config_fail(L, file, "mesh \"%s\": cannot resolve %s: %s", name, path, strerror(errno));
+    return add_mesh_file(L, path);
 }
 
 static int find_material(const struct config *c, const char *name)
@@ -268,8 +444,15 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
     else snprintf(where, sizeof where, "shape %d", index);
     if (!(n = config_need(L, map, "type", where)) || !config_get_enum(L, n, "shape type", shape_kind_names, 3, &kind))
         return false;
-    const char *const *keys = kind == SHAPE_QUAD ? quad_keys : kind == SHAPE_BOX ? box_keys : mesh_keys;
-    int n_keys = kind == SHAPE_QUAD ? COUNT(quad_keys) : kind == SHAPE_BOX ? COUNT(box_keys) : COUNT(mesh_keys);
+    yaml_node_t *file = kind == SHAPE_MESH ? config_map_get(L, map, "file") : NULL;
+    const char *const *keys = kind == SHAPE_QUAD  ? quad_keys
+                              : kind == SHAPE_BOX ? box_keys
+                              : file              ? mesh_file_keys
+                                                  : mesh_keys;
+    int n_keys = kind == SHAPE_QUAD  ? COUNT(quad_keys)
+                 : kind == SHAPE_BOX ? COUNT(box_keys)
+                 : file              ? COUNT(mesh_file_keys)
+                                     : COUNT(mesh_keys);
     if (!config_check_keys(L, map, where, keys, n_keys)) return false;
 
     char material[CONFIG_NAME_MAX];
@@ -288,7 +471,7 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
     case SHAPE_BOX:
         return load_box(L, map, where, s);
     case SHAPE_MESH:
-        return load_mesh(L, map, where, s);
+        return file ? load_mesh_file(L, map, file, index, c) : load_mesh(L, map, where, s);
     }
     return false;
 }
@@ -301,7 +484,8 @@ static bool load_shapes(struct loader *L, const yaml_node_t *root, struct config
     if (n == 0) return true;
     c->shapes = calloc((size_t)n, sizeof *c->shapes);
     L->shape_names = calloc((size_t)n, sizeof *L->shape_names);
-    if (!c->shapes || !L->shape_names) return error_set(L->err, "%s: out of memory", L->file);
+    L->shape_files = calloc((size_t)n, sizeof *L->shape_files);
+    if (!c->shapes || !L->shape_names || !L->shape_files) return error_set(L->err, "%s: out of memory", L->file);
     c->n_shapes = n;
     for (int i = 0; i < n; ++i)
         if (!load_shape(L, config_seq_item(L, seq, i), i, c)) return false;
@@ -324,7 +508,8 @@ static bool load_light(struct loader *L, const yaml_node_t *map, int index, stru
             return config_fail(L, name, "duplicate light name \"%s\" (first at line %d, column %d)", l->name,
                                c->lights[i].loc.line, c->lights[i].loc.column);
     snprintf(where, sizeof where, "light \"%s\"", l->name);
-    if (!(n = config_need(L, map, "vertices", where)) || !get_polygon(L, n, where, 3, POLYGON_INPUT_MAX, &l->polygon) ||
+    if (!(n = config_need(L, map, "vertices", where)) ||
+        !get_polygon(L, map, n, where, 3, POLYGON_INPUT_MAX, &l->polygon) ||
         !(n = config_need(L, map, "radiance", where)) || !config_get_rgb(L, n, 0.0, INFINITY, &l->radiance))
         return false;
     if (rgb_is_black(l->radiance))
@@ -402,7 +587,7 @@ static bool load_portal(struct loader *L, const yaml_node_t *map, int index, str
                            list.s);
     }
     if (!(verts = config_need(L, map, "vertices", where)) ||
-        !get_polygon(L, verts, where, 3, POLYGON_INPUT_MAX, &p->polygon))
+        !get_polygon(L, map, verts, where, 3, POLYGON_INPUT_MAX, &p->polygon))
         return false;
     return check_portal_placement(L, verts, p, &c->lights[p->light]);
 }

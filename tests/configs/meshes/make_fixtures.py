@@ -1,0 +1,148 @@
+#!/usr/bin/env python3
+"""Writes the mesh fixtures of tests/configs (good: meshes/, bad: bad/meshes/).
+Run from anywhere; the files are committed, this script says how they were made."""
+import pathlib
+import struct
+
+HERE = pathlib.Path(__file__).resolve().parent
+BAD = HERE.parent / "bad" / "meshes"
+
+# The corners of a box by bits (x, y, z) of the index, as config_scene.c's
+# load_box numbers them, and its faces. Each OBJ face starts at the quad's
+# second corner: assimp splits (a, b, c, d) into (a, b, c), (a, c, d), which
+# then are Embree's split of the box's quad (v0, v1, v3), (v2, v3, v1).
+BOX_FACES = [(0, 4, 6, 2), (1, 3, 7, 5), (0, 1, 5, 4), (2, 6, 7, 3), (0, 2, 3, 1), (4, 5, 7, 6)]
+
+
+def cube_obj():
+    lines = ["# unit cube [-0.5, 0.5] x [0, 1] x [-0.5, 0.5], the box of good/mesh_cube_box.yaml"]
+    for i in range(8):
+        x = 0.5 if i & 1 else -0.5
+        y = 1 if i & 2 else 0
+        z = 0.5 if i & 4 else -0.5
+        lines.append(f"v {x} {y} {z}")
+    for f in BOX_FACES:
+        a, b, c, d = f
+        lines.append("f " + " ".join(str(k + 1) for k in (b, c, d, a)))
+    return "\n".join(lines) + "\n"
+
+
+MIXED_OBJ = """\
+# v/vt/vn forms, negative indices, a quad, a pentagon, a triangle; two
+# objects and two groups: 2 + 3 + 1 triangles (test_mesh_file.c), a line.
+mtllib not_there.mtl
+o floor
+v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 1 0
+usemtl white
+f 1/1/1 4/4/1 3/3/1 2/2/1
+o pentagon
+g front
+v 0 0.5 0
+v 0.4 0.5 0
+v 0.5 0.8 0
+v 0.2 1.0 0
+v -0.1 0.8 0
+f -5//1 -4//1 -3//1 -2//1 -1//1
+g side
+v 0 0 0.5
+v 0 0.5 0.5
+v 0 0.5 -0.5
+f -3/1 -2/2 -1/3
+l 1 2
+"""
+
+
+def ply_header(fmt, nv, nf):
+    return (
+        "ply\n"
+        f"format {fmt} 1.0\n"
+        "comment extra properties, which the loader ignores\n"
+        f"element vertex {nv}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        "property uchar red\nproperty double confidence\n"
+        f"element face {nf}\n"
+        "property list uchar int vertex_indices\n"
+        "property int flags\n"
+        "element camera 1\n"
+        "property float fov\n"
+        "end_header\n"
+    ).encode()
+
+
+# A unit square (0, 3, 2, 1) and a pentagon (0, 3, 2, 4, 1) over it, both
+# counter-clockwise seen from +y: 2 + 3 triangles of area 1 + 1.25, 6
+# vertices of which 5 are used (vertex 5 is in no face).
+PLY_V = [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1), (1.5, 0, 0.5), (0.5, 0, -0.5)]
+PLY_F = [(0, 3, 2, 1), (0, 3, 2, 4, 1)]
+
+
+def ply_binary(endian):
+    fmt = "binary_little_endian" if endian == "<" else "binary_big_endian"
+    b = ply_header(fmt, len(PLY_V), len(PLY_F))
+    for v in PLY_V:
+        b += struct.pack(endian + "fffBd", *v, 200, 0.25)
+    for f in PLY_F:
+        b += struct.pack(endian + "B" + "i" * len(f) + "i", len(f), *f, 7)
+    b += struct.pack(endian + "f", 45.0)
+    return b
+
+
+def ply_ascii():
+    b = ply_header("ascii", len(PLY_V), len(PLY_F))
+    for v in PLY_V:
+        b += (" ".join(f"{c:g}" for c in v) + " 200 0.25\n").encode()
+    for f in PLY_F:
+        b += (f"{len(f)} " + " ".join(map(str, f)) + " 7\n").encode()
+    b += b"45\n"
+    return b
+
+
+def write(path, data):
+    path.write_bytes(data if isinstance(data, bytes) else data.encode())
+
+
+def main():
+    write(HERE / "cube.obj", cube_obj())
+    write(HERE / "mixed.obj", MIXED_OBJ)
+    write(HERE / "polys_ascii.ply", ply_ascii())
+    write(HERE / "polys_le.ply", ply_binary("<"))
+    write(HERE / "polys_be.ply", ply_binary(">"))
+    # Bad ones.
+    write(BAD / "index_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+    write(BAD / "negative_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n")
+    write(BAD / "nan_vertex.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
+    write(BAD / "inf_vertex.ply", ply_ascii().replace(b"\n1 0 0 200", b"\ninf 0 0 200"))
+    write(BAD / "garbage.obj", "this is not a mesh\nat all\n")
+    write(BAD / "binary.obj", b"\x7fELF\x02\x01\x01\x00\x00\x00garbage")
+    write(BAD / "empty.obj", "")
+    write(BAD / "ply_content.obj", ply_ascii())
+    write(BAD / "obj_content.ply", MIXED_OBJ)
+    write(BAD / "cube.stl", "solid cube\nendsolid cube\n")
+    write(BAD / "huge_count.ply",
+          b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
+          b"property float x\nproperty float y\nproperty float z\n"
+          b"element face 1\nproperty list uchar int vertex_indices\nend_header\n" + bytes(64))
+    write(BAD / "large_count.ply",
+          b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+          b"property float x\nproperty float y\nproperty float z\n"
+          b"element face 2000000000\nproperty list uchar int vertex_indices\nend_header\n" + bytes(64))
+    le = ply_binary("<")
+    write(BAD / "truncated.ply", le[:-30])
+    write(BAD / "no_end_header.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n")
+    write(BAD / "face_index.ply", ply_ascii().replace(b"\n4 0 3 2 1 7", b"\n4 0 3 2 9 7"))
+    write(BAD / "degenerate.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")
+    write(BAD / "points_only.ply",
+          b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+          b"end_header\n0 0 0\n1 0 0\n0 1 0\n")
+
+
+if __name__ == "__main__":
+    main()
