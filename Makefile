@@ -42,6 +42,7 @@ FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard te
 FUZZ_CC ?= clang
 FUZZ_BUILD := renderer/build-fuzz
 FUZZ_SRCS := $(wildcard renderer/src/config*.c) $(wildcard renderer/src/*_kind.c) renderer/src/json_write.c \
+             renderer/src/mesh_file.c renderer/src/ply_check.c renderer/src/transform.c \
              renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
 DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
@@ -118,13 +119,13 @@ $(BUILD)/fuzz/%.o: renderer/fuzz/%.c | $(DEPS_STAMP)
 # Linked from FUZZ_SRCS alone, as the libFuzzer build is, so that make test-c
 # notices when that list misses a file the config module needs.
 $(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(FUZZ_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
-	$(CC) $(ALL_CFLAGS) $^ -o $@ -lyaml -lm -pthread
+	$(CC) $(ALL_CFLAGS) $^ -o $@ -lyaml -lassimp -lm -pthread
 
 # libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
 $(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*.h)
 	@mkdir -p $(@D)
 	$(FUZZ_CC) -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
-	  -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined $(filter %.c,$^) -o $@ -lyaml -lm
+	  -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined $(filter %.c,$^) -o $@ -lyaml -lassimp -lm
 
 # C tests: every tests/renderer/test_*.c is its own executable. The runner
 # also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
