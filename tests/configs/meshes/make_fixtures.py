@@ -1,6 +1,9 @@
 #!/usr/bin/env python3
 """Writes the mesh fixtures of tests/configs (good: meshes/, bad: bad/meshes/).
 Run from anywhere; the files are committed, this script says how they were made."""
+
+from __future__ import annotations
+
 import pathlib
 import struct
 
@@ -14,7 +17,7 @@ BAD = HERE.parent / "bad" / "meshes"
 BOX_FACES = [(0, 4, 6, 2), (1, 3, 7, 5), (0, 1, 5, 4), (2, 6, 7, 3), (0, 2, 3, 1), (4, 5, 7, 6)]
 
 
-def cube_obj():
+def cube_obj() -> str:
     lines = ["# unit cube [-0.5, 0.5] x [0, 1] x [-0.5, 0.5], the box of good/mesh_cube_box.yaml"]
     for i in range(8):
         x = 0.5 if i & 1 else -0.5
@@ -60,7 +63,7 @@ l 1 2
 """
 
 
-def ply_header(fmt, nv, nf):
+def ply_header(fmt: str, nv: int, nf: int) -> bytes:
     return (
         "ply\n"
         f"format {fmt} 1.0\n"
@@ -84,7 +87,7 @@ PLY_V = [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1), (1.5, 0, 0.5), (0.5, 0, -0.
 PLY_F = [(0, 3, 2, 1), (0, 3, 2, 4, 1)]
 
 
-def ply_binary(endian):
+def ply_binary(endian: str) -> bytes:
     fmt = "binary_little_endian" if endian == "<" else "binary_big_endian"
     b = ply_header(fmt, len(PLY_V), len(PLY_F))
     for v in PLY_V:
@@ -95,7 +98,7 @@ def ply_binary(endian):
     return b
 
 
-def ply_ascii():
+def ply_ascii() -> bytes:
     b = ply_header("ascii", len(PLY_V), len(PLY_F))
     for v in PLY_V:
         b += (" ".join(f"{c:g}" for c in v) + " 200 0.25\n").encode()
@@ -105,11 +108,11 @@ def ply_ascii():
     return b
 
 
-def write(path, data):
+def write(path: pathlib.Path, data: str | bytes) -> None:
     path.write_bytes(data if isinstance(data, bytes) else data.encode())
 
 
-def main():
+def main() -> None:
     write(HERE / "cube.obj", cube_obj())
     write(HERE / "mixed.obj", MIXED_OBJ)
     write(HERE / "polys_ascii.ply", ply_ascii())
@@ -126,22 +129,28 @@ def main():
     write(BAD / "ply_content.obj", ply_ascii())
     write(BAD / "obj_content.ply", MIXED_OBJ)
     write(BAD / "cube.stl", "solid cube\nendsolid cube\n")
-    write(BAD / "huge_count.ply",
-          b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
-          b"property float x\nproperty float y\nproperty float z\n"
-          b"element face 1\nproperty list uchar int vertex_indices\nend_header\n" + bytes(64))
-    write(BAD / "large_count.ply",
-          b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
-          b"property float x\nproperty float y\nproperty float z\n"
-          b"element face 2000000000\nproperty list uchar int vertex_indices\nend_header\n" + bytes(64))
+    write(
+        BAD / "huge_count.ply",
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
+        b"property float x\nproperty float y\nproperty float z\n"
+        b"element face 1\nproperty list uchar int vertex_indices\nend_header\n" + bytes(64),
+    )
+    write(
+        BAD / "large_count.ply",
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+        b"property float x\nproperty float y\nproperty float z\n"
+        b"element face 2000000000\nproperty list uchar int vertex_indices\nend_header\n" + bytes(64),
+    )
     le = ply_binary("<")
     write(BAD / "truncated.ply", le[:-30])
     write(BAD / "no_end_header.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n")
     write(BAD / "face_index.ply", ply_ascii().replace(b"\n4 0 3 2 1 7", b"\n4 0 3 2 9 7"))
     write(BAD / "degenerate.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")
-    write(BAD / "points_only.ply",
-          b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-          b"end_header\n0 0 0\n1 0 0\n0 1 0\n")
+    write(
+        BAD / "points_only.ply",
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        b"end_header\n0 0 0\n1 0 0\n0 1 0\n",
+    )
 
 
 if __name__ == "__main__":
