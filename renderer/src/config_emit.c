@@ -150,11 +150,16 @@ static void emit_materials(struct text *t, const struct config *c)
 /* A mesh from a file stays a reference to it: its absolute path, the
    transform as one matrix (the composition the loader applied, bit for
    bit), and the digest of the bytes read, so that both hashes change when
-   the file does and a reload checks that it has not. */
-static void emit_shape_file(struct text *t, const struct shape_file *f)
+   the file does and a reload checks that it has not. The image hash leaves
+   the path out: the digest says what the image depends on, and a copy of the
+   scene elsewhere (a Dask worker's folder, a moved project) must resume the
+   same film. */
+static void emit_shape_file(struct text *t, const struct shape_file *f, bool image_only)
 {
-    text_printf(t, "\n    file: ");
-    emit_string(t, f->path);
+    if (!image_only) {
+        text_printf(t, "\n    file: ");
+        emit_string(t, f->path);
+    }
     if (f->has_transform) {
         text_printf(t, "\n    transform: [{matrix: [");
         for (int i = 0; i < 16; ++i) {
@@ -167,7 +172,7 @@ static void emit_shape_file(struct text *t, const struct shape_file *f)
 }
 
 static void emit_shapes(struct text *t, const struct config *c, char (*names)[CONFIG_NAME_MAX],
-                        const struct shape_file *files)
+                        const struct shape_file *files, bool image_only)
 {
     text_printf(t, "shapes:%s\n", c->n_shapes ? "" : " []");
     for (int i = 0; i < c->n_shapes; ++i) {
@@ -181,7 +186,7 @@ static void emit_shapes(struct text *t, const struct config *c, char (*names)[CO
         text_printf(t, "type: mesh\n    material: ");
         emit_string(t, c->materials[s->material].name);
         if (files[i].path) {
-            emit_shape_file(t, &files[i]);
+            emit_shape_file(t, &files[i], image_only);
             continue;
         }
         text_printf(t, "\n    vertices:\n");
@@ -319,7 +324,7 @@ static void emit_yaml(struct text *t, struct loader *L, const struct config *c, 
     text_printf(t, "# effective configuration (params substituted, overrides applied, defaults filled)\n");
     emit_camera_film(t, c);
     emit_materials(t, c);
-    emit_shapes(t, c, L->shape_names, L->shape_files);
+    emit_shapes(t, c, L->shape_names, L->shape_files, image_only);
     emit_lights_portals(t, c);
     emit_render(t, &c->render, image_only);
 }
