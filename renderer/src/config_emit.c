@@ -150,11 +150,16 @@ static void emit_materials(struct text *t, const struct config *c)
 /* A mesh from a file stays a reference to it: its absolute path, the
    transform as one matrix (the composition the loader applied, bit for
    bit), and the digest of the bytes read, so that both hashes change when
-   the file does and a reload checks that it has not. */
-static void emit_shape_file(struct text *t, const struct shape_file *f, const char *indent)
+   the file does and a reload checks that it has not. The image hash leaves
+   the path out: the digest says what the image depends on, and a copy of the
+   scene elsewhere (a Dask worker's folder, a moved project) must resume the
+   same film. */
+static void emit_shape_file(struct text *t, const struct shape_file *f, const char *indent, bool image_only)
 {
-    text_printf(t, "\n%sfile: ", indent);
-    emit_string(t, f->path);
+    if (!image_only) {
+        text_printf(t, "\n%sfile: ", indent);
+        emit_string(t, f->path);
+    }
     if (f->has_transform) {
         text_printf(t, "\n%stransform: [{matrix: [", indent);
         for (int i = 0; i < 16; ++i) {
@@ -167,7 +172,7 @@ static void emit_shape_file(struct text *t, const struct shape_file *f, const ch
 }
 
 static void emit_shapes(struct text *t, const struct config *c, char (*names)[CONFIG_NAME_MAX],
-                        const struct shape_file *files)
+                        const struct shape_file *files, bool image_only)
 {
     text_printf(t, "shapes:%s\n", c->n_shapes ? "" : " []");
     for (int i = 0; i < c->n_shapes; ++i) {
@@ -181,7 +186,7 @@ static void emit_shapes(struct text *t, const struct config *c, char (*names)[CO
         text_printf(t, "type: mesh\n    material: ");
         emit_string(t, c->materials[s->material].name);
         if (files[i].path) {
-            emit_shape_file(t, &files[i], "    ");
+            emit_shape_file(t, &files[i], "    ", image_only);
             continue;
         }
         text_printf(t, "\n    vertices:\n");
@@ -210,7 +215,8 @@ static void emit_polygon(struct text *t, const struct polygon *p)
     }
 }
 
-static void emit_lights_portals(struct text *t, const struct config *c, const struct shape_file *light_files)
+static void emit_lights_portals(struct text *t, const struct config *c, const struct shape_file *light_files,
+                                bool image_only)
 {
     text_printf(t, "lights:\n");
     for (int i = 0; i < c->n_lights; ++i) {
@@ -219,7 +225,7 @@ static void emit_lights_portals(struct text *t, const struct config *c, const st
         emit_string(t, l->name);
         if (l->mesh.n_triangles > 0) {
             text_printf(t, "\n    mesh:");
-            emit_shape_file(t, &light_files[i], "      ");
+            emit_shape_file(t, &light_files[i], "      ", image_only);
         } else {
             text_printf(t, "\n");
             emit_polygon(t, &l->polygon);
@@ -324,8 +330,8 @@ static void emit_yaml(struct text *t, struct loader *L, const struct config *c, 
     text_printf(t, "# effective configuration (params substituted, overrides applied, defaults filled)\n");
     emit_camera_film(t, c);
     emit_materials(t, c);
-    emit_shapes(t, c, L->shape_names, L->shape_files);
-    emit_lights_portals(t, c, L->light_files);
+    emit_shapes(t, c, L->shape_names, L->shape_files, image_only);
+    emit_lights_portals(t, c, L->light_files, image_only);
     emit_render(t, &c->render, image_only);
 }
 
