@@ -476,8 +476,19 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
         return sum > 0.0 ? e->power * mine / sum : 0.0;
     }
     case PORTAL_WEIGHT_IRRADIANCE: {
-        /* A mesh light: as if the light filled the portal (a bound). */
-        if (mesh) return rgb_luminance(l->radiance) * irradiance_factor(&pt->target.polygon, p, n);
+        /* A mesh light: as if the light filled the portal, and with the
+           portal's solid angle taken as a small polygon's, area |cos| / d^2
+           (capped at a hemisphere), so that the weight is O(1) in the
+           portal's vertices too: the exact projected solid angle of a
+           32-gon cost more than the sample it weighs (measured on the Little
+           Lamp at 16 spp: antishadow_exact 2.4-2.7x the CPU time of light,
+           1.3-1.4x with this). */
+        if (mesh) {
+            struct vec3 d = vec3_sub(pt->centroid, p);
+            double d2 = fmax(vec3_length2(d), 1e-12);
+            double sa = pt->target.area * fabs(vec3_dot(d, pt->target.normal)) / (d2 * sqrt(d2));
+            return rgb_luminance(l->radiance) * fmin(sa, 2.0 * M_PI);
+        }
         const struct target *vis = visible_target(s, ptp, i);
         return vis ? rgb_luminance(l->radiance) * irradiance_factor(&vis->polygon, p, n) : 0.0;
     }
