@@ -674,6 +674,78 @@ def compare(
     }
 
 
+FOCUS_COVER = 0.25
+
+
+def file_mesh_keys(cfg: dict[str, Any]) -> dict[str, str]:
+    """Scene-dict keys of the file-mesh shapes (build_scene_dict's names) ->
+    our shape names: the parts of the image reported on their own."""
+    return {
+        f"shape_{i:02d}_{shape['name']}": str(shape["name"])
+        for i, shape in enumerate(cfg.get("shapes") or [])
+        if shape.get("type") == "mesh" and "file" in shape
+    }
+
+
+def shape_masks(scene_dict: dict[str, Any], keys: dict[str, str], sub: int = 2) -> dict[str, np.ndarray]:
+    """Per shape, the (H, W) fraction of each pixel that the camera sees of
+    it: Mitsuba's first hit of sub x sub rays per pixel (pixel-centred grid,
+    pinhole). Geometry only, no light is sampled."""
+    import mitsuba as mi
+    import numpy as np
+
+    # optimize=False: Mitsuba would otherwise merge the meshes that share a
+    # BSDF into one shape without our ids (it changes no image).
+    scene = mi.load_dict(scene_dict, optimize=False)
+    sensor = scene.sensors()[0]
+    w, h = (int(x) for x in sensor.film().size())
+    masks = {name: np.zeros((h, w)) for name in keys.values()}
+    offsets = [(k + 0.5) / sub for k in range(sub)]
+    for y in range(h):
+        for x in range(w):
+            for oy in offsets:
+                for ox in offsets:
+                    pos = mi.Point2f((x + ox) / w, (y + oy) / h)
+                    ray, _ = sensor.sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
+                    si = scene.ray_intersect(ray)
+                    if si.is_valid():
+                        name = keys.get(si.shape.id())
+                        if name is not None:
+                            masks[name][y, x] += 1.0 / (sub * sub)
+    return masks
+
+
+def focus_stats(
+    result: dict[str, Any], ours: np.ndarray, ours_var: np.ndarray, mask: np.ndarray, b: int
+) -> dict[str, Any]:
+    """The agreement on one part of the image (a shape's mask): the block
+    tests of the blocks it covers by at least FOCUS_COVER, and the ratio of
+    the mask-weighted sums ours / Mitsuba with its standard error (the
+    sensitive test of a bias on that part). The pass/fail bound stays the
+    whole image's: these tests are among its tests."""
+    import numpy as np
+
+    mits, mits_var, z = result["mitsuba_mean"], result["mitsuba_var"], result["z"]
+    cover = block_mean(mask[..., None], b)[..., 0]
+    zs = z[cover >= FOCUS_COVER]
+    w = mask[..., None]
+    sum_m = (w * mits).sum(axis=(0, 1))
+    ratio = (w * ours).sum(axis=(0, 1)) / sum_m
+    sigma = np.sqrt((w**2 * (ours_var + mits_var)).sum(axis=(0, 1))) / sum_m
+    return {
+        "pixels": float(mask.sum()),
+        "blocks": int(np.count_nonzero(cover >= FOCUS_COVER)),
+        "tests": int(zs.size),
+        "max_abs_z": float(np.abs(zs).max()) if zs.size else 0.0,
+        "mean_z": float(zs.mean()) if zs.size else 0.0,
+        "mean_z2": float(np.mean(zs**2)) if zs.size else 0.0,
+        "ratio_ours_over_mitsuba": [float(x) for x in ratio],
+        "ratio_sigma": [float(x) for x in sigma],
+        "rel_sigma_ours": [float(x) for x in np.sqrt((w**2 * ours_var).sum(axis=(0, 1))) / sum_m],
+        "rel_sigma_mitsuba": [float(x) for x in np.sqrt((w**2 * mits_var).sum(axis=(0, 1))) / sum_m],
+    }
+
+
 # ---------------------------------------------------------------------------
 # Images
 
@@ -784,6 +856,23 @@ def format_table(s: dict[str, Any], info: dict[str, Any]) -> str:
                 f"{s['median_var_ratio_runs_over_pooled']:.3f} (1 if pixels independent)",
             )
         )
+    for name, f in (s.get("focus") or {}).items():
+        ratios = "  ".join(
+            f"{r:.4f}+-{e:.4f}" for r, e in zip(f["ratio_ours_over_mitsuba"], f["ratio_sigma"], strict=True)
+        )
+        lines.append(
+            row(
+                f"{name}: blocks covered",
+                f"{f['blocks']} ({f['tests']} tests, {f['pixels']:.0f} px seen; >= {FOCUS_COVER:g} of a block)",
+            )
+        )
+        lines.append(
+            row(
+                f"{name}: max |z| / mean z / z^2",
+                f"{f['max_abs_z']:.3f} / {f['mean_z']:+.3f} / {f['mean_z2']:.3f}",
+            )
+        )
+        lines.append(row(f"{name}: ratio ours/mitsuba", ratios))
     lines.append("  largest |z| blocks (x0-x1, y0-y1 pixels, row 0 at the top):")
     for t in s["top_blocks"][:5]:
         lines.append(
@@ -864,6 +953,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     result = compare(ours, ours_var, runs, args.block, args.alpha, ours_spp=ours_header.spp, mits_spp=args.mitsuba_spp)
+    focus_keys = file_mesh_keys(cfg)
+    if focus_keys:
+        masks = shape_masks(scene_dict, focus_keys)
+        result["stats"]["focus"] = {
+            name: focus_stats(result, ours, ours_var, mask, args.block) for name, mask in masks.items()
+        }
     write_exr(out / "mitsuba" / "mitsuba.exr", result["mitsuba_mean"], result["mitsuba_var"])
     img_info = write_images(out, ours, result["mitsuba_mean"], result["z"], args.block, result["stats"]["bound"])
 
