@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Independent-renderer cross-check: our renderer against Mitsuba 3.
 
-Renders the lampshade scene (configs/scenes/lampshade.yaml) with our renderer,
-rebuilds the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE
-config our renderer wrote (OUT/ours/config.yaml), renders it K times with
+Renders the lampshade scene (configs/scenes/lampshade.yaml, or --scene, e.g.
+lampshade_mesh.yaml with a mesh from a PLY file) with our renderer, rebuilds
+the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE config
+our renderer wrote (OUT/ours/config.yaml), renders it K times with
 independent seeds, and compares the two images block by block:
 
     z = (ours_block - mitsuba_block) / sqrt(var_ours_block + var_mitsuba_block)
@@ -13,6 +14,8 @@ variance layer (variance of the pixel mean); var_mitsuba from the spread of the
 K independent Mitsuba renders. The run fails (exit 1) when max |z| exceeds the
 two-sided Bonferroni bound for an overall false-alarm rate --alpha over all
 block-channel tests.
+Each mesh read from a file is also reported on its own (the blocks it
+covers, and the ratio ours/Mitsuba over the pixels that see it).
 
 Mitsuba lives in its own venv (.venv-xcheck at the repository root); when the
 running interpreter cannot import it, the script re-executes itself there.
