@@ -183,11 +183,24 @@ bench-ab: $(BUILD)/render
 fuzz:
 	@renderer/fuzz/run.sh $(or $(FUZZ_SECONDS),60)
 
-# Independent-renderer check: the lampshade against Mitsuba 3 (own venv).
+# Independent-renderer check against Mitsuba 3 (own venv): the lampshade with
+# light sampling, then the lampshade with a third-party mesh from a binary PLY
+# (configs/scenes/lampshade_mesh.yaml) with each of CROSSCHECK_STRATEGIES
+# against one set of Mitsuba renders. Every run is made; the target fails if
+# any disagrees. tools/crosscheck/README.md.
+CROSSCHECK_STRATEGIES ?= light portal antishadow antishadow_exact
+CROSSCHECK_OUT := results/tmp/crosscheck
 crosscheck: $(BUILD)/render
 	@test -x .venv-xcheck/bin/python || python3 -m venv .venv-xcheck
 	@.venv-xcheck/bin/pip install -q mitsuba pytest -e harness
-	.venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py
+	@rc=0; \
+	.venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py --renderer $(BUILD)/render || rc=1; \
+	for s in $(CROSSCHECK_STRATEGIES); do \
+	  .venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py --renderer $(BUILD)/render \
+	    --scene configs/scenes/lampshade_mesh.yaml --strategy $$s \
+	    --mitsuba-cache $(CROSSCHECK_OUT)/lampshade_mesh/mitsuba.npz \
+	    --out $(CROSSCHECK_OUT)/lampshade_mesh/direct_$$s || rc=1; \
+	done; exit $$rc
 
 clean:
 	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)

@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Independent-renderer cross-check: our renderer against Mitsuba 3.
 
-Renders the lampshade scene (configs/scenes/lampshade.yaml) with our renderer,
-rebuilds the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE
-config our renderer wrote (OUT/ours/config.yaml), renders it K times with
+Renders the lampshade scene (configs/scenes/lampshade.yaml, or --scene, e.g.
+lampshade_mesh.yaml with a mesh from a PLY file) with our renderer, rebuilds
+the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE config
+our renderer wrote (OUT/ours/config.yaml), renders it K times with
 independent seeds, and compares the two images block by block:
 
     z = (ours_block - mitsuba_block) / sqrt(var_ours_block + var_mitsuba_block)
@@ -13,6 +14,8 @@ variance layer (variance of the pixel mean); var_mitsuba from the spread of the
 K independent Mitsuba renders. The run fails (exit 1) when max |z| exceeds the
 two-sided Bonferroni bound for an overall false-alarm rate --alpha over all
 block-channel tests.
+Each mesh read from a file is also reported on its own (the blocks it
+covers, and the ratio ours/Mitsuba over the pixels that see it).
 
 Mitsuba lives in its own venv (.venv-xcheck at the repository root); when the
 running interpreter cannot import it, the script re-executes itself there.
@@ -35,6 +38,8 @@ import zlib
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from obj_to_ply import write_ply  # the same directory: a script's sys.path[0]
 
 if TYPE_CHECKING:  # annotations only: the module imports the standard library alone
     import numpy as np
@@ -251,16 +256,77 @@ def _triangles(vertices: list[Any], quads: list[list[int]], triangles: list[list
     return tris
 
 
-def write_ply(path: Path, vertices: list[Any], tris: list[tuple[int, ...]]) -> None:
-    """Binary little-endian PLY: float xyz, uchar-count int faces."""
-    head = (
-        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
-        "property float x\nproperty float y\nproperty float z\n"
-        f"element face {len(tris)}\nproperty list uchar int vertex_indices\nend_header\n"
+MESH_FILE_TYPES = {".ply": "ply", ".obj": "obj"}
+
+
+def fnv1a64(path: Path) -> str:
+    """FNV-1a 64 of a file's bytes as 16 hex digits: our config's `digest`."""
+    h = 0xCBF29CE484222325
+    for byte in path.read_bytes():
+        h = ((h ^ byte) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return f"{h:016x}"
+
+
+def _matmul(a: list[list[float]], b: list[list[float]]) -> list[list[float]]:
+    return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+
+def file_mesh_to_world(transform: list[Any] | None, offset: list[float]) -> list[list[float]]:
+    """The 4x4 row-major matrix that takes a mesh file's points to Mitsuba's
+    world: our `transform` (in the effective config a list of `{matrix: 16
+    numbers, row-major}` applied in order, so M = M_n ... M_1), then the move
+    by -offset (recentring)."""
+    m = [[float(i == j) for j in range(4)] for i in range(4)]
+    for op in transform or []:
+        if not isinstance(op, dict) or set(op) != {"matrix"} or len(op["matrix"]) != 16:
+            raise SetupError(f"mesh transform: expected {{matrix: 16 numbers}} (effective config), got {op!r}")
+        rows = [[float(x) for x in op["matrix"][4 * r : 4 * r + 4]] for r in range(4)]
+        m = _matmul(rows, m)
+    move = [[float(i == j) for j in range(4)] for i in range(4)]
+    for i in range(3):
+        move[i][3] = -float(offset[i])
+    return _matmul(move, m)
+
+
+def _det3(m: list[list[float]]) -> float:
+    return (
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     )
-    body = b"".join(struct.pack("<3f", *map(float, v)) for v in vertices)
-    body += b"".join(struct.pack("<B3i", 3, *t) for t in tris)
-    path.write_bytes(head.encode("ascii") + body)
+
+
+def file_mesh_shape(entry: dict[str, Any], offset: list[float], what: str) -> dict[str, Any]:
+    """Mitsuba `ply`/`obj` shape of an effective-config `{file, transform,
+    digest}` (a file mesh shape, or a mesh light's `mesh`), without BSDF.
+
+    Mitsuba reads the same file our renderer read (the digest is checked,
+    so an edit since our render is an error) with the same to_world. Flat
+    shading (`face_normals`): our renderer shades with the geometric normal;
+    without it Mitsuba would interpolate smooth vertex normals it computes
+    from the file. Mitsuba's face normal is cross(p1 - p0, p2 - p0) of the
+    transformed points, so a mirroring to_world (det < 0) turns it over,
+    while ours reverses the triangles there and keeps the normal along the
+    inverse transpose (config_scene.c): `flip_normals` undoes the difference
+    (it matters for a mesh light's emitting side only; surfaces are
+    two-sided)."""
+    path = Path(str(entry.get("file")))
+    kind = MESH_FILE_TYPES.get(path.suffix.lower())
+    if kind is None:
+        raise SetupError(f"{what}: mesh file {path} is neither .ply nor .obj")
+    if not path.is_file():
+        raise SetupError(f"{what}: mesh file {path} not found")
+    digest = entry.get("digest")
+    if isinstance(digest, dict) and "fnv1a64" in digest and fnv1a64(path) != str(digest["fnv1a64"]):
+        raise SetupError(f"{what}: mesh file {path} changed since our render (digest {digest['fnv1a64']})")
+    to_world = file_mesh_to_world(entry.get("transform"), offset)
+    return {
+        "type": kind,
+        "filename": str(path),
+        "to_world": to_world,
+        "face_normals": True,
+        "flip_normals": _det3(to_world) < 0.0,
+    }
 
 
 def _rgb(value: Iterable[Any]) -> dict[str, Any]:
@@ -283,12 +349,28 @@ def recentre_offset(cfg: dict[str, Any]) -> list[float]:
     0.2-0.6% too bright at the scene's own position (lamp at y = 2.6), 0.0%
     with the lamp moved to the origin and 3% at y = 22 (measured against
     Lambert's closed form, see README). A rigid translation changes no
-    radiance, so Mitsuba renders the scene moved by -centroid.
+    radiance, so Mitsuba renders the scene moved by -centroid. A mesh light
+    counts as one point, the centre of its bounding box (read by Mitsuba).
     """
-    verts = [v for light in cfg.get("lights") or [] for v in light["vertices"]]
+    verts: list[list[float]] = []
+    for light in cfg.get("lights") or []:
+        if "mesh" in light:
+            verts.append(mesh_bbox_centre(light["mesh"], f"light {light.get('name')!r}"))
+        else:
+            verts.extend([float(x) for x in v] for v in light["vertices"])
     if not verts:
         return [0.0, 0.0, 0.0]
-    return [sum(float(v[i]) for v in verts) / len(verts) for i in range(3)]
+    return [sum(v[i] for v in verts) / len(verts) for i in range(3)]
+
+
+def mesh_bbox_centre(entry: dict[str, Any], what: str) -> list[float]:
+    """Centre of a file mesh's world-space bounding box, as Mitsuba loads it."""
+    import mitsuba as mi
+
+    shape = file_mesh_shape(entry, [0.0, 0.0, 0.0], what)
+    shape["to_world"] = mi.ScalarTransform4f(shape["to_world"])
+    c = mi.load_dict(shape).bbox().center()
+    return [float(c[i]) for i in range(3)]
 
 
 def build_scene_dict(
@@ -330,6 +412,12 @@ def build_scene_dict(
     }
     materials = cfg["materials"]
     for i, shape in enumerate(cfg.get("shapes") or []):
+        if shape.get("type") == "mesh" and "file" in shape:
+            entry = file_mesh_shape(shape, off, f"shape {shape.get('name')!r}")
+            entry["to_world"] = mi.ScalarTransform4f(entry["to_world"])
+            entry["bsdf"] = _bsdf(materials[shape["material"]], shape["material"])
+            scene[f"shape_{i:02d}_{shape['name']}"] = entry
+            continue
         if shape.get("type") != "mesh":
             raise SetupError(
                 "shape {!r}: effective configs hold meshes only (got {!r})".format(shape.get("name"), shape.get("type"))
@@ -352,6 +440,19 @@ def build_scene_dict(
                     light["name"]
                 )
             )
+        # Our lights reflect nothing; Mitsuba's default BSDF would be a 0.5
+        # diffuse.
+        black = {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb([0, 0, 0])}}
+        emitter = {"type": "area", "radiance": _rgb(light["radiance"])}
+        if "mesh" in light:
+            # A mesh light (UNTESTED against our renderer, which does not have
+            # them yet; see README): every triangle emits on the side its
+            # winding faces, as Mitsuba's area emitter on the same file does
+            # (file_mesh_shape keeps the side under mirroring transforms).
+            entry = file_mesh_shape(light["mesh"], off, f"light {light['name']!r}")
+            entry["to_world"] = mi.ScalarTransform4f(entry["to_world"])
+            scene[f"light_{i:02d}_{light['name']}"] = {**entry, "bsdf": black, "emitter": emitter}
+            continue
         verts = light["vertices"]
         # Fan triangulation of the convex polygon keeps its winding. Mitsuba's
         # triangle normal is cross(p1 - p0, p2 - p0), the right-hand rule of the
@@ -364,10 +465,8 @@ def build_scene_dict(
             "type": "ply",
             "filename": str(ply),
             "face_normals": True,
-            # Our lights reflect nothing; Mitsuba's default BSDF would be a
-            # 0.5 diffuse.
-            "bsdf": {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb([0, 0, 0])}},
-            "emitter": {"type": "area", "radiance": _rgb(light["radiance"])},
+            "bsdf": black,
+            "emitter": emitter,
         }
     # Portals are sampling aids, not geometry: nothing to convert.
     return scene
@@ -578,6 +677,78 @@ def compare(
     }
 
 
+FOCUS_COVER = 0.25
+
+
+def file_mesh_keys(cfg: dict[str, Any]) -> dict[str, str]:
+    """Scene-dict keys of the file-mesh shapes (build_scene_dict's names) ->
+    our shape names: the parts of the image reported on their own."""
+    return {
+        f"shape_{i:02d}_{shape['name']}": str(shape["name"])
+        for i, shape in enumerate(cfg.get("shapes") or [])
+        if shape.get("type") == "mesh" and "file" in shape
+    }
+
+
+def shape_masks(scene_dict: dict[str, Any], keys: dict[str, str], sub: int = 2) -> dict[str, np.ndarray]:
+    """Per shape, the (H, W) fraction of each pixel that the camera sees of
+    it: Mitsuba's first hit of sub x sub rays per pixel (pixel-centred grid,
+    pinhole). Geometry only, no light is sampled."""
+    import mitsuba as mi
+    import numpy as np
+
+    # optimize=False: Mitsuba would otherwise merge the meshes that share a
+    # BSDF into one shape without our ids (it changes no image).
+    scene = mi.load_dict(scene_dict, optimize=False)
+    sensor = scene.sensors()[0]
+    w, h = (int(x) for x in sensor.film().size())
+    masks = {name: np.zeros((h, w)) for name in keys.values()}
+    offsets = [(k + 0.5) / sub for k in range(sub)]
+    for y in range(h):
+        for x in range(w):
+            for oy in offsets:
+                for ox in offsets:
+                    pos = mi.Point2f((x + ox) / w, (y + oy) / h)
+                    ray, _ = sensor.sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
+                    si = scene.ray_intersect(ray)
+                    if si.is_valid():
+                        name = keys.get(si.shape.id())
+                        if name is not None:
+                            masks[name][y, x] += 1.0 / (sub * sub)
+    return masks
+
+
+def focus_stats(
+    result: dict[str, Any], ours: np.ndarray, ours_var: np.ndarray, mask: np.ndarray, b: int
+) -> dict[str, Any]:
+    """The agreement on one part of the image (a shape's mask): the block
+    tests of the blocks it covers by at least FOCUS_COVER, and the ratio of
+    the mask-weighted sums ours / Mitsuba with its standard error (the
+    sensitive test of a bias on that part). The pass/fail bound stays the
+    whole image's: these tests are among its tests."""
+    import numpy as np
+
+    mits, mits_var, z = result["mitsuba_mean"], result["mitsuba_var"], result["z"]
+    cover = block_mean(mask[..., None], b)[..., 0]
+    zs = z[cover >= FOCUS_COVER]
+    w = mask[..., None]
+    sum_m = (w * mits).sum(axis=(0, 1))
+    ratio = (w * ours).sum(axis=(0, 1)) / sum_m
+    sigma = np.sqrt((w**2 * (ours_var + mits_var)).sum(axis=(0, 1))) / sum_m
+    return {
+        "pixels": float(mask.sum()),
+        "blocks": int(np.count_nonzero(cover >= FOCUS_COVER)),
+        "tests": int(zs.size),
+        "max_abs_z": float(np.abs(zs).max()) if zs.size else 0.0,
+        "mean_z": float(zs.mean()) if zs.size else 0.0,
+        "mean_z2": float(np.mean(zs**2)) if zs.size else 0.0,
+        "ratio_ours_over_mitsuba": [float(x) for x in ratio],
+        "ratio_sigma": [float(x) for x in sigma],
+        "rel_sigma_ours": [float(x) for x in np.sqrt((w**2 * ours_var).sum(axis=(0, 1))) / sum_m],
+        "rel_sigma_mitsuba": [float(x) for x in np.sqrt((w**2 * mits_var).sum(axis=(0, 1))) / sum_m],
+    }
+
+
 # ---------------------------------------------------------------------------
 # Images
 
@@ -688,6 +859,23 @@ def format_table(s: dict[str, Any], info: dict[str, Any]) -> str:
                 f"{s['median_var_ratio_runs_over_pooled']:.3f} (1 if pixels independent)",
             )
         )
+    for name, f in (s.get("focus") or {}).items():
+        ratios = "  ".join(
+            f"{r:.4f}+-{e:.4f}" for r, e in zip(f["ratio_ours_over_mitsuba"], f["ratio_sigma"], strict=True)
+        )
+        lines.append(
+            row(
+                f"{name}: blocks covered",
+                f"{f['blocks']} ({f['tests']} tests, {f['pixels']:.0f} px seen; >= {FOCUS_COVER:g} of a block)",
+            )
+        )
+        lines.append(
+            row(
+                f"{name}: max |z| / mean z / z^2",
+                f"{f['max_abs_z']:.3f} / {f['mean_z']:+.3f} / {f['mean_z2']:.3f}",
+            )
+        )
+        lines.append(row(f"{name}: ratio ours/mitsuba", ratios))
     lines.append("  largest |z| blocks (x0-x1, y0-y1 pixels, row 0 at the top):")
     for t in s["top_blocks"][:5]:
         lines.append(
@@ -768,6 +956,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     result = compare(ours, ours_var, runs, args.block, args.alpha, ours_spp=ours_header.spp, mits_spp=args.mitsuba_spp)
+    focus_keys = file_mesh_keys(cfg)
+    if focus_keys:
+        masks = shape_masks(scene_dict, focus_keys)
+        result["stats"]["focus"] = {
+            name: focus_stats(result, ours, ours_var, mask, args.block) for name, mask in masks.items()
+        }
     write_exr(out / "mitsuba" / "mitsuba.exr", result["mitsuba_mean"], result["mitsuba_var"])
     img_info = write_images(out, ours, result["mitsuba_mean"], result["z"], args.block, result["stats"]["bound"])
 
