@@ -87,7 +87,7 @@ static void test_state_round_trip(void)
     CHECK(same_memory(&a.stats, &b.stats, sizeof a.stats));
     CHECK(b.nonfinite_samples == 3 && b.snapshots == 4 && b.seed == a.seed && b.image_hash == a.image_hash);
     /* magic, version, header, three arrays, checksum */
-    long expect = 16 + 120 + (4 + 4 + 4 + 8 + 8 + 3 * 15 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 15 * 8) +
+    long expect = 16 + 124 + (4 + 4 + 4 + 8 + 8 + 3 * 15 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 15 * 8) +
                   (4 + 5 + 4 + 8 + 8 + 15 * 4) + 8;
     CHECK_MSG(file_size(path) == expect, "size %ld, expected %ld", file_size(path), expect);
     /* Nothing left at a temporary name. */
@@ -178,7 +178,7 @@ static void test_state_named_arrays(void)
     long n;
     unsigned char *bytes = read_bytes(path, &n);
     /* The last array is "count": its name sits after the two f64 arrays. */
-    long at = 16 + 120 + (4 + 4 + 4 + 8 + 8 + 3 * 4 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 4 * 8);
+    long at = 16 + 124 + (4 + 4 + 4 + 8 + 8 + 3 * 4 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 4 * 8);
     CHECK(n > at + 9 && memcmp(bytes + at, "\005\000\000\000count", 9) == 0);
     memcpy(bytes + at + 4, "cuont", 5);
     uint64_t sum = fnv(bytes, (size_t)n - 8);
