@@ -138,6 +138,7 @@ FM_SIMD_CLONES static void camera_row(const struct camera *c, uint64_t seed, int
         smp[x].rng.inc = r.inc;
         smp[x].kind = SAMPLER_INDEPENDENT;
         smp[x].index = (uint32_t)pass;
+        smp[x].index_reversed = 0;
         smp[x].pixel_key = 0;
         dir[x] = camera_ray(c, x + jx.u, y + jy.u);
     }

@@ -10,9 +10,9 @@ static uint32_t block_light(int depth)
     return 1u + 3u * (uint32_t)depth;
 }
 
-/* Keys of one block's seeds are pixel_key + (block * 8 + slot) * KEY_STEP:
-   slot 0 shuffles the sample order, slot 1 + d scrambles dimension d. The
-   step is odd, so distinct (block, slot) give distinct keys, and the hash
+/* The seeds of block b are the halves of rng_mix64(pixel_key + (4 b + j)
+   KEY_STEP), j = 0, 1, 2: the sample order's, then one per dimension. The
+   step is odd, so distinct (block, j) give distinct keys, and the hash
    decorrelates neighbours. */
 #define KEY_STEP 0xd1342543de82ef95ull
 
@@ -23,22 +23,50 @@ uint64_t sampler_pixel_key(uint64_t seed, uint64_t pixel)
 
 void sampler_start(struct sampler *s, enum sampler_kind kind, uint64_t seed, uint64_t pixel, int64_t pass)
 {
-    s->rng = rng_seeded(seed, pixel, (uint64_t)pass);
     s->kind = kind;
     s->index = (uint32_t)pass;
-    s->pixel_key = kind == SAMPLER_SOBOL ? sampler_pixel_key(seed, pixel) : 0;
+    s->index_reversed = sobol_reverse_bits(s->index);
+    switch (kind) {
+    case SAMPLER_INDEPENDENT:
+        s->rng = rng_seeded(seed, pixel, (uint64_t)pass);
+        s->pixel_key = 0;
+        return;
+    case SAMPLER_SOBOL:
+        s->pixel_key = sampler_pixel_key(seed, pixel);
+        /* Unused by the draws; distinct per (pixel, pass) for the fault
+           hook, which hashes it. */
+        s->rng.state = s->pixel_key + (uint64_t)pass * KEY_STEP;
+        s->rng.inc = 1;
+        return;
+    }
+}
+
+/* sampler_sobol_block with the sample index bit-reversed. */
+static void sobol_block(uint64_t pixel_key, uint32_t block, uint32_t index_reversed, int n, uint32_t out[4])
+{
+    uint64_t key = pixel_key + (uint64_t)block * 4u * KEY_STEP;
+    uint32_t seeds[6];
+    for (int j = 0; 2 * j < n + 1; ++j) {
+        uint64_t h = rng_mix64(key + (uint64_t)j * KEY_STEP);
+        seeds[2 * j] = (uint32_t)h;
+        seeds[2 * j + 1] = (uint32_t)(h >> 32);
+    }
+    /* Owen-scrambling the index (bit-reversed) permutes every aligned run
+       of 2^k indices within itself, so the first 2^k passes draw one
+       aligned run of the sequence, a net, in an order of the block's own
+       (Burley 2020, sec. 4). The run is [c, c + 2^k) with c the high bits
+       of the scrambled 0; xor-ing them away maps it onto [0, 2^k): the
+       points then differ by a digital shift, which the Owen scrambles
+       below absorb (a shift is one of their permutations), and the index
+       keeps only k bits, so the matrix products take k steps. */
+    uint32_t r = sobol_owen_reversed(index_reversed, seeds[0]) ^ sobol_owen_reversed(0, seeds[0]);
+    for (int d = 0; d < n; ++d)
+        out[d] = sobol_reverse_bits(sobol_owen_reversed(sobol_point_reversed(r, d), seeds[d + 1]));
 }
 
 void sampler_sobol_block(uint64_t pixel_key, uint32_t block, uint32_t index, int n, uint32_t out[4])
 {
-    uint64_t key = pixel_key + (uint64_t)block * 8u * KEY_STEP;
-    /* Owen-scrambling the index (bit-reversed) permutes every aligned run
-       of 2^k indices within itself: the first 2^k passes still draw one
-       aligned run of the sequence, a net, in a random order of the block's
-       own (Burley 2020, sec. 4). */
-    uint32_t i = sobol_owen_scramble(index, sobol_hash(key));
-    for (int d = 0; d < n; ++d)
-        out[d] = sobol_owen_scramble(sobol_point(i, d), sobol_hash(key + (uint64_t)(d + 1) * KEY_STEP));
+    sobol_block(pixel_key, block, sobol_reverse_bits(index), n, out);
 }
 
 static double fraction(uint32_t x)
@@ -55,7 +83,7 @@ void sampler_camera(struct sampler *s, double u[2])
         return;
     case SAMPLER_SOBOL: {
         uint32_t x[4];
-        sampler_sobol_block(s->pixel_key, BLOCK_CAMERA, s->index, 2, x);
+        sobol_block(s->pixel_key, BLOCK_CAMERA, s->index_reversed, 2, x);
         u[0] = fraction(x[0]);
         u[1] = fraction(x[1]);
         return;
@@ -71,7 +99,7 @@ void sampler_light(struct sampler *s, int depth, double u[4])
         return;
     case SAMPLER_SOBOL: {
         uint32_t x[4];
-        sampler_sobol_block(s->pixel_key, block_light(depth), s->index, 4, x);
+        sobol_block(s->pixel_key, block_light(depth), s->index_reversed, 4, x);
         /* The point on the light or portal gets the (0,2)-sequence. */
         u[2] = fraction(x[0]);
         u[3] = fraction(x[1]);
@@ -91,7 +119,7 @@ void sampler_bsdf(struct sampler *s, int depth, double u[2])
         return;
     case SAMPLER_SOBOL: {
         uint32_t x[4];
-        sampler_sobol_block(s->pixel_key, block_light(depth) + 1u, s->index, 2, x);
+        sobol_block(s->pixel_key, block_light(depth) + 1u, s->index_reversed, 2, x);
         u[0] = fraction(x[0]);
         u[1] = fraction(x[1]);
         return;
@@ -106,7 +134,7 @@ double sampler_roulette(struct sampler *s, int depth)
         return rng_uniform(&s->rng);
     case SAMPLER_SOBOL: {
         uint32_t x[4];
-        sampler_sobol_block(s->pixel_key, block_light(depth) + 2u, s->index, 1, x);
+        sobol_block(s->pixel_key, block_light(depth) + 2u, s->index_reversed, 1, x);
         return fraction(x[0]);
     }
     }

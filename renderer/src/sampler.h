@@ -38,12 +38,13 @@
 
 /* One pixel sample's source of numbers; a value its caller owns. */
 struct sampler {
-    /* independent: the stream every draw comes from; sobol: seeded the
-       same way but unused by the draws (the fault hook reads it). */
+    /* independent: the stream every draw comes from; sobol: unused by the
+       draws, a distinct state per (pixel, pass) for the fault hook. */
     struct rng rng;
     enum sampler_kind kind;
-    uint32_t index;     /* sobol: the sample index (the pass, mod 2^32) */
-    uint64_t pixel_key; /* sobol: hash of (seed, pixel) */
+    uint32_t index;          /* sobol: the sample index (the pass, mod 2^32) */
+    uint32_t index_reversed; /* its bits reversed */
+    uint64_t pixel_key;      /* sobol: hash of (seed, pixel) */
 };
 
 /* The sample of pass `pass` of pixel `pixel` (y * width + x). */
@@ -57,6 +58,7 @@ static inline struct sampler sampler_of_rng(struct rng r)
     s.rng = r;
     s.kind = SAMPLER_INDEPENDENT;
     s.index = 0;
+    s.index_reversed = 0;
     s.pixel_key = 0;
     return s;
 }

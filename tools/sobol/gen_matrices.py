@@ -46,7 +46,18 @@ def main() -> None:
     print("   new-joe-kuo-6.21201 direction numbers (see the script); do not edit. */")
     print('#include "sobol.h"')
     print()
-    print("const uint32_t sobol_matrices[SOBOL_DIMS][32] = {")
+    table("sobol_matrices", dims)
+    print()
+    print("/* The same columns, bit-reversed. */")
+    table("sobol_matrices_reversed", [[reverse(c) for c in cols] for cols in dims])
+
+
+def reverse(c: int) -> int:
+    return int(f"{c:032b}"[::-1], 2)
+
+
+def table(name: str, dims: list[list[int]]) -> None:
+    print(f"const uint32_t {name}[SOBOL_DIMS][32] = {{")
     for cols in dims:
         print("    {")
         for i in range(0, BITS, 4):
