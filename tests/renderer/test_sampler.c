@@ -105,7 +105,7 @@ enum projection {
     PROJ_LIGHT_BOUNCES, /* light point u at bounces 0 and 1 */
     PROJ_COUNT
 };
-static const char *const projection_names[PROJ_COUNT] = { "camera",      "light point",  "light choice",
+static const char *const projection_names[PROJ_COUNT] = { "camera",        "light point",  "light choice",
                                                           "bsdf bounce 3", "camera/light", "light 0/1" };
 
 static void draw(enum projection p, uint64_t seed, uint64_t pixel, int64_t pass, double out[2])
@@ -270,8 +270,8 @@ static double pixel_estimate(const struct integrator *it, struct strategy_scratc
     for (int i = 0; i < n; ++i) {
         struct sampler s;
         sampler_start(&s, kind, seed, pixel, i);
-        struct rgb c = integrator_direct_at(it, scratch, floor_points[k], vec3_make(0, 1, 0), material, vec3_make(0, 1, 0),
-                                            &s, stats);
+        struct rgb c = integrator_direct_at(it, scratch, floor_points[k], vec3_make(0, 1, 0), material,
+                                            vec3_make(0, 1, 0), &s, stats);
         sum += c.r;
     }
     return sum / n;
@@ -337,7 +337,8 @@ static void test_lower_error_than_independent(void)
             double diff = ind.mean - sob.mean, se = sqrt(ind.se * ind.se + sob.se * sob.se);
             if (measure || getenv("VERBOSE"))
                 fprintf(stderr, "  %s %d spp: relMSE independent %.4g +- %.2g, sobol %.4g +- %.2g, RMSE ratio %.3f\n",
-                        strategy_names[strategies[s]], n, ind.mean, ind.se, sob.mean, sob.se, sqrt(sob.mean / ind.mean));
+                        strategy_names[strategies[s]], n, ind.mean, ind.se, sob.mean, sob.se,
+                        sqrt(sob.mean / ind.mean));
             CHECK_MSG(diff > 5.0 * se, "%s %d spp: relMSE independent %.4g +- %.2g, sobol %.4g +- %.2g",
                       strategy_names[strategies[s]], n, ind.mean, ind.se, sob.mean, sob.se);
         }
@@ -374,15 +375,16 @@ static void test_unbiased(void)
             const int pixels = 3000;
             double mean = 0.0, m2 = 0.0;
             for (int t = 0; t < pixels; ++t) {
-                double e = pixel_estimate(&it, &scratch, f.white, SAMPLER_SOBOL, 41 + (uint64_t)s, (uint64_t)t, k, 4, &stats);
+                double e =
+                    pixel_estimate(&it, &scratch, f.white, SAMPLER_SOBOL, 41 + (uint64_t)s, (uint64_t)t, k, 4, &stats);
                 double d = e - mean;
                 mean += d / (t + 1);
                 m2 += d * (e - mean);
             }
             double se = sqrt(m2 / (pixels - 1) / pixels);
             CHECK_MSG(fabs(mean - f.exact[k]) <= 5.0 * se + 1e-9 * f.exact[k],
-                      "%s point %d: mean %.8g +- %.2g, exact %.8g (%.1f standard errors)", strategy_names[strategies[s]],
-                      k, mean, se, f.exact[k], (mean - f.exact[k]) / se);
+                      "%s point %d: mean %.8g +- %.2g, exact %.8g (%.1f standard errors)",
+                      strategy_names[strategies[s]], k, mean, se, f.exact[k], (mean - f.exact[k]) / se);
             strategy_scratch_free(&scratch);
             strategy_free(&st);
         }
