@@ -3,8 +3,9 @@ opens EXR files (the tests' writer and tools/ use it too).
 
 The format (renderer contract): float channels R, G, B (running mean of
 radiance) and variance.R/G/B (variance of that mean), with the header
-attributes render_time_s, spp, strategy, integrator, seed, config_hash,
-renderer_version, rays and nonfinite_samples; optionally (render.aov.region)
+attributes render_time_s, spp, strategy, integrator, sampler, seed, config_hash,
+renderer_version, rays and nonfinite_samples (sampler may be absent: files
+written before it existed are independent); optionally (render.aov.region)
 the region AOV: one float channel per antishadow region class
 (REGION_CLASSES, `region.<class>`), the fraction of the pixel's samples whose
 primary hit fell in that class. A file that cannot be read
@@ -46,6 +47,8 @@ class SnapshotHeader:
     renderer_version: str
     rays: float
     nonfinite_samples: float
+    # render.sampler; files written before the attribute existed are independent.
+    sampler: str = "independent"
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +86,7 @@ def _header_from(path: Path, raw: dict[str, Any]) -> SnapshotHeader:
             renderer_version=str(raw["renderer_version"]),
             rays=_scalar(raw["rays"]),
             nonfinite_samples=_scalar(raw["nonfinite_samples"]),
+            sampler=str(raw.get("sampler", "independent")),
         )
     except KeyError as missing:
         raise CorruptExrError(str(path), f"missing header attribute {missing}") from None
@@ -175,6 +179,7 @@ def snapshot_attributes(header: SnapshotHeader) -> dict[str, Any]:
         "spp": int(min(header.spp, 2**31 - 1)),
         "strategy": header.strategy,
         "integrator": header.integrator,
+        "sampler": header.sampler,
         "seed": str(header.seed),
         "config_hash": header.config_hash,
         "renderer_version": header.renderer_version,

@@ -14,6 +14,7 @@
 #include "integrator_kind.h"
 #include "material_kind.h"
 #include "polygon.h"
+#include "sampler_kind.h"
 #include "strategy_kind.h"
 #include "vec.h"
 
@@ -91,11 +92,12 @@ struct render_desc {
     enum strategy_kind strategy;
     enum mis_kind mis;
     enum portal_weight_kind portal_weight;
-    double defensive; /* [0, 1): fraction of plain light sampling */
-    int max_depth;    /* path: >= 1 bounces; direct ignores it */
-    int rr_depth;     /* path: Russian roulette from this depth */
-    int spp;          /* 0: no sample limit */
-    double time_s;    /* 0: no time limit; at least one is set */
+    enum sampler_kind sampler; /* where the random numbers come from (sampler.h) */
+    double defensive;          /* [0, 1): fraction of plain light sampling */
+    int max_depth;             /* path: >= 1 bounces; direct ignores it */
+    int rr_depth;              /* path: Russian roulette from this depth */
+    int spp;                   /* 0: no sample limit */
+    double time_s;             /* 0: no time limit; at least one is set */
     struct snapshot_schedule snapshots;
     uint64_t seed;
     int threads; /* 0: auto (number of online CPUs) */

@@ -294,7 +294,8 @@ static void emit_render(struct text *t, const struct render_desc *r, bool image_
                 integrator_names[r->integrator], strategy_names[r->strategy], mis_names[r->mis],
                 portal_weight_names[r->portal_weight]);
     emit_number(t, r->defensive);
-    text_printf(t, "\n  max_depth: %d\n  rr_depth: %d", r->max_depth, r->rr_depth);
+    text_printf(t, "\n  max_depth: %d\n  rr_depth: %d\n  sampler: %s", r->max_depth, r->rr_depth,
+                sampler_names[r->sampler]);
     if (!image_only) {
         text_printf(t, "\n  spp: %d\n  time: ", r->spp);
         emit_number(t, r->time_s);

@@ -1,5 +1,5 @@
 /* config_render.c: the section loader of how the image is rendered:
-   the render mapping (integrator, strategy, MIS, limits, snapshot
+   the render mapping (integrator, strategy, MIS, sampler, limits, snapshot
    schedule, seed, threads, output, AOV) and its defaults. */
 #include "config_internal.h"
 
@@ -11,9 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const render_keys[] = { "integrator", "strategy", "mis",    "portal_weight", "defensive",
-                                           "max_depth",  "rr_depth", "spp",    "time",          "snapshots",
-                                           "seed",       "threads",  "output", "aov",           "resumable" };
+static const char *const render_keys[] = { "integrator", "strategy", "mis", "portal_weight", "defensive", "max_depth",
+                                           "rr_depth",   "sampler",  "spp", "time",          "snapshots", "seed",
+                                           "threads",    "output",   "aov", "resumable" };
 const char *const config_snapshot_keys[CONFIG_SNAPSHOT_KEY_COUNT] = { "every",     "doubling",     "times",
                                                                       "every_spp", "doubling_spp", "spp" };
 /* What each key counts in: render time (config_get_number_in) or passes (config_get_int, get_spps). */
@@ -135,6 +135,7 @@ bool config_load_render(struct loader *L, const yaml_node_t *root, struct config
     r->strategy = STRATEGY_LIGHT;
     r->mis = MIS_POWER;
     r->portal_weight = PORTAL_WEIGHT_IRRADIANCE;
+    r->sampler = SAMPLER_INDEPENDENT;
     r->defensive = 0.0;
     r->max_depth = 8;
     r->rr_depth = 3;
@@ -160,6 +161,10 @@ bool config_load_render(struct loader *L, const yaml_node_t *root, struct config
     if ((n = config_map_get(L, map, "portal_weight"))) {
         if (!config_get_enum(L, n, "portal_weight", portal_weight_names, 3, &e)) return false;
         r->portal_weight = (enum portal_weight_kind)e;
+    }
+    if ((n = config_map_get(L, map, "sampler"))) {
+        if (!config_get_enum(L, n, "sampler", sampler_names, SAMPLER_COUNT, &e)) return false;
+        r->sampler = (enum sampler_kind)e;
     }
     if ((n = config_map_get(L, map, "defensive")) && !config_get_number_in(L, n, 0.0, false, 1.0, true, &r->defensive))
         return false;

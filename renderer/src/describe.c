@@ -8,7 +8,7 @@
 #include "film.h"
 #include "json_write.h"
 #include "render_events.h"
-#include "sampler.h"
+#include "sampler_kind.h"
 #include "version.h"
 
 /* Sizes of the name tables as declared, so that a new entry shows up here

@@ -41,6 +41,7 @@ const char *const film_attribute_names[FILM_ATTRIBUTE_COUNT] = {
     [FILM_ATTR_SPP] = "spp",
     [FILM_ATTR_STRATEGY] = "strategy",
     [FILM_ATTR_INTEGRATOR] = "integrator",
+    [FILM_ATTR_SAMPLER] = "sampler",
     [FILM_ATTR_SEED] = "seed",
     [FILM_ATTR_CONFIG_HASH] = "config_hash",
     [FILM_ATTR_RENDERER_VERSION] = "renderer_version",
@@ -378,6 +379,7 @@ static bool write_exr_content(exr_context_t ctx, const char *path, const struct 
         (rc = exr_attr_set_int(ctx, part, ATTR(SPP), spp)) ||
         (rc = exr_attr_set_string(ctx, part, ATTR(STRATEGY), info->strategy ? info->strategy : "")) ||
         (rc = exr_attr_set_string(ctx, part, ATTR(INTEGRATOR), info->integrator ? info->integrator : "")) ||
+        (rc = exr_attr_set_string(ctx, part, ATTR(SAMPLER), info->sampler ? info->sampler : "")) ||
         (rc = exr_attr_set_string(ctx, part, ATTR(SEED), seed)) ||
         (rc = exr_attr_set_string(ctx, part, ATTR(CONFIG_HASH), hash)) ||
         (rc = exr_attr_set_string(ctx, part, ATTR(RENDERER_VERSION),

@@ -111,13 +111,14 @@ enum film_attribute {
     FILM_ATTR_SPP,
     FILM_ATTR_STRATEGY,
     FILM_ATTR_INTEGRATOR,
+    FILM_ATTR_SAMPLER,
     FILM_ATTR_SEED,
     FILM_ATTR_CONFIG_HASH,
     FILM_ATTR_RENDERER_VERSION,
     FILM_ATTR_RAYS,
     FILM_ATTR_NONFINITE_SAMPLES
 };
-#define FILM_ATTRIBUTE_COUNT 9
+#define FILM_ATTRIBUTE_COUNT 10
 extern const char *const film_attribute_names[FILM_ATTRIBUTE_COUNT];
 /* The attribute only an image with the region AOV has. */
 #define FILM_ATTR_AOV_REGION_CLASSES "aov_region_classes"
@@ -128,6 +129,7 @@ struct snapshot_info {
     int64_t spp;
     const char *strategy;
     const char *integrator;
+    const char *sampler; /* render.sampler */
     uint64_t seed;
     uint64_t config_hash;
     const char *renderer_version;
@@ -146,7 +148,7 @@ struct snapshot_info {
    left at the temporary name and err names the path and the cause. One
    writer per path at a time (the temporary name is per process).
    Header attributes: render_time_s (double), spp (int, saturated),
-   strategy, integrator, seed (string, decimal), config_hash (string,
+   strategy, integrator, sampler, seed (string, decimal), config_hash (string,
    16 hex digits), renderer_version (string), rays (double),
    nonfinite_samples (double). NULL strings are written as "". An image
    with a region layer adds the float channels region.<name> for every name

@@ -12,9 +12,10 @@
 #include <unistd.h>
 
 static const char state_magic[8] = { 'P', 'L', 'F', 'S', 'T', 'A', 'T', 'E' };
-#define STATE_HEADER_BYTES 120u
-#define STATE_NAME_MAX     63u
-#define STATE_ARRAYS_MAX   16
+#define STATE_HEADER_BYTES    124u
+#define STATE_HEADER_BYTES_V1 120u
+#define STATE_NAME_MAX        63u
+#define STATE_ARRAYS_MAX      16
 
 enum state_type { STATE_F64 = 1, STATE_U32 = 2 };
 
@@ -153,6 +154,7 @@ static void write_content(struct state_writer *w, const struct film_state *s)
     put_u32(w, (uint32_t)n);
     put_u64(w, s->seed);
     put_u64(w, s->image_hash);
+    put_u32(w, (uint32_t)s->sampler);
     for (int i = 0; i < n; ++i) {
         const struct state_array *a = &arrays[i];
         uint64_t count = (uint64_t)(a->per_pixel * pixels);
@@ -272,12 +274,13 @@ static bool read_header(struct state_reader *r, struct film_state *s, uint32_t *
     if (memcmp(magic, state_magic, sizeof magic))
         return error_set(err, "%s: not a render state file (bad magic number)", r->path);
     if (!get_u32(r, &version, err) || !get_u32(r, &header_bytes, err)) return false;
-    if (version != FILM_STATE_VERSION)
-        return error_set(err, "%s: state format version %" PRIu32 " (this renderer reads version %d)", r->path, version,
-                         FILM_STATE_VERSION);
-    if (header_bytes != STATE_HEADER_BYTES)
-        return error_set(err, "%s: header of %" PRIu32 " bytes (expected %u): damaged", r->path, header_bytes,
-                         STATE_HEADER_BYTES);
+    if (version != FILM_STATE_VERSION && version != 1)
+        return error_set(err, "%s: state format version %" PRIu32 " (this renderer reads versions 1 to %d)", r->path,
+                         version, FILM_STATE_VERSION);
+    uint32_t expect_bytes = version == 1 ? STATE_HEADER_BYTES_V1 : STATE_HEADER_BYTES;
+    if (header_bytes != expect_bytes)
+        return error_set(err, "%s: header of %" PRIu32 " bytes (expected %" PRIu32 "): damaged", r->path, header_bytes,
+                         expect_bytes);
     int32_t width, height;
     int64_t passes;
     if (!get_i32(r, &width, err) || !get_i32(r, &height, err) || !get_i64(r, &passes, err) ||
@@ -289,6 +292,11 @@ static bool read_header(struct state_reader *r, struct film_state *s, uint32_t *
         !get_i32(r, &s->snapshots, err) || !get_u32(r, n_arrays, err) || !get_u64(r, &s->seed, err) ||
         !get_u64(r, &s->image_hash, err))
         return false;
+    /* Version 1 states predate render.sampler: they are independent. */
+    uint32_t sampler = SAMPLER_INDEPENDENT;
+    if (version >= 2 && !get_u32(r, &sampler, err)) return false;
+    if (sampler >= SAMPLER_COUNT) return error_set(err, "%s: unknown sampler %" PRIu32 ": damaged", r->path, sampler);
+    s->sampler = (enum sampler_kind)sampler;
     if (passes < 0 || s->snapshots < 0 || *n_arrays > STATE_ARRAYS_MAX || !isfinite(s->render_time_s) ||
         s->render_time_s < 0.0)
         return error_set(err, "%s: header values out of range: damaged", r->path);

@@ -41,18 +41,13 @@ static struct rgb direct_from_sample(const struct integrator *it, const struct v
     return shadow_resolve(&q, shadow_trace(it, &q), stats);
 }
 
-/* The four uniforms of one strategy sample. */
-static void draw_light_uniforms(struct rng *rng, double u[4])
-{
-    for (int k = 0; k < 4; ++k) u[k] = rng_uniform(rng);
-}
-
-/* Next-event estimation at a surface point: one strategy sample. */
+/* Next-event estimation at a surface point of bounce `depth`: one
+   strategy sample. */
 static struct rgb sample_direct(const struct integrator *it, const struct strategy_point *sp, const struct vertex *v,
-                                struct rng *rng, struct integrator_stats *stats)
+                                int depth, struct sampler *smp, struct integrator_stats *stats)
 {
     double u[4];
-    draw_light_uniforms(rng, u);
+    sampler_light(smp, depth, u);
     struct light_sample ls;
     bool ok = strategy_sample(it->strategy, sp, u, &ls);
     return direct_from_sample(it, v, ok, &ls, stats);
@@ -80,25 +75,18 @@ static struct rgb bsdf_resolve(const struct integrator *it, const struct strateg
     return rgb_mul(q->weight, bsdf_hit_light(it, sp, light, q->ray.d, q->pdf));
 }
 
-/* The two uniforms of a BSDF sample, in a fixed order. */
-static void draw_bsdf_uniforms(struct rng *rng, double u[2])
-{
-    u[0] = rng_uniform(rng);
-    u[1] = rng_uniform(rng);
-}
-
 static struct rgb bsdf_mis(const struct integrator *it, const struct strategy_point *sp, const struct vertex *v,
-                           struct rng *rng, struct integrator_stats *stats)
+                           struct sampler *smp, struct integrator_stats *stats)
 {
     double u[2];
-    draw_bsdf_uniforms(rng, u);
+    sampler_bsdf(smp, 0, u);
     struct bsdf_query q;
     bsdf_setup(it->scene, v, u, stats, &q);
     return bsdf_resolve(it, sp, &q, bsdf_trace(it, &q));
 }
 
 struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
-                                struct vec3 ng, int material, struct vec3 wo, struct rng *rng,
+                                struct vec3 ng, int material, struct vec3 wo, struct sampler *smp,
                                 struct integrator_stats *stats)
 {
     struct rgb L = rgb_make(0.0, 0.0, 0.0);
@@ -106,13 +94,13 @@ struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scr
     if (!vertex_init(it->scene, p, ng, material, wo, &v)) return L;
     struct strategy_point sp;
     strategy_prepare(it->strategy, scratch, p, v.n, &sp);
-    L = sample_direct(it, &sp, &v, rng, stats);
+    L = sample_direct(it, &sp, &v, 0, smp, stats);
     if (it->mis == MIS_NONE) return L;
-    return rgb_add(L, bsdf_mis(it, &sp, &v, rng, stats));
+    return rgb_add(L, bsdf_mis(it, &sp, &v, smp, stats));
 }
 
 struct rgb integrator_radiance_from(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
-                                    struct vec3 d, const struct hit *first, struct rng *rng,
+                                    struct vec3 d, const struct hit *first, struct sampler *smp,
                                     struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
@@ -139,20 +127,20 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         }
         if (depth >= it->max_depth) break;
         if (it->kind == INTEGRATOR_DIRECT) {
-            L = rgb_add(L, integrator_direct_at(it, scratch, h.p, h.ng, h.material, vec3_neg(ray_d), rng, stats));
+            L = rgb_add(L, integrator_direct_at(it, scratch, h.p, h.ng, h.material, vec3_neg(ray_d), smp, stats));
             break;
         }
 
         struct vertex v;
         if (!vertex_init(sc, h.p, h.ng, h.material, vec3_neg(ray_d), &v)) break;
         strategy_prepare(it->strategy, scratch, h.p, v.n, &sp);
-        L = rgb_add(L, rgb_mul(beta, sample_direct(it, &sp, &v, rng, stats)));
+        L = rgb_add(L, rgb_mul(beta, sample_direct(it, &sp, &v, depth, smp, stats)));
 
         /* Continue by BSDF sampling; the same direction gathers direct light
            at the next vertex, weighted by MIS (or not at all without MIS). */
         struct bsdf_sample bs;
         double ub[2];
-        draw_bsdf_uniforms(rng, ub);
+        sampler_bsdf(smp, depth, ub);
         if (!bsdf_sample(v.m, v.wo_local, ub[0], ub[1], &bs)) break;
         beta = rgb_mul(beta, rgb_scale(bs.f, bs.wi.z / bs.pdf));
         bsdf_pdf_prev = bs.pdf;
@@ -161,7 +149,7 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
 
         if (depth + 1 >= it->rr_depth) {
             double q = fmax(0.05, 1.0 - rgb_max(beta));
-            if (rng_uniform(rng) < q) break;
+            if (sampler_roulette(smp, depth) < q) break;
             beta = rgb_scale(beta, 1.0 / (1.0 - q));
         }
     }
@@ -237,7 +225,7 @@ void integrator_row_destroy(struct integrator_row *row)
    integrator_direct_at and goes through the same functions, so the result
    is the same, bit for bit. */
 static void direct_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
-                       const struct vec3 *d, const struct hit *hits, const bool *found, int n, struct rng *rng,
+                       const struct vec3 *d, const struct hit *hits, const bool *found, int n, struct sampler *smp,
                        struct rgb *out, struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
@@ -256,8 +244,8 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         struct vertex *v = &row->v[lanes];
         if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
         strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
-        draw_light_uniforms(&rng[x], row->u[lanes]);
-        if (mis) draw_bsdf_uniforms(&rng[x], row->ub[lanes]);
+        sampler_light(&smp[x], 0, row->u[lanes]);
+        if (mis) sampler_bsdf(&smp[x], 0, row->ub[lanes]);
         row->pixel[lanes++] = x;
     }
     strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
@@ -274,12 +262,12 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
 
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
-                             struct rng *rng, struct rgb *out, struct integrator_stats *stats)
+                             struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
 {
     if (it->kind == INTEGRATOR_DIRECT && strategy_batches(it->strategy)) {
-        direct_row(it, row, scratch, d, hits, found, n, rng, out, stats);
+        direct_row(it, row, scratch, d, hits, found, n, smp, out, stats);
         return;
     }
     for (int x = 0; x < n; ++x)
-        out[x] = integrator_radiance_from(it, scratch, o, d[x], found[x] ? &hits[x] : NULL, &rng[x], stats);
+        out[x] = integrator_radiance_from(it, scratch, o, d[x], found[x] ? &hits[x] : NULL, &smp[x], stats);
 }

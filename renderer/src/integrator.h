@@ -9,7 +9,7 @@
 #include <stdint.h>
 
 #include "integrator_kind.h"
-#include "rng.h"
+#include "sampler.h"
 #include "scene.h"
 #include "shading.h"
 #include "strategy.h"
@@ -34,14 +34,14 @@ void integrator_init(struct integrator *it, const struct render_desc *rd, const 
    estimation plus BSDF sampling, combined by MIS. This is the `direct`
    integrator's estimator at its first hit. */
 struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
-                                struct vec3 ng, int material, struct vec3 wo, struct rng *rng,
+                                struct vec3 ng, int material, struct vec3 wo, struct sampler *smp,
                                 struct integrator_stats *stats);
 
 /* Radiance arriving at the camera along o + t d (d unit), the camera ray
    traced already (a row at a time, see scene_intersect_coherent): first is
    its hit, NULL for a miss. Counts the camera ray in stats. */
 struct rgb integrator_radiance_from(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 o,
-                                    struct vec3 d, const struct hit *first, struct rng *rng,
+                                    struct vec3 d, const struct hit *first, struct sampler *smp,
                                     struct integrator_stats *stats);
 
 /* Workspace for one film row of up to n shading points
@@ -59,6 +59,6 @@ void integrator_row_destroy(struct integrator_row *row);
    the row's light samples together (strategy_sample_many). */
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
-                             struct rng *rng, struct rgb *out, struct integrator_stats *stats);
+                             struct sampler *smp, struct rgb *out, struct integrator_stats *stats);
 
 #endif

@@ -20,6 +20,7 @@
 #include "film.h"
 #include "render_events.h"
 #include "rng.h"
+#include "sampler.h"
 #include "snapshot_schedule.h"
 #include "snapshot_writer.h"
 #include "strategy.h"
@@ -73,9 +74,9 @@ struct worker {
     const struct integrator *integrator;
     struct film *film;
     struct strategy_scratch scratch;
-    /* One film row in flight: each pixel's random stream, camera ray and
-       its hit, so that the row's camera rays are traced as one stream. */
-    struct rng *row_rng;
+    /* One film row in flight: each pixel's sampler, camera ray and its
+       hit, so that the row's camera rays are traced as one stream. */
+    struct sampler *row_smp;
     struct vec3 *row_dir;
     struct hit *row_hit;
     bool *row_found;
@@ -90,12 +91,12 @@ struct worker {
 static bool worker_alloc_row(struct worker *w, int width, struct error *err)
 {
     size_t n = (size_t)width;
-    w->row_rng = malloc(n * sizeof *w->row_rng);
+    w->row_smp = malloc(n * sizeof *w->row_smp);
     w->row_dir = malloc(n * sizeof *w->row_dir);
     w->row_hit = malloc(n * sizeof *w->row_hit);
     w->row_found = malloc(n * sizeof *w->row_found);
     w->row_color = malloc(n * sizeof *w->row_color);
-    if (!w->row_rng || !w->row_dir || !w->row_hit || !w->row_found || !w->row_color)
+    if (!w->row_smp || !w->row_dir || !w->row_hit || !w->row_found || !w->row_color)
         return error_set(err, "out of memory for a film row of %d pixels", width);
     w->row = integrator_row_create(width, err);
     if (!w->row) return false;
@@ -108,7 +109,7 @@ static bool worker_alloc_row(struct worker *w, int width, struct error *err)
 static void worker_free(struct worker *w)
 {
     strategy_scratch_free(&w->scratch);
-    free(w->row_rng);
+    free(w->row_smp);
     free(w->row_dir);
     free(w->row_hit);
     free(w->row_found);
@@ -123,35 +124,57 @@ static void worker_free(struct worker *w)
 /* Seeds the random stream of each pixel of film row y and draws its camera
    ray. One stream per (pixel, pass): pixels never depend on which thread
    rendered them, so fixed-spp renders are bit-identical. A vectorised loop:
-   the hash chains of neighbouring pixels run side by side. */
+   the hash chains of neighbouring pixels run side by side. The independent
+   sampler's jitter, as sampler_camera would draw it. */
 FM_SIMD_CLONES static void camera_row(const struct camera *c, uint64_t seed, int y, int64_t pass, int width,
-                                      struct rng *rng, struct vec3 *dir)
+                                      struct sampler *smp, struct vec3 *dir)
 {
     uint64_t first = (uint64_t)y * (uint64_t)width;
 #pragma omp simd
     for (int x = 0; x < width; ++x) {
         struct rng r = rng_seeded(seed, first + (uint64_t)x, (uint64_t)pass);
         struct rng_draw jx = rng_draw(r.state, r.inc), jy = rng_draw(jx.state, r.inc);
-        rng[x].state = jy.state;
-        rng[x].inc = r.inc;
+        smp[x].rng.state = jy.state;
+        smp[x].rng.inc = r.inc;
+        smp[x].kind = SAMPLER_INDEPENDENT;
+        smp[x].index = (uint32_t)pass;
+        smp[x].index_reversed = 0;
+        smp[x].pixel_key = 0;
         dir[x] = camera_ray(c, x + jx.u, y + jy.u);
+    }
+}
+
+/* camera_row for any other sampler, one pixel at a time. */
+static void camera_row_sampled(const struct camera *c, enum sampler_kind kind, uint64_t seed, int y, int64_t pass,
+                               int width, struct sampler *smp, struct vec3 *dir)
+{
+    uint64_t first = (uint64_t)y * (uint64_t)width;
+    for (int x = 0; x < width; ++x) {
+        double u[2];
+        sampler_start(&smp[x], kind, seed, first + (uint64_t)x, pass);
+        sampler_camera(&smp[x], u);
+        dir[x] = camera_ray(c, x + u[0], y + u[1]);
     }
 }
 
 static void render_row(struct worker *w, int y, int64_t pass, struct integrator_stats *stats, uint64_t *nonfinite)
 {
     const struct config *cfg = w->cfg;
-    camera_row(w->camera, cfg->render.seed, y, pass, cfg->width, w->row_rng, w->row_dir);
+    if (cfg->render.sampler == SAMPLER_INDEPENDENT)
+        camera_row(w->camera, cfg->render.seed, y, pass, cfg->width, w->row_smp, w->row_dir);
+    else
+        camera_row_sampled(w->camera, cfg->render.sampler, cfg->render.seed, y, pass, cfg->width, w->row_smp,
+                           w->row_dir);
     scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit, w->row_found);
     integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit, w->row_found,
-                            cfg->width, w->row_rng, w->row_color, stats);
+                            cfg->width, w->row_smp, w->row_color, stats);
     if (w->pc->fault_biased)
         for (int x = 0; x < cfg->width; ++x) w->row_color[x] = rgb_scale(w->row_color[x], w->pc->fault_bias);
     int dropped = 0;
     for (int x = 0; x < cfg->width; ++x) {
         struct rgb *c = &w->row_color[x];
         if (w->pc->fault_nonfinite_every > 0 &&
-            rng_mix64(w->row_rng[x].state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
+            rng_mix64(w->row_smp[x].rng.state) % (uint64_t)w->pc->fault_nonfinite_every == 0)
             c->g = NAN;
         dropped += !rgb_is_finite(*c);
     }
@@ -405,6 +428,7 @@ static void fill_info(struct snapshot_info *info, const struct config *cfg, doub
     info->spp = spp;
     info->strategy = strategy_names[cfg->render.strategy];
     info->integrator = integrator_names[cfg->render.integrator];
+    info->sampler = sampler_names[cfg->render.sampler];
     info->seed = cfg->render.seed;
     info->config_hash = cfg->hash;
     info->renderer_version = RENDERER_VERSION;
@@ -494,6 +518,7 @@ static bool write_final_state(const struct render *r, struct error *err)
     st.snapshots = r->pr.snapshots;
     st.seed = cfg->render.seed;
     st.image_hash = cfg->image_hash;
+    st.sampler = cfg->render.sampler;
     return film_state_write(path, &st, err);
 }
 

@@ -26,6 +26,9 @@ static bool check_match(const char *state_path, const char *config_path, const s
     if (st->seed != cfg->render.seed)
         return error_set(err, "%s: the state has seed %" PRIu64 " but %s has seed %" PRIu64 " (%s)", state_path,
                          st->seed, config_path, cfg->render.seed, why);
+    if (st->sampler != cfg->render.sampler)
+        return error_set(err, "%s: the state was rendered with sampler %s but %s has sampler %s (%s)", state_path,
+                         sampler_names[st->sampler], config_path, sampler_names[cfg->render.sampler], why);
     if (st->image_hash != cfg->image_hash)
         return error_set(err,
                          "%s: the state was rendered with another image configuration than %s (image hash "

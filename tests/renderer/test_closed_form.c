@@ -38,8 +38,7 @@ static struct estimate estimate_at(const struct scene *sc, const struct render_d
     memset(&stats, 0, sizeof stats);
     double mean = 0.0, m2 = 0.0;
     for (int i = 0; i < n; ++i) {
-        struct rng r;
-        rng_seed(&r, seed, 0, (uint64_t)i);
+        struct sampler r = sampler_of_rng(rng_seeded(seed, 0, (uint64_t)i));
         struct rgb c = integrator_direct_at(&it, &scratch, p, ng, material, ng, &r, &stats);
         double d = c.r - mean;
         mean += d / (i + 1);

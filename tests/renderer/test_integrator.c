@@ -68,7 +68,7 @@ static void compare_rows(const struct config *cfg, const struct scene *sc, enum 
     camera_init(&cam, &cfg->camera, cfg->width, cfg->height);
     int w = cfg->width;
     struct integrator_row *row = integrator_row_create(w, &err);
-    struct rng *rng_row = malloc(sizeof *rng_row * (size_t)w), *rng_one = malloc(sizeof *rng_one * (size_t)w);
+    struct sampler *rng_row = malloc(sizeof *rng_row * (size_t)w), *rng_one = malloc(sizeof *rng_one * (size_t)w);
     struct vec3 *d = malloc(sizeof *d * (size_t)w);
     struct hit *hits = malloc(sizeof *hits * (size_t)w);
     bool *found = malloc(sizeof *found * (size_t)w);
@@ -85,9 +85,11 @@ static void compare_rows(const struct config *cfg, const struct scene *sc, enum 
             /* The row as render_row builds it: one stream per (pixel, pass),
                seeded from the config's seed, the jitter drawn first. */
             for (int x = 0; x < w; ++x) {
-                rng_seed(&rng_row[x], cfg->render.seed, (uint64_t)y * (uint64_t)w + (uint64_t)x, (uint64_t)(3 * pass));
-                double jx = rng_uniform(&rng_row[x]), jy = rng_uniform(&rng_row[x]);
-                d[x] = camera_ray(&cam, x + jx, y + jy);
+                sampler_start(&rng_row[x], cfg->render.sampler, cfg->render.seed,
+                              (uint64_t)y * (uint64_t)w + (uint64_t)x, (uint64_t)(3 * pass));
+                double j[2];
+                sampler_camera(&rng_row[x], j);
+                d[x] = camera_ray(&cam, x + j[0], y + j[1]);
                 found[x] = scene_intersect(sc, cam.origin, d[x], INFINITY, &hits[x]);
                 if (pass == 0) classify(cfg, &hits[x], found[x], cov);
                 rng_one[x] = rng_row[x];
@@ -105,7 +107,8 @@ static void compare_rows(const struct config *cfg, const struct scene *sc, enum 
                             same_bits(out_row[x].b, out_one[x].b);
                 /* The streams must end where the one-pixel path leaves them:
                    the next pass's or bounce's draws depend on it. */
-                bool same_rng = rng_row[x].state == rng_one[x].state && rng_row[x].inc == rng_one[x].inc;
+                bool same_rng =
+                    rng_row[x].rng.state == rng_one[x].rng.state && rng_row[x].rng.inc == rng_one[x].rng.inc;
                 if (!rgb_is_black(out_one[x])) ++cov->lit;
                 if (same && same_rng) continue;
                 struct vec3 hp = found[x] ? hits[x].p : vec3_make(0, 0, 0);

@@ -87,7 +87,7 @@ static void test_state_round_trip(void)
     CHECK(same_memory(&a.stats, &b.stats, sizeof a.stats));
     CHECK(b.nonfinite_samples == 3 && b.snapshots == 4 && b.seed == a.seed && b.image_hash == a.image_hash);
     /* magic, version, header, three arrays, checksum */
-    long expect = 16 + 120 + (4 + 4 + 4 + 8 + 8 + 3 * 15 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 15 * 8) +
+    long expect = 16 + 124 + (4 + 4 + 4 + 8 + 8 + 3 * 15 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 15 * 8) +
                   (4 + 5 + 4 + 8 + 8 + 15 * 4) + 8;
     CHECK_MSG(file_size(path) == expect, "size %ld, expected %ld", file_size(path), expect);
     /* Nothing left at a temporary name. */
@@ -178,7 +178,7 @@ static void test_state_named_arrays(void)
     long n;
     unsigned char *bytes = read_bytes(path, &n);
     /* The last array is "count": its name sits after the two f64 arrays. */
-    long at = 16 + 120 + (4 + 4 + 4 + 8 + 8 + 3 * 4 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 4 * 8);
+    long at = 16 + 124 + (4 + 4 + 4 + 8 + 8 + 3 * 4 * 8) + (4 + 2 + 4 + 8 + 8 + 3 * 4 * 8);
     CHECK(n > at + 9 && memcmp(bytes + at, "\005\000\000\000count", 9) == 0);
     memcpy(bytes + at + 4, "cuont", 5);
     uint64_t sum = fnv(bytes, (size_t)n - 8);
@@ -503,6 +503,73 @@ static void edit_config(const char *dir, const char *from, const char *to)
 
 /* (e) every refusal: exit 2, a message that says what is wrong, DIR as it
    was. */
+/* (f) the sobol sampler: its sample index is the pass, so a resumed render
+   draws the points an uninterrupted one would (path tracing: every
+   bounce's blocks; 5 -> 11 -> 19 passes on 1, 2, 3 threads, crossing the
+   powers of two where the nets close). */
+static void test_resume_sobol(void)
+{
+    const char *sobol[] = { "--set", "render.sampler=sobol", "--integrator", "path", NULL };
+    char dir[] = "/tmp/portal-resume-XXXXXX";
+    make_tmpdir(dir);
+    const char *extra[] = { "--resumable", sobol[0], sobol[1], sobol[2], sobol[3], NULL };
+    struct run r;
+    if (render_fresh(dir, "5", "1", extra, &r) && resume(dir, "11", "2", &r) && resume(dir, "19", "3", &r)) {
+        check_equals_fresh(dir, "19", sobol, &r);
+        struct film_state st;
+        struct error err;
+        char path[600];
+        snprintf(path, sizeof path, "%s/final.state", dir);
+        CHECK_MSG(film_state_read(path, &st, &err), "%s", err.message);
+        CHECK(st.sampler == SAMPLER_SOBOL && st.film.passes == 19);
+        film_state_free(&st);
+    }
+    remove_tree(dir);
+}
+
+/* A version 1 state (before render.sampler) reads as the independent
+   sampler it was rendered with. */
+static void test_state_version1(void)
+{
+    char dir[] = "/tmp/portal-resume-XXXXXX", path[64];
+    make_tmpdir(dir);
+    snprintf(path, sizeof path, "%s/final.state", dir);
+    struct film_state a, b;
+    struct error err;
+    fill_state(&a, 3, 2);
+    a.sampler = SAMPLER_SOBOL;
+    CHECK(film_state_write(path, &a, &err));
+    long n;
+    unsigned char *bytes = read_bytes(path, &n);
+    /* Version 1: version 1, header 120, no sampler after image_hash. */
+    unsigned char *v1 = malloc((size_t)n);
+    uint32_t one = 1, bytes120 = 120;
+    memcpy(v1, bytes, 16 + 120);
+    memcpy(v1 + 8, &one, 4);
+    memcpy(v1 + 12, &bytes120, 4);
+    memcpy(v1 + 16 + 120, bytes + 16 + 124, (size_t)n - (16 + 124) - 8);
+    long m = n - 4;
+    uint64_t sum = fnv(v1, (size_t)m - 8);
+    memcpy(v1 + m - 8, &sum, 8);
+    write_bytes(path, v1, m);
+    CHECK_MSG(film_state_read(path, &b, &err), "%s", err.message);
+    CHECK(b.sampler == SAMPLER_INDEPENDENT && b.seed == a.seed && b.image_hash == a.image_hash);
+    CHECK(b.film.mean && same_memory(b.film.mean, a.film.mean, 3 * 6 * sizeof(double)));
+    film_state_free(&b);
+    /* A sampler this renderer does not know: damaged. */
+    uint32_t nine = 9;
+    memcpy(bytes + 16 + 120, &nine, 4);
+    sum = fnv(bytes, (size_t)n - 8);
+    memcpy(bytes + n - 8, &sum, 8);
+    write_bytes(path, bytes, n);
+    CHECK(!film_state_read(path, &b, &err));
+    CHECK_MSG(strstr(err.message, "unknown sampler 9"), "%s", err.message);
+    free(v1);
+    free(bytes);
+    film_state_free(&a);
+    remove_tree(dir);
+}
+
 static void test_resume_refusals(void)
 {
     char dir[] = "/tmp/portal-resume-XXXXXX", plain[] = "/tmp/portal-resume-XXXXXX";
@@ -589,6 +656,9 @@ static void test_resume_refusals(void)
     write_bytes(config, config_text, config_n);
     edit_config(dir, "strategy: light\n", "strategy: portal\n");
     check_refused(dir, go, "the state was rendered with another image configuration than");
+    write_bytes(config, config_text, config_n);
+    edit_config(dir, "sampler: independent\n", "sampler: sobol\n");
+    check_refused(dir, go, "the state was rendered with sampler independent but");
     write_bytes(config, config_text, config_n);
     free(config_text);
 
@@ -699,6 +769,8 @@ static const struct test_case tests[] = {
     { "resume_twice", test_resume_twice },
     { "resume_integrators_and_faults", test_resume_integrators_and_faults },
     { "resume_refusals", test_resume_refusals },
+    { "resume_sobol", test_resume_sobol },
+    { "state_version1", test_state_version1 },
     { "stale_state_removed", test_stale_state_removed },
     { "resume_snapshots", test_resume_snapshots },
     { "resume_interrupted", test_resume_interrupted },

@@ -306,7 +306,7 @@ static void test_lampshade_firefly_pass_gone(void)
     const uint64_t pass = 441;
     struct rng r = rng_seeded(seed, (uint64_t)y * (uint64_t)cfg.width + (uint64_t)x, pass);
     struct rng_draw jx = rng_draw(r.state, r.inc), jy = rng_draw(jx.state, r.inc);
-    struct rng rr = { jy.state, r.inc };
+    struct sampler rr = sampler_of_rng((struct rng){ jy.state, r.inc });
     struct vec3 d = camera_ray(&cam, x + jx.u, y + jy.u);
     struct hit h;
     bool found;

@@ -48,13 +48,13 @@ int main(int argc, char **argv)
     for (long pass = 0; pass < spp; ++pass) {
         struct rng r = rng_seeded(seed, (uint64_t)y * (uint64_t)cfg.width + (uint64_t)x, (uint64_t)pass);
         struct rng_draw jx = rng_draw(r.state, r.inc), jy = rng_draw(jx.state, r.inc);
-        struct rng rr = { jy.state, r.inc };
+        struct sampler rr = sampler_of_rng((struct rng){ jy.state, r.inc });
         r.state = jy.state;
         struct vec3 d = camera_ray(&cam, x + jx.u, y + jy.u);
         struct hit h;
         bool found;
         scene_intersect_coherent(&sc, cam.origin, &d, 1, &h, &found);
-        struct rng rsave = rr;
+        struct rng rsave = rr.rng;
         struct rgb c = integrator_radiance_from(&it, &scr, cam.origin, d, found ? &h : NULL, &rr, &stats);
         sum += c.r;
         sum2 += c.r * c.r;
