@@ -19,7 +19,7 @@ from portal_harness.exr import REGION_CLASSES
 from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.paths import ResultsLayout
 from portal_harness.scene import read_scene
-from portal_harness.schema import Reader, kind_of, parse_threads, read_yaml
+from portal_harness.schema import Reader, kind_of, parse_threads, read_yaml_lines
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
     NO_SNAPSHOTS,
@@ -318,9 +318,10 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     (its strategies and integrators, and its effective config of the scene
     at every point); raises ConfigError on the first problem."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
-    r = Reader(str(path))
+    data, lines = read_yaml_lines(p, "experiment file")
+    r = Reader(str(path), lines)
     root = r.mapping(
-        read_yaml(p, "experiment file"),
+        data,
         "",
         allowed={
             "name",

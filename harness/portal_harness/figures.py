@@ -242,7 +242,8 @@ def figure_error_curves(
             ax.axhline(floor, color="k", ls=":", lw=0.8, label="reference noise")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_title(f"{_point_title(experiment, point)}: {_region_title(region)}", fontsize=8)
+        sep = "\n" if point.facets else ": "  # facets make the title long: the region on a line of its own
+        ax.set_title(f"{_point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
         ax.set_xlabel("render time (s)", fontsize=8)
         if i == 0:
             ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
