@@ -19,7 +19,8 @@ through exr.py):
    legend names each key=value); an experiment without an axis has the
    strategies along x and a colour per facet value.
 
-PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}.
+PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}; the
+tables of the summary (tables.py) to results/experiments/<experiment>/summary.tex.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from matplotlib.patches import (
 )
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from portal_harness import display, exr, facets, index
+from portal_harness import display, exr, facets, index, tables
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError, HarnessError
 from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
@@ -584,7 +585,17 @@ def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
     conn = index.connect(layout.index_path)
     try:
         data = load(experiment, conn, layout)
-        paths = figure_error_curves(experiment, data, conn, layout)
+        # The tables first: they need no image and are the cheapest output.
+        paths = [
+            tables.write(
+                layout.summary_csv(experiment.name).with_name("summary.tex"),
+                experiment.name,
+                data.summary,
+                experiment.facets,
+                experiment.axis.label if experiment.axis is not None else None,
+            )
+        ]
+        paths += figure_error_curves(experiment, data, conn, layout)
         paths += figure_insets(experiment, data, conn, layout)
         paths += figure_efficiency(experiment, data, conn, layout)
     finally:

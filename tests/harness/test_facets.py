@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+
 from portal_harness import contract
 from portal_harness.config import load_experiment, point_overrides
 from portal_harness.errors import ConfigError
