@@ -394,8 +394,9 @@ def _fmt(v: Any, spec: str) -> str:
 def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
     """The tidy summary's `lit` region (the whole image if there is none), one line per (point, strategy)."""
     region = LIT if any(r["region"] == LIT for r in rows) else WHOLE_IMAGE
+    width = max([22, *(len(str(r["point"])) for r in rows)])  # facets make point names longer
     header = (
-        f"{'point':<22} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
+        f"{'point':<{width}} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
         f"{'speed-up':>10} {'ref/err':>7}"
     )
     print(f"region {region}:", file=out)
@@ -408,7 +409,7 @@ def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
             eff += f" ±{se}"
         mark = {"lower": ">", "upper": "<", "mixed": "~"}.get(r.get("speedup_bound") or "", " ")
         print(
-            f"{r['point']:<22} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
+            f"{r['point']:<{width}} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
             f"{_fmt(r.get('rel_mse'), '10.3e'):>10} {eff:>16} {mark}{_fmt(r.get('speedup_equal_error'), '.3g'):>9} "
             f"{_fmt(r.get('reference_noise_ratio'), '7.3f'):>7}",
             file=out,

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+import yaml
 
 from portal_harness import contract
 from portal_harness.config import load_experiment, point_overrides
@@ -258,3 +259,44 @@ def test_08_sweep_of_integrators_and_no_axis(
     status, out, err = cli("figures", str(exp))
     assert status == 0, err
     assert (results / "figures" / "tiny_efficiency.png").stat().st_size > 5000
+
+
+@pytest.mark.real
+def test_09_real_renderer_weights_and_integrators(
+    real_renderer: Path, tmp_path: Path, results: Path, cli: CliRunner
+) -> None:
+    """The real renderer takes each weight and integrator: two references
+    (one per integrator) for four points, and the path-traced runs are
+    measured against the path-traced reference."""
+    doc = {
+        "name": "real_facets",
+        "scene": str(REPO / "configs" / "scenes" / "lampshade.yaml"),
+        "strategies": ["light", "portal"],
+        "sweep": {"render.portal_weight": ["area", "irradiance"], "render.integrator": ["direct", "path"]},
+        "fixed": {"params.s_P": 0.3, "params.s_L": 0.6, "film.width": 24, "film.height": 24},
+        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.1}},
+        "reference": {"strategy": "light", "spp": 64, "seed": 7},
+    }
+    path = tmp_path / "real_facets.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    status, out, err = cli("sweep", str(path), "--no-progress", renderer=real_renderer)
+    summary = json.loads((results / "experiments" / "real_facets" / "summary.json").read_text())
+    assert len(summary["references"]) == 2, out + err
+    rows = [r for r in summary["rows"] if r["region"] == "image"]
+    assert {(r["render.portal_weight"], r["render.integrator"]) for r in rows} == {
+        (w, i) for w in ("area", "irradiance") for i in ("direct", "path")
+    }
+    assert all(r["status"] == "done" and r["rel_mse"] is not None for r in rows), out + err
+    assert status == 0, out + err
+    conn = sqlite3.connect(results / "index.sqlite")
+    pairs = conn.execute(
+        "SELECT r.integrator, ref.integrator FROM experiment_runs e JOIN runs r ON r.key = e.key "
+        "JOIN runs ref ON ref.key = e.reference_key WHERE e.role = 'run'"
+    ).fetchall()
+    conn.close()
+    assert len(pairs) == 8 and all(a == b for a, b in pairs)
+    status, out, err = cli("figures", str(path))
+    assert status == 0, err
+    assert (results / "experiments" / "real_facets" / "summary.tex").read_text().count("\\toprule") == 4 * len(
+        {r["region"] for r in summary["rows"]}
+    )
