@@ -141,9 +141,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "figures",
         parents=[common],
-        help="the experiment's three figures",
+        help="the experiment's three figures and summary.tex",
         description="Error-over-time curves, the inset comparison and the efficiency plot of an "
-        "experiment that has been swept, as PNG and PDF in results/figures/.",
+        "experiment that has been swept, as PNG and PDF in results/figures/, and the booktabs "
+        "tables of its summary in results/experiments/NAME/summary.tex. Reads stored runs only.",
     )
     p.add_argument("experiment", type=Path)
 

@@ -8,17 +8,18 @@ relative to the experiment file's folder. The schema is in harness/README.md.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from portal_harness import contract
+from portal_harness import contract, facets
 from portal_harness.errors import ConfigError
 from portal_harness.exr import REGION_CLASSES
 from portal_harness.metrics import WHOLE_IMAGE, Region
 from portal_harness.paths import ResultsLayout
 from portal_harness.scene import read_scene
-from portal_harness.schema import Reader, kind_of, parse_threads, read_yaml
+from portal_harness.schema import Reader, kind_of, parse_threads, read_yaml_lines
 from portal_harness.spec import (
     HARNESS_RENDER_KEYS,
     NO_SNAPSHOTS,
@@ -90,10 +91,13 @@ class RegressSettings:
 
 @dataclass(frozen=True)
 class Point:
-    """One point of the sweep's cross product."""
+    """One point of the sweep's cross product. `facets` are its values of
+    the swept keys that are not the axis (facets.py); `axis_value` is NaN
+    when the experiment has no axis."""
 
     values: tuple[tuple[str, Any], ...]
     axis_value: float
+    facets: tuple[tuple[str, Any], ...] = ()
 
     @property
     def id(self) -> str:
@@ -114,7 +118,7 @@ class Experiment:
     budget: Budget | None
     reference: ReferenceSettings
     insets: tuple[Region, ...]
-    axis: Axis
+    axis: Axis | None  # None: every swept key is a facet
     regress: RegressSettings | None
     width: int
     height: int
@@ -125,15 +129,38 @@ class Experiment:
     # effective config of it (evaluated params).
     point_list: tuple[Point, ...]
     lit_threshold: float = 0.001  # regions.lit_threshold: reference radiance above which a pixel is lit
+    facets: tuple[str, ...] = ()  # swept keys that are not the axis, in sweep order (facets.py)
 
     def points(self) -> list[Point]:
         return list(self.point_list)
 
+    def reference_point(self, point: Point) -> Point:
+        """The point whose reference `point` uses: without its values of the
+        keys that only change how the image is sampled (facets.shares_reference)."""
+        kept = tuple((k, v) for k, v in point.values if not facets.shares_reference(k))
+        if len(kept) == len(point.values):
+            return point
+        return Point(kept, point.axis_value, tuple((k, v) for k, v in point.facets if not facets.shares_reference(k)))
+
+    def reference_points(self) -> list[Point]:
+        """The distinct reference points, in the order of the points."""
+        out: dict[str, Point] = {}
+        for p in self.point_list:
+            ref = self.reference_point(p)
+            out.setdefault(ref.id, ref)
+        return list(out.values())
+
+    def integrator_of(self, point: Point) -> str:
+        """The point's integrator: its swept render.integrator, else the experiment's."""
+        return str(dict(point.values).get("render.integrator", self.integrator))
+
     def _overrides(self, point: Point) -> Overrides:
-        return point_overrides(self.fixed, point.values)
+        # A swept integrator goes to the command line's --integrator, like the experiment's.
+        values = tuple((k, v) for k, v in point.values if k not in facets.SWEEPABLE_HARNESS_KEYS)
+        return point_overrides(self.fixed, values)
 
     def _labels(self, point: Point) -> tuple[tuple[str, float], ...]:
-        return (("ratio", point.axis_value),) if self.axis.divide_by is not None else ()
+        return (("ratio", point.axis_value),) if self.axis is not None and self.axis.divide_by is not None else ()
 
     def replicate_seed(self, strategy: str, replicate: int) -> int:
         """Seed of replicate k of a strategy: one per (replicate, strategy)
@@ -164,7 +191,7 @@ class Experiment:
             scene=str(self.scene),
             scene_sha256=self.scene_sha256,
             strategy=strategy,
-            integrator=self.integrator,
+            integrator=self.integrator_of(point),
             spp=spp,
             time_s=time_s,
             seed=seed,
@@ -257,14 +284,16 @@ def point_overrides(fixed: Overrides, values: tuple[tuple[str, Any], ...]) -> Ov
     return tuple(sorted(merged.items()))
 
 
-def _check_override_key(reader: Reader, key: str, where: str, params: dict[str, float]) -> None:
-    """Keys the harness sets itself are refused; params.NAME must name a
+def _check_override_key(reader: Reader, key: str, where: str, params: dict[str, float], swept: bool = False) -> None:
+    """Keys the harness sets itself are refused (a swept render.integrator
+    excepted: each point's integrator); params.NAME must name a
     parameter of the scene (the renderer would take an unknown one
     silently, as a new parameter nothing reads). Any other key is checked
     by the renderer, with the overrides."""
     if not key or any(not part for part in key.split(".")):
         raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {key!r}")
-    if key in HARNESS_RENDER_KEYS or key.startswith("render.snapshots"):
+    allowed = swept and key in facets.SWEEPABLE_HARNESS_KEYS
+    if (key in HARNESS_RENDER_KEYS and not allowed) or key.startswith("render.snapshots"):
         raise reader.fail(where, f"{key} is set by the harness (use strategies, integrator, budget or reference)")
     name = key.removeprefix("params.")
     if key.startswith("params.") and name not in params:
@@ -289,9 +318,10 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     (its strategies and integrators, and its effective config of the scene
     at every point); raises ConfigError on the first problem."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
-    r = Reader(str(path))
+    data, lines = read_yaml_lines(p, "experiment file")
+    r = Reader(str(path), lines)
     root = r.mapping(
-        read_yaml(p, "experiment file"),
+        data,
         "",
         allowed={
             "name",
@@ -322,6 +352,9 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     scene_info = read_scene(renderer, scene)
     params = scene_info.effective.params
 
+    sweep_node = root["sweep"]
+    if isinstance(sweep_node, dict) and "render.integrator" in sweep_node and "integrator" in root:
+        raise r.fail("integrator", "render.integrator is swept: give the integrators there only")
     integrator = r.choice(
         root.get("integrator", scene_info.effective.render.get("integrator")),
         "integrator",
@@ -336,7 +369,6 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     if len(set(strategies)) != len(strategies):
         raise r.fail("strategies", "a strategy is listed twice")
 
-    sweep_node = root["sweep"]
     if sweep_node is None or sweep_node == {}:
         raise r.fail(
             "sweep", "empty sweep (expected a mapping from a parameter such as params.s_L to a list of values)"
@@ -346,9 +378,9 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     sweep: list[tuple[str, tuple[Any, ...]]] = []
     for k, values in sweep_node.items():
         key = str(k)
-        _check_override_key(r, key, f"sweep.{key}", params)
+        _check_override_key(r, key, f"sweep.{key}", params, swept=True)
         items = r.sequence(values, f"sweep.{key}")
-        sweep.append((key, tuple(r.scalar(v, f"sweep.{key}.{i}") for i, v in enumerate(items))))
+        sweep.append((key, tuple(_value(r, names, key, v, f"sweep.{key}.{i}") for i, v in enumerate(items))))
         if len(set(map(format_value, sweep[-1][1]))) != len(items):
             raise r.fail(f"sweep.{key}", "a value is listed twice")
 
@@ -361,7 +393,7 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
         _check_override_key(r, key, f"fixed.{key}", params)
         if key in dict(sweep):
             raise r.fail(f"fixed.{key}", "also swept (a parameter is either fixed or swept)")
-        fixed[key] = format_value(r.scalar(v, f"fixed.{key}"))
+        fixed[key] = format_value(_value(r, names, key, v, f"fixed.{key}"))
 
     fixed_overrides = tuple(sorted(fixed.items()))
     try:
@@ -422,23 +454,8 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
             )
         insets.append(region)
 
-    swept = [k for k, _ in sweep]
-    axis_node = r.mapping(root.get("axis", {}) or {}, "axis", {"param", "divide_by", "label"})
-    axis_param = r.string(axis_node.get("param", swept[0]), "axis.param")
-    if axis_param not in swept:
-        raise r.fail("axis.param", f"{axis_param!r} is not swept (expected one of {', '.join(swept)})")
-    divide_by = axis_node.get("divide_by")
-    if divide_by is not None:
-        divide_by = r.string(divide_by, "axis.divide_by")
-    for i, v in enumerate(dict(sweep)[axis_param]):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise r.fail(f"sweep.{axis_param}.{i}", f"the axis parameter needs numbers, got {kind_of(v)}")
-    default_label = (
-        f"{axis_param.split('.')[-1]} / {divide_by.split('.')[-1]}" if divide_by else axis_param.split(".")[-1]
-    )
-    axis = Axis(
-        param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label")
-    )
+    axis = _axis(r, root.get("axis"), tuple(sweep))
+    facet_keys = tuple(k for k, _ in sweep if axis is None or k not in (axis.param, axis.divide_by))
 
     regress = None
     if "regress" in root:
@@ -457,7 +474,7 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
             baseline=(p.parent / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
         )
 
-    points = _points(r, renderer, scene, tuple(sweep), fixed_overrides, axis)
+    points = _points(r, renderer, scene, tuple(sweep), fixed_overrides, axis, facet_keys)
 
     regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
     lit_threshold = r.number(regions_node.get("lit_threshold", 0.001), "regions.lit_threshold", positive=True)
@@ -485,6 +502,51 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
         scene_sha256=scene_info.sha256,
         point_list=points,
         lit_threshold=lit_threshold,
+        facets=facet_keys,
+    )
+
+
+def _value(r: Reader, names: contract.Contract, key: str, node: Any, where: str) -> Any:
+    """A swept or fixed value; a name-valued render key's names are the renderer's (facets.CONTRACT_LISTS)."""
+    value = r.scalar(node, where)
+    known = facets.contract_names(key, names)
+    if known is not None:
+        what, choices = known
+        return r.choice(value, where, choices, what)
+    return value
+
+
+def _axis(r: Reader, node: Any, sweep: tuple[tuple[str, tuple[Any, ...]], ...]) -> Axis | None:
+    """The figures' x axis: axis.param (default: the first swept key whose
+    values are all numbers), or none (`axis: none`, or no numeric key):
+    then every swept key is a facet."""
+    if node == "none":
+        return None
+    axis_node = r.mapping(node or {}, "axis", {"param", "divide_by", "label"})
+    swept = [k for k, _ in sweep]
+    numeric = [k for k, values in sweep if not facets.is_categorical(values)]
+    if "param" not in axis_node and not numeric:
+        if axis_node:
+            raise r.fail("axis", "no swept key has numbers, so there is no axis: give axis: none or remove axis")
+        return None
+    axis_param = r.string(axis_node.get("param", numeric[0] if numeric else None), "axis.param")
+    if axis_param not in swept:
+        raise r.fail("axis.param", f"{axis_param!r} is not swept (expected one of {', '.join(swept)})")
+    divide_by = axis_node.get("divide_by")
+    if divide_by is not None:
+        divide_by = r.string(divide_by, "axis.divide_by")
+    for i, v in enumerate(dict(sweep)[axis_param]):
+        if not facets.is_number(v):
+            raise r.fail(
+                f"sweep.{axis_param}.{i}",
+                f"the axis parameter needs numbers, got {kind_of(v)} (a key of names is a facet of the "
+                "figures: make a numeric key the axis.param, or give axis: none)",
+            )
+    default_label = (
+        f"{facets.short_key(axis_param)} / {facets.short_key(divide_by)}" if divide_by else facets.short_key(axis_param)
+    )
+    return Axis(
+        param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label")
     )
 
 
@@ -503,7 +565,13 @@ REFERENCE_KEYS = {
 
 
 def _points(
-    r: Reader, renderer: str, scene: Path, sweep: tuple[tuple[str, tuple[Any, ...]], ...], fixed: Overrides, axis: Axis
+    r: Reader,
+    renderer: str,
+    scene: Path,
+    sweep: tuple[tuple[str, tuple[Any, ...]], ...],
+    fixed: Overrides,
+    axis: Axis | None,
+    facet_keys: tuple[str, ...],
 ) -> tuple[Point, ...]:
     """Every point of the cross product, checked by the renderer (its
     effective config with the point's overrides), with its axis value from
@@ -518,6 +586,10 @@ def _points(
             effective = contract.print_config(renderer, scene, point_overrides(fixed, values))
         except ConfigError as e:
             raise r.fail("sweep", f"the renderer rejects the point {name}: {e}") from None
+        point_facets = tuple((k, v) for k, v in values if k in facet_keys)
+        if axis is None:
+            out.append(Point(values=values, axis_value=math.nan, facets=point_facets))
+            continue
         x = _numeric(effective, axis.param)
         if x is None:
             raise r.fail("axis.param", f"{axis.param!r} has no numeric value at the point {name}")
@@ -530,7 +602,7 @@ def _points(
                     f"fixed or scene (at the point {name})",
                 )
             x /= d
-        out.append(Point(values=values, axis_value=x))
+        out.append(Point(values=values, axis_value=x, facets=point_facets))
     return tuple(out)
 
 

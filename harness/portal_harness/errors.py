@@ -14,11 +14,14 @@ class ConfigError(HarnessError):
 
     exit_status = 2
 
-    def __init__(self, file: str, key: str, message: str) -> None:
+    def __init__(self, file: str, key: str, message: str, line: int | None = None, column: int | None = None) -> None:
         self.file = file
         self.key = key
         self.message = message
-        where = f"{file}: {key}" if key else file
+        self.line = line  # 1-based, of the key in the file where known (schema.Reader)
+        self.column = column
+        at = f"{file}:{line}:{column or 1}" if line is not None else file
+        where = f"{at}: {key}" if key else at
         super().__init__(f"{where}: {message}")
 
 

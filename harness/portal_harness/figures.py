@@ -5,6 +5,8 @@ through exr.py):
 1. error over time: log-log, one line per strategy (the mean over
    replicates, a band from the smallest to the largest replicate), one panel
    per sweep point, for the `lit` region and the whole image;
+   with facets (categorical sweep keys, facets.py), one block of rows per
+   facet value;
 2. insets: per sweep point, the reference with the inset rectangles drawn
    and its antishadow region classes beside it, then each inset of the
    reference and of each strategy at equal render time (replicate 0), with
@@ -13,9 +15,12 @@ through exr.py):
    light/portal ratio), one panel per region (image, lit, insets, region
    classes), error bars of one standard error over replicates, open
    triangles where the value is only a lower bound; below it, the
-   equal-error speed-up in the same layout.
+   equal-error speed-up in the same layout. Facets are line styles (a
+   legend names each key=value); an experiment without an axis has the
+   strategies along x and a colour per facet value.
 
-PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}.
+PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}; the
+tables of the summary (tables.py) to results/experiments/<experiment>/summary.tex.
 """
 
 from __future__ import annotations
@@ -44,13 +49,14 @@ from matplotlib.patches import (
 )
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from portal_harness import display, exr, index
+from portal_harness import display, exr, facets, index, tables
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError, HarnessError
 from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
 from portal_harness.metrics import WHOLE_IMAGE, Region, crop
 from portal_harness.paths import ResultsLayout, RunLayout
 from portal_harness.regions import LIT, class_map
+from portal_harness.spec import format_value
 
 # Display only: a colour and a label for the strategies drawn so far. The
 # strategies themselves are the renderer's (render --describe); a name not
@@ -130,7 +136,29 @@ def load(experiment: Experiment, conn: sqlite3.Connection, layout: ResultsLayout
 
 
 def _point_title(experiment: Experiment, point: Point) -> str:
-    return f"{experiment.axis.label} = {point.axis_value:g}"
+    """The axis value and the facets of a point: `light/portal ratio = 2, portal_weight=area`."""
+    parts = [] if experiment.axis is None else [f"{experiment.axis.label} = {point.axis_value:g}"]
+    if point.facets:
+        parts.append(facets.labels(point.facets))
+    return ", ".join(parts) or point.id
+
+
+FacetValues = tuple[tuple[str, Any], ...]
+FACET_LINE_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1, 1, 1)), (0, (1, 3)))
+FACET_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666")
+
+
+def facet_groups(points: Sequence[Point]) -> list[tuple[FacetValues, list[Point]]]:
+    """The points grouped by their facet values, groups and points in sweep order."""
+    groups: dict[FacetValues, list[Point]] = {}
+    for p in points:
+        groups.setdefault(p.facets, []).append(p)
+    return list(groups.items())
+
+
+def _row_has_facets(row: dict[str, Any], values: FacetValues) -> bool:
+    """A summary row of this facet combination (JSON numbers compared as --set text)."""
+    return all(k in row and format_value(row[k]) == format_value(v) for k, v in values)
 
 
 def _save(fig: Figure, layout: ResultsLayout, experiment: Experiment, name: str) -> list[Path]:
@@ -185,35 +213,45 @@ def figure_error_curves(
     their range."""
     metric = experiment.curve_metric
     regions = [LIT, *(r.name for r in experiment.insets), WHOLE_IMAGE]
-    n = len(data.points)
-    fig, axes = plt.subplots(len(regions), n, figsize=(3.2 * n, 2.9 * len(regions)), squeeze=False)
-    for row, region in enumerate(regions):
-        for i, point in enumerate(data.points):
-            ax = axes[row][i]
-            floor: float | None = None
-            for strategy in experiment.strategies:
-                cells = [c for c in data.replicates.get((point.id, strategy), []) if _done(c)]
-                curves = [c for c in (_curve(conn, cell, region, metric) for cell in cells) if c]
-                if not curves:
-                    continue
-                t, v, lo, hi = _mean_curve(curves)
-                colour_ = strategy_colour(strategy, experiment.strategies)
-                ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=strategy_label(strategy))
-                if len(curves) > 1:
-                    ax.fill_between(t, lo, hi, color=colour_, alpha=0.2, lw=0)
-                floor = curves[0][0][2]
-            if metric == "rel_mse" and floor:
-                ax.axhline(floor, color="k", ls=":", lw=0.8, label="reference noise")
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set_title(f"{_point_title(experiment, point)}: {_region_title(region)}", fontsize=8)
-            ax.set_xlabel("render time (s)", fontsize=8)
-            if i == 0:
-                ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
-            ax.grid(True, which="both", alpha=0.2)
-            _plain_log_ticks(ax.xaxis)
-            _plain_log_ticks(ax.yaxis)
-            ax.tick_params(which="both", labelsize=7)
+    groups = facet_groups(data.points)
+    # One block of rows (one per region) per facet combination, its points across.
+    panels = [(region, point, i) for _, pts in groups for region in regions for i, point in enumerate(pts)]
+    n = max(len(pts) for _, pts in groups)
+    n_rows = len(regions) * len(groups)
+    fig, axes = plt.subplots(n_rows, n, figsize=(3.2 * n, 2.9 * n_rows), squeeze=False)
+    row_of = {(g, region): g * len(regions) + r_i for g in range(len(groups)) for r_i, region in enumerate(regions)}
+    group_of = {p.id: g for g, (_, pts) in enumerate(groups) for p in pts}
+    for ax in axes.flat:
+        ax.set_visible(False)
+    for region, point, i in panels:
+        row = row_of[(group_of[point.id], region)]
+        ax = axes[row][i]
+        ax.set_visible(True)
+        floor: float | None = None
+        for strategy in experiment.strategies:
+            cells = [c for c in data.replicates.get((point.id, strategy), []) if _done(c)]
+            curves = [c for c in (_curve(conn, cell, region, metric) for cell in cells) if c]
+            if not curves:
+                continue
+            t, v, lo, hi = _mean_curve(curves)
+            colour_ = strategy_colour(strategy, experiment.strategies)
+            ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=strategy_label(strategy))
+            if len(curves) > 1:
+                ax.fill_between(t, lo, hi, color=colour_, alpha=0.2, lw=0)
+            floor = curves[0][0][2]
+        if metric == "rel_mse" and floor:
+            ax.axhline(floor, color="k", ls=":", lw=0.8, label="reference noise")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        sep = "\n" if point.facets else ": "  # facets make the title long: the region on a line of its own
+        ax.set_title(f"{_point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
+        ax.set_xlabel("render time (s)", fontsize=8)
+        if i == 0:
+            ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
+        ax.grid(True, which="both", alpha=0.2)
+        _plain_log_ticks(ax.xaxis)
+        _plain_log_ticks(ax.yaxis)
+        ax.tick_params(which="both", labelsize=7)
     _legend_below(fig, axes, 2)
     reps = experiment.budget.replicates if experiment.budget else 1
     fig.suptitle(
@@ -424,14 +462,39 @@ def _summary_regions(data: ExperimentData) -> list[str]:
     return found
 
 
+def _draw_value(
+    ax: Any, x: float, r: dict[str, Any], column: str, se_column: str, bound_column: str, colour_: str
+) -> None:
+    """One summary value: its error bar (one standard error) and a marker,
+    open triangles where it is only a bound (up: lower, down: upper)."""
+    se = r.get(se_column)
+    bounded = bool(r.get(bound_column))
+    if isinstance(se, (int, float)) and math.isfinite(se) and se > 0:
+        lo = max(r[column] - se, r[column] * 1e-3)
+        ax.errorbar([x], [r[column]], yerr=[[r[column] - lo], [se]], color=colour_, lw=0.9, capsize=2, ls="none")
+    marker = {"lower": "^", "upper": "v"}.get(r.get(bound_column) or "", "D" if bounded else "o")
+    ax.plot(
+        [x],
+        [r[column]],
+        ls="none",
+        marker=marker,
+        ms=5 if bounded else 4,
+        mfc="white" if bounded else colour_,
+        color=colour_,
+    )
+
+
 def figure_efficiency(
     experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
 ) -> list[Path]:
     """Efficiency relative to light sampling (top row) and equal-error
     speed-up (bottom row) against the swept axis, one column per region,
     from the tidy summary; error bars of one standard error over replicates,
-    open triangles for bounds."""
+    open triangles for bounds. Facets: a line style each (colour: the
+    strategy); without an axis, the strategies along x and a colour per
+    facet value."""
     regions = _summary_regions(data)
+    groups = [values for values, _ in facet_groups(data.points)]
     measures = (
         ("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
         ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up at light's final error"),
@@ -442,65 +505,72 @@ def figure_efficiency(
     for m_i, (column, se_column, bound_column, label) in enumerate(measures):
         for r_i, region in enumerate(regions):
             ax = axes[m_i][r_i]
-            for strategy in experiment.strategies:
-                rows = sorted(
-                    (
-                        r
-                        for r in data.summary
-                        if r["region"] == region
-                        and r["strategy"] == strategy
-                        and isinstance(r.get(column), (int, float))
-                        and r[column] > 0
-                    ),
-                    key=lambda r: r["axis"],
-                )
-                if not rows:
-                    continue
-                xs = [r["axis"] for r in rows]
-                ys = [r[column] for r in rows]
-                colour_ = strategy_colour(strategy, experiment.strategies)
-                ax.plot(xs, ys, lw=1.3, color=colour_, label=strategy_label(strategy))
-                for r in rows:
-                    se = r.get(se_column)
-                    bounded = bool(r.get(bound_column))
-                    if isinstance(se, (int, float)) and math.isfinite(se) and se > 0:
-                        lo = max(r[column] - se, r[column] * 1e-3)
-                        ax.errorbar(
-                            [r["axis"]],
-                            [r[column]],
-                            yerr=[[r[column] - lo], [se]],
-                            color=colour_,
-                            lw=0.9,
-                            capsize=2,
-                            ls="none",
-                        )
-                    marker = {"lower": "^", "upper": "v"}.get(r.get(bound_column) or "", "D" if bounded else "o")
-                    ax.plot(
-                        [r["axis"]],
-                        [r[column]],
-                        ls="none",
-                        marker=marker,
-                        ms=5 if bounded else 4,
-                        mfc="white" if bounded else colour_,
-                        color=colour_,
+            for s_i, strategy in enumerate(experiment.strategies):
+                for g_i, values in enumerate(groups):
+                    rows = sorted(
+                        (
+                            r
+                            for r in data.summary
+                            if r["region"] == region
+                            and r["strategy"] == strategy
+                            and _row_has_facets(r, values)
+                            and isinstance(r.get(column), (int, float))
+                            and r[column] > 0
+                        ),
+                        key=lambda r: r["axis"] if isinstance(r.get("axis"), (int, float)) else 0.0,
                     )
-            ax.set_xscale("log")
+                    if not rows:
+                        continue
+                    if experiment.axis is None:
+                        # Strategies along x, the facet values side by side in their colours.
+                        colour_ = FACET_COLOURS[g_i % len(FACET_COLOURS)]
+                        x = s_i + (g_i - (len(groups) - 1) / 2) * 0.7 / max(len(groups), 1)
+                        for r in rows:
+                            _draw_value(ax, x, r, column, se_column, bound_column, colour_)
+                        continue
+                    colour_ = strategy_colour(strategy, experiment.strategies)
+                    style = FACET_LINE_STYLES[g_i % len(FACET_LINE_STYLES)]
+                    ax.plot(
+                        [r["axis"] for r in rows],
+                        [r[column] for r in rows],
+                        lw=1.3,
+                        ls=style,
+                        color=colour_,
+                        label=strategy_label(strategy),
+                    )
+                    for r in rows:
+                        _draw_value(ax, r["axis"], r, column, se_column, bound_column, colour_)
             ax.set_yscale("log")
-            ax.set_xlabel(experiment.axis.label, fontsize=8)
+            if experiment.axis is None:
+                ax.set_xticks(range(len(experiment.strategies)))
+                ax.set_xticklabels([strategy_label(s) for s in experiment.strategies], rotation=30, ha="right")
+                ax.set_xlim(-0.6, len(experiment.strategies) - 0.4)
+            else:
+                ax.set_xscale("log")
+                ax.set_xlabel(experiment.axis.label, fontsize=8)
+                ax.set_xticks(sorted({p.axis_value for p in data.points}))
+                ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+                ax.xaxis.set_minor_formatter(NullFormatter())
             if r_i == 0:
                 ax.set_ylabel(label, fontsize=8)
             ax.set_title(_region_title(region), fontsize=9)
             ax.grid(True, which="both", alpha=0.2)
-            ax.set_xticks(sorted({p.axis_value for p in data.points}))
-            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-            ax.xaxis.set_minor_formatter(NullFormatter())
             ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
             ax.tick_params(which="both", labelsize=7)
-    extra = [
+    extra: list[tuple[Any, str]] = []
+    if len(groups) > 1 or (groups and groups[0]):
+        for g_i, values in enumerate(groups):
+            handle = (
+                Line2D([], [], ls="none", marker="o", ms=6, color=FACET_COLOURS[g_i % len(FACET_COLOURS)])
+                if experiment.axis is None
+                else Line2D([], [], color="k", lw=1.3, ls=FACET_LINE_STYLES[g_i % len(FACET_LINE_STYLES)])
+            )
+            extra.append((handle, facets.labels(values)))
+    extra += [
         (Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
         (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound"),
     ]
-    _legend_below(fig, axes, len(measures), extra)
+    _legend_below(fig, axes, len(measures) + (len(extra) > 7), extra)
     reps = experiment.budget.replicates if experiment.budget else 1
     fig.suptitle(
         f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
@@ -515,7 +585,17 @@ def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
     conn = index.connect(layout.index_path)
     try:
         data = load(experiment, conn, layout)
-        paths = figure_error_curves(experiment, data, conn, layout)
+        # The tables first: they need no image and are the cheapest output.
+        paths = [
+            tables.write(
+                layout.summary_csv(experiment.name).with_name("summary.tex"),
+                experiment.name,
+                data.summary,
+                experiment.facets,
+                experiment.axis.label if experiment.axis is not None else None,
+            )
+        ]
+        paths += figure_error_curves(experiment, data, conn, layout)
         paths += figure_insets(experiment, data, conn, layout)
         paths += figure_efficiency(experiment, data, conn, layout)
     finally:

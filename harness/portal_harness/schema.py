@@ -11,15 +11,31 @@ import yaml
 from portal_harness.errors import ConfigError
 from portal_harness.execute import available_cores
 
+# Dotted key (as Reader names it: `sweep.params.s_L.1`) -> (line, column), 1-based.
+KeyLines = dict[str, tuple[int, int]]
+
 
 class Reader:
-    """Typed access to a YAML mapping with file/key-qualified errors."""
+    """Typed access to a YAML mapping with file/key-qualified errors; with
+    `lines` (read_yaml_lines), each error also names the key's line."""
 
-    def __init__(self, file: str) -> None:
+    def __init__(self, file: str, lines: KeyLines | None = None) -> None:
         self.file = file
+        self.lines: KeyLines = lines or {}
 
     def fail(self, key: str, message: str) -> ConfigError:
-        return ConfigError(self.file, key, message)
+        line = self.line_of(key)
+        return ConfigError(self.file, key, message, *(line if line else (None, None)))
+
+    def line_of(self, key: str) -> tuple[int, int] | None:
+        """The line of `key`, else of the nearest enclosing key in the file."""
+        parts = key.split(".") if key else []
+        while parts:
+            found = self.lines.get(".".join(parts))
+            if found is not None:
+                return found
+            parts.pop()
+        return None
 
     def mapping(
         self, node: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()
@@ -93,6 +109,25 @@ def join_key(prefix: str, key: str) -> str:
 
 def read_yaml(path: Path, what: str) -> Any:
     """Parses a YAML file; a missing file or a syntax error is a ConfigError with file:line:column."""
+    return read_yaml_lines(path, what)[0]
+
+
+def _key_lines(node: yaml.Node | None, prefix: str, out: KeyLines) -> None:
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            key = join_key(prefix, str(key_node.value))
+            out.setdefault(key, (key_node.start_mark.line + 1, key_node.start_mark.column + 1))
+            _key_lines(value_node, key, out)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            key = join_key(prefix, str(i))
+            out.setdefault(key, (item.start_mark.line + 1, item.start_mark.column + 1))
+            _key_lines(item, key, out)
+
+
+def read_yaml_lines(path: Path, what: str) -> tuple[Any, KeyLines]:
+    """read_yaml, and the line and column of every key and sequence item
+    (named as Reader names them), for errors that point into the file."""
     try:
         text = path.read_text()
     except FileNotFoundError:
@@ -100,7 +135,11 @@ def read_yaml(path: Path, what: str) -> Any:
     except OSError as e:
         raise ConfigError(str(path), "", f"cannot read {what}: {e.strerror}") from None
     try:
-        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+        data = yaml.load(text, Loader=loader)
+        lines: KeyLines = {}
+        _key_lines(yaml.compose(text, Loader=loader), "", lines)
+        return data, lines
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark
         where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark is not None else str(path)

@@ -66,6 +66,13 @@ COLUMNS = (
 )
 
 
+def columns(facet_keys: tuple[str, ...]) -> tuple[str, ...]:
+    """The columns of an experiment's summary: one per facet key (its
+    full --set key, e.g. render.portal_weight) after `axis`."""
+    at = COLUMNS.index("axis") + 1
+    return COLUMNS[:at] + facet_keys + COLUMNS[at:]
+
+
 @dataclass(frozen=True)
 class Replicate:
     """One finished run's final values and curve in one region."""
@@ -134,9 +141,11 @@ def rows_for_point(
     regions: dict[str, RegionInfo],
     noise_ratio: float,
     status: dict[str, str],
+    facets: tuple[tuple[str, Any], ...] = (),
 ) -> list[dict[str, Any]]:
     """reps: strategy -> region -> replicates; status: strategy -> "done"
-    when every replicate is, else the status of the first that is not."""
+    when every replicate is, else the status of the first that is not;
+    facets: the point's (key, value) of each facet key, a column each."""
     out: list[dict[str, Any]] = []
     for region, info in regions.items():
         floor = info.floor
@@ -149,6 +158,7 @@ def rows_for_point(
             row: dict[str, Any] = {
                 "point": point,
                 "axis": axis,
+                **dict(facets),
                 "strategy": strategy,
                 "status": status.get(strategy, "missing"),
                 "region": region,

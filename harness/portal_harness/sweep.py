@@ -56,6 +56,11 @@ class PlannedRun:
     replicate: int
     spec: RunSpec
     key: str
+    reference: str = ""  # the id of the point whose reference this run is measured against
+
+
+def _reference_id(experiment: Experiment, point: Point) -> str:
+    return experiment.reference_point(point).id
 
 
 def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]:
@@ -65,7 +70,8 @@ def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]
         for strategy in experiment.strategies:
             for k in range(experiment.budget.replicates):
                 spec = experiment.run_spec(point, strategy, replicate=k)
-                out.append(PlannedRun(point, strategy, k, spec, spec.key(renderer_version)))
+                key = spec.key(renderer_version)
+                out.append(PlannedRun(point, strategy, k, spec, key, _reference_id(experiment, point)))
     return out
 
 
@@ -77,19 +83,21 @@ def record_plan(
     pilots: dict[str, dict[str, str]],
 ) -> None:
     rows: list[index.MembershipRow] = []
-    for point_id, ref in refs.items():
-        axis = ref.point.axis_value
+    # One set of reference rows per point, also where points share a reference (facets.py).
+    for point in experiment.points():
+        point_id, ref_id, axis = point.id, _reference_id(experiment, point), point.axis_value
+        ref = refs[ref_id]
         if ref.key is not None:
             label = "+".join(ref.strategies)
             rows.append((point_id, label, ROLE_REFERENCE, 0, ref.key, None, axis))
         rows += [
             (point_id, p.spec.strategy, ROLE_REFERENCE_PART, i, p.key, None, axis) for i, p in enumerate(ref.parts)
         ]
-        rows += [(point_id, s, ROLE_PILOT, 0, key, None, axis) for s, key in pilots.get(point_id, {}).items()]
+        rows += [(point_id, s, ROLE_PILOT, 0, key, None, axis) for s, key in pilots.get(ref_id, {}).items()]
         if ref.region_map_key is not None:
             rows.append((point_id, "light", ROLE_REGION_MAP, 0, ref.region_map_key, None, axis))
     rows += [
-        (r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.point.id].key, r.point.axis_value) for r in runs
+        (r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.reference].key, r.point.axis_value) for r in runs
     ]
     index.record_membership(conn, experiment.name, rows)
 
@@ -169,7 +177,7 @@ def compute_metrics(
     problems: list[str] = []
     for planned in runs:
         manifest = manifests.get(planned.key)
-        ref = refs[planned.point.id]
+        ref = refs[planned.reference]
         if manifest is None or manifest.get("status") != store.STATUS_DONE or ref.snapshot is None:
             continue
         assert ref.key is not None
@@ -189,16 +197,17 @@ def compute_metrics(
 
 
 def _final_errors(conn: sqlite3.Connection, runs: list[PlannedRun], ref: PointReference) -> dict[str, float]:
-    """Per region, the smallest mean (over replicates) final relMSE of any strategy."""
-    by: dict[tuple[str, str], list[float]] = {}
+    """Per region, the smallest mean (over replicates) final relMSE of any
+    strategy at any point that uses this reference."""
+    by: dict[tuple[str, str, str], list[float]] = {}
     for r in runs:
-        if r.point.id != ref.point.id or ref.key is None:
+        if r.reference != ref.point.id or ref.key is None:
             continue
         for m in index.metrics_of(conn, r.key, ref.key):
             if m["is_final"] and m["error"] is None and m["rel_mse"] is not None:
-                by.setdefault((r.strategy, m["region"]), []).append(float(m["rel_mse"]))
+                by.setdefault((r.point.id, r.strategy, m["region"]), []).append(float(m["rel_mse"]))
     smallest: dict[str, float] = {}
-    for (_, region), values in by.items():
+    for (_, _, region), values in by.items():
         mean = sum(values) / len(values)
         smallest[region] = min(smallest.get(region, math.inf), mean)
     return smallest
@@ -283,7 +292,8 @@ def summarize(
 ) -> list[dict[str, Any]]:
     """The tidy rows (summary.py) of every point, region and strategy."""
     rows: list[dict[str, Any]] = []
-    for pid, ref in refs.items():
+    for point in experiment.points():
+        pid, ref = point.id, refs[_reference_id(experiment, point)]
         if ref.snapshot is None or ref.key is None:
             continue
         floors = floors_of(ref)
@@ -294,7 +304,14 @@ def summarize(
         }
         status = {s: _status(runs, manifests, pid, s) for s in experiment.strategies}
         rows += summary.rows_for_point(
-            pid, ref.point.axis_value, experiment.strategies, reps, regions, experiment.reference.noise_ratio, status
+            pid,
+            point.axis_value,
+            experiment.strategies,
+            reps,
+            regions,
+            experiment.reference.noise_ratio,
+            status,
+            facets=point.facets,
         )
     return rows
 
@@ -309,13 +326,14 @@ def write_summary(
 ) -> None:
     folder = layout.experiment_dir(experiment.name)
     folder.mkdir(parents=True, exist_ok=True)
-    clean = [{k: store.finite_or_none(r.get(k)) for k in summary.COLUMNS} for r in rows]
+    columns = summary.columns(experiment.facets)
+    clean = [{k: store.finite_or_none(r.get(k)) for k in columns} for r in rows]
     store.write_json_atomic(
         layout.summary_json(experiment.name),
         {
             "experiment": experiment.name,
             "file": str(experiment.path),
-            "columns": list(summary.COLUMNS),
+            "columns": list(columns),
             "rows": clean,
             "references": references_info,
             "failures": failures,
@@ -323,10 +341,10 @@ def write_summary(
         },
     )
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(summary.COLUMNS), lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
     writer.writeheader()
     for r in clean:
-        writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in summary.COLUMNS})
+        writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in columns})
     tmp = layout.summary_csv(experiment.name).with_name(".summary.csv.tmp")
     tmp.write_text(buffer.getvalue())
     tmp.replace(layout.summary_csv(experiment.name))
@@ -376,8 +394,9 @@ def _fmt(v: Any, spec: str) -> str:
 def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
     """The tidy summary's `lit` region (the whole image if there is none), one line per (point, strategy)."""
     region = LIT if any(r["region"] == LIT for r in rows) else WHOLE_IMAGE
+    width = max([22, *(len(str(r["point"])) for r in rows)])  # facets make point names longer
     header = (
-        f"{'point':<22} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
+        f"{'point':<{width}} {'strategy':<17} {'reps':>4} {'time_s':>7} {'relMSE':>10} {'eff/light':>16} "
         f"{'speed-up':>10} {'ref/err':>7}"
     )
     print(f"region {region}:", file=out)
@@ -390,7 +409,7 @@ def print_table(rows: list[dict[str, Any]], out: TextIO) -> None:
             eff += f" ±{se}"
         mark = {"lower": ">", "upper": "<", "mixed": "~"}.get(r.get("speedup_bound") or "", " ")
         print(
-            f"{r['point']:<22} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
+            f"{r['point']:<{width}} {r['strategy']:<17} {r.get('replicates', 0):>4} {_fmt(r.get('time_s'), '7.2f'):>7} "
             f"{_fmt(r.get('rel_mse'), '10.3e'):>10} {eff:>16} {mark}{_fmt(r.get('speedup_equal_error'), '.3g'):>9} "
             f"{_fmt(r.get('reference_noise_ratio'), '7.3f'):>7}",
             file=out,
@@ -452,8 +471,8 @@ def _last_line(text: str | None) -> str:
 def region_maps(
     experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]
 ) -> dict[str, tuple[str, Any]]:
-    """Per point, (key, fractions) of its region-map render (fractions None if it failed)."""
-    specs = {p.id: experiment.region_map_spec(p) for p in experiment.points()}
+    """Per reference point, (key, fractions) of its region-map render (fractions None if it failed)."""
+    specs = {p.id: experiment.region_map_spec(p) for p in experiment.reference_points()}
     manifests.update(execute_specs(list(specs.values()), options, conn, desc="region maps"))
     out: dict[str, tuple[str, Any]] = {}
     for pid, spec in specs.items():
@@ -493,8 +512,8 @@ def choose_reference_strategies(
     manifests: dict[str, dict[str, Any]],
     maps: dict[str, tuple[str, Any]],
 ) -> dict[str, ReferenceChoice]:
-    """Per point, the reference strategies (given, or by pilot) and the first part's time."""
-    points = experiment.points()
+    """Per reference point, the reference strategies (given, or by pilot) and the first part's time."""
+    points = experiment.reference_points()
     given = experiment.reference.strategies
     if given:
         return {p.id: ReferenceChoice(given, None, {}) for p in points}
@@ -538,7 +557,7 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
             p.id: references.plan(
                 experiment, p, chosen[p.id].strategies, options.renderer_version, chosen[p.id].first_time_s
             )
-            for p in experiment.points()
+            for p in experiment.reference_points()
         }
         for pid, ref in refs.items():
             ref.region_map_key, ref.fractions = maps[pid]

@@ -172,7 +172,9 @@ def test_04_bad_config_fails_before_any_render(
     exp = write_experiment(strategies=["light", "portl"])
     status, _, err = cli("sweep", str(exp))
     assert status == 2
-    assert f"{exp}: strategies.1: unknown strategy 'portl'" in err
+    # file:line:column of the offending item, then its key
+    line = exp.read_text().splitlines().index("- portl") + 1
+    assert f"{exp}:{line}:3: strategies.1: unknown strategy 'portl'" in err
     exp = write_experiment(scene="../scenes/missing.yaml")
     status, _, err = cli("sweep", str(exp))
     assert status == 2 and "scene: scene file" in err and "not found" in err
