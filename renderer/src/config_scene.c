@@ -199,8 +199,7 @@ static bool shape_alloc(struct loader *L, struct shape_desc *s, int n_vertices, 
 static bool check_face(struct loader *L, const yaml_node_t *n, const char *what, const struct shape_desc *s,
                        const int *idx, int k)
 {
-    struct polygon poly;
-    memset(&poly, 0, sizeof poly);
+    struct polygon poly; /* only v[0..k) is read */
     poly.n = k;
     for (int i = 0; i < k; ++i) poly.v[i] = s->vertices[idx[i]];
     return check_polygon(L, n, what, &poly);

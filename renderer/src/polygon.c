@@ -127,7 +127,7 @@ enum polygon_defect polygon_check(const struct polygon *poly)
 /* Every other vertex must lie strictly on the inner side of every edge (the
    side the winding normal turns to). This rejects collinear and repeated
    vertices, reflex corners, and self-intersecting or multiply wound polygons
-   (a pentagram has all left turns but fails the edge test). O(n^2), n <= 24. */
+   (a pentagram has all left turns but fails the edge test). O(n^2), n <= POLYGON_MAX. */
 bool polygon_is_convex(const struct polygon *poly)
 {
     int n = poly->n;
@@ -203,7 +203,7 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
         if (d[i] < 0.0) all_in = false;
     }
     if (all_in) {
-        if (out != in) *out = *in;
+        polygon_copy(out, in);
         return out->n;
     }
     struct vec3 buf[2 * POLYGON_MAX + 2];
@@ -253,8 +253,10 @@ int polygon_clip_by_planes(const struct polygon *subject, const struct clip_plan
         out->n = 0;
         return 0;
     }
-    *out = *subject;
-    for (int i = 0; i < cp->n && out->n > 0; ++i) polygon_clip_plane(out, &cp->plane[i], out);
+    /* The first plane reads the subject, the others clip in place: no copy
+       of the whole subject. */
+    polygon_clip_plane(subject, &cp->plane[0], out);
+    for (int i = 1; i < cp->n && out->n > 0; ++i) polygon_clip_plane(out, &cp->plane[i], out);
     return out->n;
 }
 

@@ -10,14 +10,26 @@
 #include "vec.h"
 
 /* Clipping a convex n-gon by a convex m-gon yields at most n + m vertices;
-   lights and portals have at most POLYGON_INPUT_MAX so clipped results fit. */
-#define POLYGON_INPUT_MAX 8
-#define POLYGON_MAX       24
+   lights and portals have at most POLYGON_INPUT_MAX so that a light clipped
+   to a portal (64) and then to a horizon plane (65) fits. 32 vertices let a
+   regular polygon fit a round opening to 0.5% of its radius. */
+#define POLYGON_INPUT_MAX 32
+#define POLYGON_MAX       96
 
+/* Only v[0..n) is meaningful: the struct is 2.3 KB, so hot paths copy a
+   polygon with polygon_copy (its n vertices), never by assignment. */
 struct polygon {
     int n;
     struct vec3 v[POLYGON_MAX];
 };
+
+/* *dst = *src for the vertices in use (dst and src may be the same). */
+static inline void polygon_copy(struct polygon *dst, const struct polygon *src)
+{
+    if (dst == src) return;
+    dst->n = src->n;
+    for (int i = 0; i < src->n; ++i) dst->v[i] = src->v[i];
+}
 
 /* Plane dot(normal, x) = offset, normal unit length. */
 struct plane {

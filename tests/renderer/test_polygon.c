@@ -2,6 +2,7 @@
    centroid, validity checks, clipping, ray hits, solid angle, vector
    irradiance and projected solid angle. */
 #include <float.h>
+#include <string.h>
 
 #include "polygon.h"
 #include "testlib.h"
@@ -295,17 +296,50 @@ static void test_clip_plane(void)
     pl.offset = 1e-13;
     pl.normal = vec3_make(1, 0, 0);
     CHECK(polygon_clip_plane(&tri, &pl, &out) == 3);
-    /* A 24-gon losing one corner would need 25 vertices: capped at
-       POLYGON_MAX by dropping the least significant vertex. */
+    /* A POLYGON_MAX-gon (96) losing one corner would need 97 vertices:
+       capped at POLYGON_MAX by dropping the least significant vertex. */
     struct polygon big = regular_ngon(POLYGON_MAX, 1.0, 0.0);
     pl.normal = vec3_make(-1, 0, 0);
     pl.offset = -0.999;
     CHECK(polygon_clip_plane(&big, &pl, &out) == POLYGON_MAX);
-    /* The corner cut off loses 7.6e-6; dropping the least-area vertex (one
-       of the two new ones) about 2.5e-4 more, of an area of 3.1. */
+    /* The corner cut off loses 3.05e-5; dropping the least-area vertex (one
+       of the two new ones) 3.49e-5 more, of an area of 3.1. */
     double lost = polygon_area(&big) - polygon_area(&out);
-    CHECK(lost > 7e-6 && lost < 3e-4);
+    CHECK(lost > 6.4e-5 && lost < 6.7e-5);
     CHECK(polygon_is_convex(&out));
+}
+
+/* The largest clip the renderer makes: a light of POLYGON_INPUT_MAX (32)
+   vertices clipped to a portal of 32 (the anti-penumbra's visible polygon),
+   then to a horizon plane (polygon_projected_solid_angle). Two regular
+   32-gons turned by half a step meet in a regular 64-gon (every edge of
+   each cuts a corner of the other), whose area is closed-form; a horizon
+   that cuts off one of its corners adds one vertex: 65. */
+static void test_clip_32_by_32(void)
+{
+    int n = POLYGON_INPUT_MAX;
+    struct polygon a = regular_ngon(n, 1.0, 0.0), b = regular_ngon(n, 1.0, M_PI / n), out;
+    CHECK(polygon_clip_convex(&a, &b, &out) == 2 * n);
+    CHECK(polygon_is_convex(&out));
+    /* The 64-gon's inradius is the 32-gons' apothem cos(pi / 32), so its
+       area is 64 tan(pi / 64) cos^2(pi / 32). */
+    double inr = cos(M_PI / n);
+    CHECK_NEAR(polygon_area(&out), 2 * n * tan(M_PI / (2 * n)) * inr * inr, 1e-12);
+    /* Its neighbours lie at cos(2 pi / 64) = 0.995 of a corner's distance
+       along that corner's direction. */
+    struct vec3 corner = out.v[0];
+    struct plane cut = { vec3_neg(vec3_normalize(corner)), -0.999 * vec3_length(corner) };
+    struct polygon above;
+    CHECK(polygon_clip_plane(&out, &cut, &above) == 2 * n + 1);
+    CHECK(2 * n + 1 <= POLYGON_MAX);
+    CHECK(polygon_is_convex(&above));
+    CHECK(polygon_area(&above) < polygon_area(&out) && polygon_area(&above) > 0.9999 * polygon_area(&out));
+    /* polygon_copy copies the vertices in use, also onto itself. */
+    struct polygon copy;
+    polygon_copy(&copy, &above);
+    CHECK(copy.n == above.n && memcmp(copy.v, above.v, sizeof copy.v[0] * (size_t)copy.n) == 0);
+    polygon_copy(&copy, &copy);
+    CHECK(copy.n == above.n);
 }
 
 static void test_intersect_contains(void)
@@ -521,6 +555,7 @@ static const struct test_case polygon_tests[] = {
     { "check", test_check },
     { "clip_convex", test_clip_convex },
     { "clip_plane", test_clip_plane },
+    { "clip_32_by_32", test_clip_32_by_32 },
     { "intersect_contains", test_intersect_contains },
     { "solid_angle", test_solid_angle },
     { "vector_irradiance", test_vector_irradiance },
