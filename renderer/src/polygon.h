@@ -74,6 +74,13 @@ enum polygon_defect {
    area, planar and convex, all relative to its size. Callers turn the
    defect into their message. */
 enum polygon_defect polygon_check(const struct polygon *poly);
+/* A quick sufficient test that polygon_check finds no defect in the
+   triangle a, b, c (one cross product instead of its O(n^2) walk): true
+   when the triangle is finite, its height over its longest edge is at least
+   1% of that edge, and no coordinate exceeds 1e5 times that edge (so that
+   rounding stays far inside polygon_check's tolerances). False says
+   nothing: ask polygon_check. For the loops over a mesh's triangles. */
+bool polygon_triangle_is_sound(struct vec3 a, struct vec3 b, struct vec3 c);
 /* The largest distance between two vertices (0 for fewer than two). */
 double polygon_diameter(const struct polygon *poly);
 

@@ -2,6 +2,7 @@
    centroid, validity checks, clipping, ray hits, solid angle, vector
    irradiance and projected solid angle. */
 #include <float.h>
+#include <stdint.h>
 #include <string.h>
 
 #include "polygon.h"
@@ -342,6 +343,50 @@ static void test_clip_32_by_32(void)
     CHECK(copy.n == above.n);
 }
 
+/* polygon_triangle_is_sound is sufficient for polygon_check: over random
+   triangles of every shape (slivers, needles, tiny and far from the
+   origin, collinear, repeated vertices), whenever it says yes,
+   polygon_check finds no defect; and it says yes for ordinary triangles. */
+static void test_triangle_is_sound(void)
+{
+    uint64_t state = 0x9E3779B97F4A7C15u;
+    int sound = 0, agreed_bad = 0, fallback = 0, n = 200000;
+    for (int i = 0; i < n; ++i) {
+        double u[10];
+        for (int k = 0; k < 10; ++k) {
+            state = state * 6364136223846793005u + 1442695040888963407u;
+            u[k] = (double)(state >> 11) * 0x1.0p-53;
+        }
+        /* Scale 1e-6..1e2, offset up to 1e8, flatness 1e-12..1. */
+        double scale = pow(10.0, -6.0 + 8.0 * u[0]), off = pow(10.0, 8.0 * u[1]) * (u[2] - 0.5);
+        double flat = pow(10.0, -12.0 * u[3]);
+        struct vec3 o = vec3_make(off, -0.7 * off, 0.3 * off);
+        struct polygon t;
+        t.n = 3;
+        t.v[0] = vec3_add(o, rotate(vec3_make(0, 0, 0)));
+        t.v[1] = vec3_add(o, rotate(vec3_make(scale * u[4], scale * flat * (u[5] - 0.5), 0)));
+        t.v[2] = vec3_add(o, rotate(vec3_make(scale * u[6], scale * flat * (u[7] - 0.5) + scale * flat, 0)));
+        if (i % 50 == 0) t.v[2] = t.v[1]; /* a repeated vertex */
+        bool quick = polygon_triangle_is_sound(t.v[0], t.v[1], t.v[2]);
+        enum polygon_defect d = polygon_check(&t);
+        CHECK_MSG(!quick || d == POLYGON_DEFECT_NONE, "triangle %d: quick yes, polygon_check %d", i, (int)d);
+        sound += quick;
+        agreed_bad += !quick && d != POLYGON_DEFECT_NONE;
+        fallback += !quick && d == POLYGON_DEFECT_NONE;
+    }
+    /* Most of these triangles are extreme on purpose (far, flat or tiny):
+       the quick test leaves them to polygon_check. */
+    printf("  %d random triangles: %d sound by the quick test, %d left to polygon_check and valid, %d invalid\n", n,
+           sound, fallback, agreed_bad);
+    CHECK(sound > n / 20 && agreed_bad > n / 10);
+    struct vec3 a = vec3_make(0, 0, 0), b = vec3_make(1, 0, 0), c = vec3_make(0, 1, 0);
+    CHECK(polygon_triangle_is_sound(a, b, c));
+    CHECK(!polygon_triangle_is_sound(a, b, b));
+    CHECK(!polygon_triangle_is_sound(a, b, vec3_make(0.5, 1e-3, 0))); /* height 0.1% of the edge */
+    CHECK(!polygon_triangle_is_sound(a, b, vec3_make(NAN, 1, 0)));
+    CHECK(!polygon_triangle_is_sound(vec3_make(1e6, 0, 0), vec3_make(1e6 + 1e-3, 0, 0), vec3_make(1e6, 1e-3, 0)));
+}
+
 static void test_intersect_contains(void)
 {
     struct polygon sq = rect_xy(-1, 1, -1, 1, 0, 0);
@@ -556,6 +601,7 @@ static const struct test_case polygon_tests[] = {
     { "clip_convex", test_clip_convex },
     { "clip_plane", test_clip_plane },
     { "clip_32_by_32", test_clip_32_by_32 },
+    { "triangle_is_sound", test_triangle_is_sound },
     { "intersect_contains", test_intersect_contains },
     { "solid_angle", test_solid_angle },
     { "vector_irradiance", test_vector_irradiance },
