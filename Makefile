@@ -35,7 +35,7 @@ TEST_SRCS := $(wildcard tests/renderer/test_*.c)
 TEST_BINS := $(TEST_SRCS:tests/renderer/%.c=$(BUILD)/tests/%)
 # The benchmark programs and the fuzzers' plain replay drivers, built with
 # the library's flags by every test-c so that they cannot rot.
-BENCH_BINS := $(BUILD)/bench/micro $(BUILD)/bench/raw_embree
+BENCH_BINS := $(BUILD)/bench/micro $(BUILD)/bench/raw_embree $(BUILD)/bench/mesh_load
 FUZZ_REPLAY := $(BUILD)/fuzz/fuzz_config_replay
 FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard tests/configs/fuzz)
 FUZZ_MESH_REPLAY := $(BUILD)/fuzz/fuzz_mesh_replay

@@ -177,6 +177,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--region", default="image")
     p.add_argument("--metric", default="rel_mse", choices=index.METRIC_COLUMNS)
 
+    p = sub.add_parser(
+        "import-mitsuba",
+        help="convert a Mitsuba 3 (or 2) XML scene into the renderer's YAML",
+        description="Convert a Mitsuba XML scene into DIR/scene.yaml with its meshes in DIR/meshes/. "
+        "What has no equivalent gets one warning naming its XML line; errors (missing mesh files, "
+        "bad XML) exit 2 with file:line and write nothing. See harness/README.md.",
+    )
+    p.add_argument("scene", type=Path, help="the Mitsuba scene (.xml)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder (new or empty)")
+    p.add_argument(
+        "--define",
+        "-D",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set a $NAME parameter, over its <default> (repeatable), as mitsuba -D does",
+    )
+    p.add_argument("--skip-missing", action="store_true", help="skip shapes whose mesh file is missing (a warning)")
+    p.add_argument(
+        "--smooth-alpha",
+        type=float,
+        default=None,
+        help="GGX roughness of smooth conductors (default: 0.001, the renderer's smallest)",
+    )
+    p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
+
     sub.add_parser(
         "reindex",
         parents=[common],
@@ -491,6 +517,21 @@ def cmd_reindex(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_import_mitsuba(args: argparse.Namespace) -> int:
+    from portal_harness.mitsuba_import import SMOOTH_CONDUCTOR_ALPHA, import_scene
+
+    alpha = SMOOTH_CONDUCTOR_ALPHA if args.smooth_alpha is None else args.smooth_alpha
+    if not 0.001 <= alpha <= 1.0:
+        raise ConfigError("--smooth-alpha", str(alpha), "expected a GGX roughness in [0.001, 1]")
+    path, report = import_scene(
+        args.scene, args.out, _parse_sets(args.define, "--define"), args.skip_missing, alpha, args.force
+    )
+    for line in report.lines():
+        print(line, file=sys.stderr)
+    print(f"wrote {path} ({len(report.lines())} distinct warnings)")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {
@@ -502,6 +543,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "regress": cmd_regress,
         "query": cmd_query,
         "reindex": cmd_reindex,
+        "import-mitsuba": cmd_import_mitsuba,
     }
     try:
         return int(handlers[args.command](args))

@@ -7,8 +7,12 @@ threads <= cores; workers write straight into the results folder.
 Dask: each task runs the renderer on a worker in a private temporary folder
 and *returns the run folder's contents* (bytes); the client writes them into
 its own results folder, manifest last. Workers therefore need the renderer
-binary at the same path (and its libraries), but no shared file system; the
-scene file travels with the task.
+binary at the same path (and its libraries), but no shared file system:
+every file the scene uses (the scene, its includes, its meshes) travels as
+a ScenePack, rebuilt in the worker's temporary folder with the same
+relative layout. Before rendering, the worker asks its renderer which files
+the render reads and checks that they are the shipped ones, with the digest
+the run key names, so a worker never renders other bytes than the key says.
 """
 
 from __future__ import annotations
@@ -19,14 +23,15 @@ import ctypes
 import multiprocessing
 import os
 import signal
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from portal_harness import contract, runs, store
-from portal_harness.errors import ConfigError
-from portal_harness.paths import ResultsLayout
+from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.scene_files import ScenePack, files_sha256, pack_scene, unpack_scene
 from portal_harness.spec import RunSpec
 
 DoneCallback = Callable[[RunSpec, dict[str, Any]], None]
@@ -117,32 +122,77 @@ def run_local(specs: list[RunSpec], target: Target, jobs: int, on_done: DoneCall
             raise
 
 
+def _check_shipped(renderer: str, scene: Path, spec: RunSpec, folder: Path) -> None:
+    """The render of `spec` from the rebuilt `scene` reads only files under
+    `folder`, and their bytes have the digest of the run key. ValueError if not."""
+    effective = contract.print_config(renderer, scene, spec.overrides)
+    inside = str(folder.resolve())
+    for f in effective.files:
+        if os.path.commonpath([inside, os.path.realpath(f)]) != inside:
+            raise ValueError(
+                f"the scene reads {f}, which was not shipped to the worker (an absolute path, or one that an "
+                "override changes?): name it relative to the file that uses it"
+            )
+    digest = files_sha256(effective.files)
+    if digest != spec.scene_sha256:
+        raise ValueError(f"the worker's copy of the scene has digest {digest}, the run key says {spec.scene_sha256}")
+
+
+def _relocate_config(text: bytes, folder: Path, root: str) -> bytes:
+    """config.yaml as a render of the original scene writes it: the mesh
+    paths the renderer made absolute in the worker's copy name the client's
+    files again (the same bytes: the digest was checked), so that the
+    installed run folder can be resumed and rendered again here."""
+
+    def quoted(path: str) -> bytes:  # the renderer's YAML string, as config_emit.c writes it
+        return ('"' + path.replace("\\", "\\\\").replace('"', '\\"')).encode()
+
+    return text.replace(quoted(str(folder).rstrip("/") + "/"), quoted(root.rstrip("/") + "/"))
+
+
+def render_shipped(
+    spec: RunSpec, pack: ScenePack, renderer: str, renderer_version: str, final_dir: str | None = None
+) -> tuple[str, dict[str, bytes]]:
+    """The Dask task: rebuilds the scene's files in a private temporary
+    folder on the worker, checks them, renders there and returns the run
+    folder's files."""
+    key = spec.key(renderer_version)
+    with tempfile.TemporaryDirectory(prefix="portal-harness-") as tmp:
+        folder = Path(tmp) / "scene"
+        scene = unpack_scene(pack, folder)
+        _check_shipped(renderer, scene, spec, folder)
+        run = RunLayout(Path(tmp) / "run")
+        run.dir.mkdir()
+        runs.execute_in(spec, run, renderer, renderer_version, key, scene_path=str(scene), final_dir=final_dir)
+        files = store.pack_files(run)
+        if "config.yaml" in files:
+            files["config.yaml"] = _relocate_config(files["config.yaml"], folder, pack.root)
+        return key, files
+
+
 def run_dask(specs: list[RunSpec], target: Target, address: str, on_done: DoneCallback) -> None:
     """Runs `specs` as tasks of the Dask scheduler at `address`; each returns
     its run folder's files, installed here as each finishes."""
     from distributed import Client, as_completed
 
-    scene_bytes: dict[str, bytes] = {}
+    packs: dict[str, tuple[str, Any]] = {}  # scene -> (digest, the pack scattered to the cluster)
     with Client(address, timeout="30s") as client:  # type: ignore[no-untyped-call]
         futures = {}
         for spec in specs:
-            if spec.scene not in scene_bytes:
-                # Workers get the scene file's bytes, not the files it includes.
-                if len(contract.print_config(target.renderer, Path(spec.scene)).files) > 1:
-                    raise ConfigError(
-                        spec.scene,
-                        "include",
-                        "a scene that includes other files cannot be sent to "
-                        "Dask workers: run it locally, or give the merged config.yaml that a "
-                        "render writes to its output folder",
-                    )
-                scene_bytes[spec.scene] = Path(spec.scene).read_bytes()
+            if spec.scene not in packs:
+                pack = pack_scene(contract.print_config(target.renderer, Path(spec.scene)).files)
+                packs[spec.scene] = (pack.sha256, client.scatter(pack))
+            digest, shipped = packs[spec.scene]
+            if digest != spec.scene_sha256:
+                changed = ValueError(f"{spec.scene} or a file it reads changed since the run was planned")
+                on_done(spec, _failure(spec, target, changed))
+                continue
             key = spec.key(target.renderer_version)
             final_dir = str(target.layout.run(key, spec.reference).dir)
             future = client.submit(
-                runs.execute_packed,
+                render_shipped,
                 spec,
-                scene_bytes[spec.scene],
+                shipped,
                 target.renderer,
                 target.renderer_version,
                 final_dir,

@@ -190,20 +190,3 @@ def execute(
     manifest = execute_in(spec, attempt, renderer, renderer_version, key, on_event=on_event, final_dir=str(target.dir))
     store.install(layout, key, spec.reference, attempt)
     return {**manifest, "cached": False}
-
-
-def execute_packed(
-    spec: RunSpec, scene_text: bytes, renderer: str, renderer_version: str, final_dir: str | None = None
-) -> tuple[str, dict[str, bytes]]:
-    """The Dask task: renders in a private temporary folder on the worker
-    (the scene travels with the task) and returns the run folder's files."""
-    import tempfile
-
-    key = spec.key(renderer_version)
-    with tempfile.TemporaryDirectory(prefix="portal-harness-") as tmp:
-        scene = Path(tmp) / "scene.yaml"
-        scene.write_bytes(scene_text)
-        run = RunLayout(Path(tmp) / "run")
-        run.dir.mkdir()
-        execute_in(spec, run, renderer, renderer_version, key, scene_path=str(scene), final_dir=final_dir)
-        return key, store.pack_files(run)

@@ -3,33 +3,23 @@ of one (`run`, `reference`).
 
 The harness does not parse scenes itself: `render --print-config` gives
 the effective config (includes merged, params evaluated, overrides
-applied, defaults filled) and the files it was built from. The harness adds
-only the digest of those files' contents, the scene part of its run keys: a
-change in an included file changes the key.
+applied, defaults filled) and the files it was built from: the scene, every
+file it includes and every mesh file it reads. The harness adds only the
+digest of those files' contents (scene_files.py), the scene part of its
+run keys: a change in an included file or a mesh changes the key.
 """
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from portal_harness import contract
 from portal_harness.errors import ConfigError
+from portal_harness.scene_files import files_sha256
 from portal_harness.schema import Reader, parse_threads
 from portal_harness.spec import HARNESS_RENDER_KEYS, SNAPSHOT_KEYS, RunSpec, format_value
-
-
-def files_sha256(files: Sequence[Path]) -> str:
-    """Digest of the files a scene was built from (content and order)."""
-    if len(files) == 1:
-        # A self-contained scene keeps its plain file digest, so that its run keys stay valid.
-        return hashlib.sha256(files[0].read_bytes()).hexdigest()
-    h = hashlib.sha256()
-    for f in files:
-        h.update(hashlib.sha256(f.read_bytes()).digest())
-    return h.hexdigest()
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,9 @@ summary.py turns them into results/bench/summary.md. Sections:
   harness         MSE / relMSE of a snapshot vs a reference, EXR read included
   efficiency      the lampshade ratio sweep at equal time vs a long reference
   portal_weights  area / distance / irradiance on multi_lamp.yaml
+  mesh_load       load time and peak memory of a 1M-triangle binary PLY
+                  (render --print-config; config_load, stitching and scene
+                  build apart, C, mesh_load.c)
 
 usage: bench.py BUILD_DIR [--quick] [--only SECTION[,SECTION...]]
 """
@@ -825,6 +828,49 @@ def section_portal_weights(ctx: Context) -> dict[str, Any]:
     return table
 
 
+# ---- 12. loading a large mesh --------------------------------------------------
+
+MESH_GRID_N = 708  # 2 x 708^2 = 1,002,528 triangles
+
+
+def section_mesh_load(ctx: Context) -> dict[str, Any]:
+    """A 1M-triangle binary PLY, generated here (not committed): the wall
+    and CPU time and peak RSS of `render --print-config` on a scene holding
+    it (load, stitching and scene build: what every render pays before its
+    first pass), and the stages apart (mesh_load.c)."""
+    rounds = 1 if ctx.quick else 3
+    folder = TMP / "mesh_load"
+    folder.mkdir(parents=True, exist_ok=True)
+    ply = folder / "grid_1m.ply"
+    n_vertices, n_triangles = bl.write_grid_ply(ply, MESH_GRID_N)
+    scene = folder / "scene.yaml"
+    scene.write_text(
+        "# renderer/bench/bench.py section_mesh_load: one large mesh under a panel light\n"
+        "camera: {position: [0, 3, 3], look_at: [0, 0, 0], up: [0, 1, 0], fov_y: 50}\n"
+        "film: {width: 64, height: 64}\n"
+        "materials:\n  grey: {type: diffuse, albedo: [0.6, 0.6, 0.6]}\n"
+        "shapes:\n  - {name: grid, type: mesh, material: grey, file: grid_1m.ply}\n"
+        "lights:\n  - name: panel\n"
+        "    vertices: [[-0.5, 2, -0.5], [0.5, 2, -0.5], [0.5, 2, 0.5], [-0.5, 2, 0.5]]\n"
+        "    radiance: [4, 4, 4]\n"
+        "render: {spp: 1}\n"
+    )
+    params = {
+        "mesh": f"{MESH_GRID_N}x{MESH_GRID_N} grid, binary little-endian PLY, float vertices",
+        "vertices": n_vertices,
+        "triangles": n_triangles,
+        "bytes": ply.stat().st_size,
+        "rounds": rounds,
+        "target_s": 1.0,
+    }
+    runs = [bl.run_measured([str(ctx.render), "--print-config", str(scene)]) for _ in range(rounds)]
+    print_config = {k: median([r[k] for r in runs]) for k in ("wall_s", "cpu_s", "max_rss_mb")}
+    stages = bl.run_json([str(ctx.bins["mesh_load"]), str(scene), "--rounds", str(rounds)])
+    results = {"print_config": print_config, "print_config_runs": runs, "stages": stages}
+    bl.write_result(ctx, "mesh_load", params, results)
+    return results
+
+
 SECTIONS: dict[str, Callable[[Context], Any]] = {
     "raw_embree": section_raw_embree,
     "micro": section_micro,
@@ -835,6 +881,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "harness": section_harness,
     "efficiency": section_efficiency,
     "portal_weights": section_portal_weights,
+    "mesh_load": section_mesh_load,
 }
 
 
@@ -849,7 +896,7 @@ def main() -> int:
     if unknown:
         ap.error(f"unknown section(s) {unknown}; expected some of {list(SECTIONS)}")
     ctx = bl.make_context(args.build.resolve(), args.quick)
-    for name in ("raw_embree", "micro"):
+    for name in ("raw_embree", "micro", "mesh_load"):
         ctx.bins[name] = ctx.build / "bench" / name
     log(
         f"renderer {ctx.version} at {ctx.render}; {'quick' if ctx.quick else 'full'} run; "

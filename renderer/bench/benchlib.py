@@ -307,3 +307,50 @@ def write_result(ctx: Context, name: str, params: dict[str, Any], results: Any) 
     tmp.replace(path)
     log(f"wrote {path.relative_to(ROOT)}")
     return path
+
+
+# ---- a large mesh -------------------------------------------------------------
+
+
+def write_grid_ply(path: Path, n: int) -> tuple[int, int]:
+    """A binary little-endian PLY of an n x n grid of quads over [-1, 1]^2,
+    each split in two triangles, rippled in y so that it is not planar:
+    (n + 1)^2 float vertices, 2 n^2 triangles (n = 708: 1,002,528).
+    Returns (vertices, triangles)."""
+    x, z = np.meshgrid(np.linspace(-1.0, 1.0, n + 1), np.linspace(-1.0, 1.0, n + 1))
+    y = 0.1 * np.sin(6.0 * x) * np.cos(5.0 * z)
+    v = np.stack([x, y, z], -1).reshape(-1, 3).astype("<f4")
+    i = np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]
+    a, b, c, d = i, i + 1, i + n + 2, i + n + 1
+    tris = np.concatenate([np.stack([a, d, c], -1).reshape(-1, 3), np.stack([a, c, b], -1).reshape(-1, 3)])
+    faces = np.zeros(len(tris), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    faces["n"] = 3
+    faces["i"] = tris
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(tris)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "wb") as out:
+        out.write(header.encode())
+        out.write(v.tobytes())
+        out.write(faces.tobytes())
+    tmp.replace(path)
+    return len(v), len(tris)
+
+
+def run_measured(cmd: list[str]) -> dict[str, float]:
+    """Runs cmd (output discarded); its wall time, CPU time (user + sys) and
+    peak resident set size, from the kernel's accounting of that child."""
+    t0 = time.monotonic()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.monotonic() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    if proc.stderr:
+        proc.stderr.close()
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed with status {proc.returncode}: {err.strip()}")
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "max_rss_mb": usage.ru_maxrss / 1024.0}

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The benchmark suite (`make bench`): the C micro-benchmarks (Makefile
-# targets BUILD_DIR/bench/micro and raw_embree), runs every section (renderer/bench/bench.py) and
+# targets BUILD_DIR/bench/micro, raw_embree and mesh_load), runs every section (renderer/bench/bench.py) and
 # writes results/bench/<section>.json plus results/bench/summary.md, which
 # is also printed. Progress goes to stderr.
 #
@@ -31,10 +31,10 @@ PY="${BENCH_PYTHON:-$ROOT/.venv/bin/python}"
 # build folder inside the repository, make brings them up to date here.
 rel="${BUILD#"$ROOT"/}"
 if [ "$rel" != "$BUILD" ]; then
-    make --no-print-directory "$rel/bench/raw_embree" "$rel/bench/micro" >&2 \
-        || die "cannot build the benchmark programs (make $rel/bench/raw_embree $rel/bench/micro)"
+    make --no-print-directory "$rel/bench/raw_embree" "$rel/bench/micro" "$rel/bench/mesh_load" >&2 \
+        || die "cannot build the benchmark programs (make $rel/bench/raw_embree $rel/bench/micro $rel/bench/mesh_load)"
 fi
-for prog in raw_embree micro; do
+for prog in raw_embree micro mesh_load; do
     [ -x "$BUILD/bench/$prog" ] || die "$BUILD/bench/$prog is missing (run make bench)"
 done
 

@@ -136,6 +136,8 @@ static bool load_text(const char *text, size_t length, const char *name, const s
     free(L.shape_names);
     for (int i = 0; L.shape_files && i < out->n_shapes; ++i) free(L.shape_files[i].path);
     free(L.shape_files);
+    for (int i = 0; L.light_files && i < out->n_lights; ++i) free(L.light_files[i].path);
+    free(L.light_files);
     for (int i = 0; i < L.n_mesh_files; ++i) free(L.mesh_files[i]);
     free(L.mesh_files);
     if (!ok) config_free(out);
@@ -175,6 +177,10 @@ void config_free(struct config *c)
     }
     free(c->materials);
     free(c->shapes);
+    for (int i = 0; i < c->n_lights; ++i) {
+        free(c->lights[i].mesh.vertices);
+        free(c->lights[i].mesh.triangles);
+    }
     free(c->lights);
     free(c->portals);
     free(c->effective_yaml);

@@ -48,12 +48,14 @@ struct shape_desc {
     struct source_loc loc;
 };
 
-/* Uniform emitter on a convex planar polygon. One-sided lights emit towards
-   the side of polygon_normal(&polygon) (counter-clockwise as seen from the
-   lit side). Lights reflect nothing. */
+/* Uniform emitter on a convex planar polygon, or on every triangle of a
+   mesh (a mesh light). One-sided lights emit towards the side of
+   polygon_normal(&polygon), or of each triangle's winding (counter-clockwise
+   as seen from the lit side). Lights reflect nothing. */
 struct light_desc {
     char name[CONFIG_NAME_MAX];
-    struct polygon polygon; /* 3..POLYGON_INPUT_MAX vertices */
+    struct polygon polygon; /* 3..POLYGON_INPUT_MAX vertices; n = 0 for a mesh light */
+    struct shape_desc mesh; /* a mesh light's triangles (owned, material -1); n_triangles = 0 otherwise */
     struct rgb radiance;
     bool two_sided;
     struct source_loc loc;

@@ -150,24 +150,29 @@ static void emit_materials(struct text *t, const struct config *c)
 /* A mesh from a file stays a reference to it: its absolute path, the
    transform as one matrix (the composition the loader applied, bit for
    bit), and the digest of the bytes read, so that both hashes change when
-   the file does and a reload checks that it has not. */
-static void emit_shape_file(struct text *t, const struct shape_file *f)
+   the file does and a reload checks that it has not. The image hash leaves
+   the path out: the digest says what the image depends on, and a copy of the
+   scene elsewhere (a Dask worker's folder, a moved project) must resume the
+   same film. */
+static void emit_shape_file(struct text *t, const struct shape_file *f, const char *indent, bool image_only)
 {
-    text_printf(t, "\n    file: ");
-    emit_string(t, f->path);
+    if (!image_only) {
+        text_printf(t, "\n%sfile: ", indent);
+        emit_string(t, f->path);
+    }
     if (f->has_transform) {
-        text_printf(t, "\n    transform: [{matrix: [");
+        text_printf(t, "\n%stransform: [{matrix: [", indent);
         for (int i = 0; i < 16; ++i) {
             text_printf(t, "%s", i ? ", " : "");
             emit_number(t, i < 12 ? f->transform.m[i / 4][i % 4] : i == 15 ? 1.0 : 0.0);
         }
         text_printf(t, "]}]");
     }
-    text_printf(t, "\n    digest: {fnv1a64: \"%016" PRIx64 "\", bytes: %zu}\n", f->fnv1a64, f->bytes);
+    text_printf(t, "\n%sdigest: {fnv1a64: \"%016" PRIx64 "\", bytes: %zu}\n", indent, f->fnv1a64, f->bytes);
 }
 
 static void emit_shapes(struct text *t, const struct config *c, char (*names)[CONFIG_NAME_MAX],
-                        const struct shape_file *files)
+                        const struct shape_file *files, bool image_only)
 {
     text_printf(t, "shapes:%s\n", c->n_shapes ? "" : " []");
     for (int i = 0; i < c->n_shapes; ++i) {
@@ -181,7 +186,7 @@ static void emit_shapes(struct text *t, const struct config *c, char (*names)[CO
         text_printf(t, "type: mesh\n    material: ");
         emit_string(t, c->materials[s->material].name);
         if (files[i].path) {
-            emit_shape_file(t, &files[i]);
+            emit_shape_file(t, &files[i], "    ", image_only);
             continue;
         }
         text_printf(t, "\n    vertices:\n");
@@ -210,15 +215,21 @@ static void emit_polygon(struct text *t, const struct polygon *p)
     }
 }
 
-static void emit_lights_portals(struct text *t, const struct config *c)
+static void emit_lights_portals(struct text *t, const struct config *c, const struct shape_file *light_files,
+                                bool image_only)
 {
     text_printf(t, "lights:\n");
     for (int i = 0; i < c->n_lights; ++i) {
         const struct light_desc *l = &c->lights[i];
         text_printf(t, "  - name: ");
         emit_string(t, l->name);
-        text_printf(t, "\n");
-        emit_polygon(t, &l->polygon);
+        if (l->mesh.n_triangles > 0) {
+            text_printf(t, "\n    mesh:");
+            emit_shape_file(t, &light_files[i], "      ", image_only);
+        } else {
+            text_printf(t, "\n");
+            emit_polygon(t, &l->polygon);
+        }
         text_printf(t, "    radiance: ");
         emit_rgb(t, l->radiance);
         text_printf(t, "\n    two_sided: %s\n", l->two_sided ? "true" : "false");
@@ -319,8 +330,8 @@ static void emit_yaml(struct text *t, struct loader *L, const struct config *c, 
     text_printf(t, "# effective configuration (params substituted, overrides applied, defaults filled)\n");
     emit_camera_film(t, c);
     emit_materials(t, c);
-    emit_shapes(t, c, L->shape_names, L->shape_files);
-    emit_lights_portals(t, c);
+    emit_shapes(t, c, L->shape_names, L->shape_files, image_only);
+    emit_lights_portals(t, c, L->light_files, image_only);
     emit_render(t, &c->render, image_only);
 }
 

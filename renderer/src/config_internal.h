@@ -85,6 +85,7 @@ struct loader {
     int n_params;
     char (*shape_names)[CONFIG_NAME_MAX]; /* "" when unnamed; only for effective_yaml */
     struct shape_file *shape_files;       /* one per shape; only for effective_yaml */
+    struct shape_file *light_files;       /* one per light (mesh lights); only for effective_yaml */
     char **mesh_files;                    /* owned: each mesh file once, as opened, in shape order */
     int n_mesh_files;
 };

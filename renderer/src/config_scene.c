@@ -32,6 +32,8 @@ static const char *const mesh_keys[] = { "name", "type", "material", "vertices",
 static const char *const mesh_file_keys[] = { "name", "type", "material", "file", "transform", "digest" };
 static const char *const digest_keys[] = { "fnv1a64", "bytes" };
 static const char *const light_keys[] = { "name", "vertices", "radiance", "two_sided", "transform" };
+static const char *const mesh_light_keys[] = { "name", "mesh", "radiance", "two_sided" };
+static const char *const light_mesh_keys[] = { "file", "transform", "digest" };
 static const char *const portal_keys[] = { "name", "light", "vertices", "transform" };
 
 #define PARALLEL_TOL 1e-9 /* |sin| of the angle between up and the view direction */
@@ -371,11 +373,9 @@ static bool take_mesh(struct loader *L, const yaml_node_t *file, const char *nam
 
 /* A mesh from an OBJ or PLY file (mesh_file.h), its path relative to the
    folder of the config file that names it, as include: paths are. */
-static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_node_t *file, int index,
-                           struct config *c)
+static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_node_t *file, struct shape_desc *s,
+                           struct shape_file *sf)
 {
-    struct shape_desc *s = &c->shapes[index];
-    struct shape_file *sf = &L->shape_files[index];
     char name[CONFIG_PATH_MAX];
     struct transform t;
     bool present;
@@ -474,7 +474,7 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
     case SHAPE_BOX:
         return load_box(L, map, where, s);
     case SHAPE_MESH:
-        return file ? load_mesh_file(L, map, file, index, c) : load_mesh(L, map, where, s);
+        return file ? load_mesh_file(L, map, file, s, &L->shape_files[index]) : load_mesh(L, map, where, s);
     }
     return false;
 }
@@ -495,6 +495,24 @@ static bool load_shapes(struct loader *L, const yaml_node_t *root, struct config
     return true;
 }
 
+/* A mesh light's `mesh: {file, transform, digest}`: the triangles of an OBJ
+   or PLY file, each one an emitter (config.h). */
+static bool load_light_mesh(struct loader *L, const yaml_node_t *map, const char *where, int index,
+                            struct light_desc *l)
+{
+    yaml_node_t *mesh = config_map_get(L, map, "mesh"), *file;
+    char what[CONFIG_NAME_MAX + 24];
+    snprintf(what, sizeof what, "%s mesh", where);
+    if (!config_expect_type(L, mesh, YAML_MAPPING_NODE, "a mapping {file, transform}") ||
+        !config_check_keys(L, mesh, what, light_mesh_keys, COUNT(light_mesh_keys)) ||
+        !(file = config_need(L, mesh, "file", what)) ||
+        !load_mesh_file(L, mesh, file, &l->mesh, &L->light_files[index]))
+        return false;
+    l->mesh.material = -1;
+    l->mesh.loc = config_loc_of(L, mesh);
+    return true;
+}
+
 static bool load_light(struct loader *L, const yaml_node_t *map, int index, struct config *c)
 {
     struct light_desc *l = &c->lights[index];
@@ -502,8 +520,13 @@ static bool load_light(struct loader *L, const yaml_node_t *map, int index, stru
     yaml_node_t *name, *n;
     l->loc = config_loc_of(L, map);
     snprintf(where, sizeof where, "light %d", index);
-    if (!config_expect_type(L, map, YAML_MAPPING_NODE, "a mapping") ||
-        !config_check_keys(L, map, where, light_keys, COUNT(light_keys)) ||
+    if (!config_expect_type(L, map, YAML_MAPPING_NODE, "a mapping")) return false;
+    bool is_mesh = config_map_get(L, map, "mesh") != NULL;
+    if (is_mesh && (n = config_map_get(L, map, "transform")))
+        return config_fail(L, n, "%s: a mesh light's transform goes inside its mesh (expected mesh: {file, transform})",
+                           where);
+    if (!(is_mesh ? config_check_keys(L, map, where, mesh_light_keys, COUNT(mesh_light_keys))
+                  : config_check_keys(L, map, where, light_keys, COUNT(light_keys))) ||
         !(name = config_need(L, map, "name", where)) || !config_get_string(L, name, l->name, sizeof l->name))
         return false;
     for (int i = 0; i < index; ++i)
@@ -511,9 +534,13 @@ static bool load_light(struct loader *L, const yaml_node_t *map, int index, stru
             return config_fail(L, name, "duplicate light name \"%s\" (first at line %d, column %d)", l->name,
                                c->lights[i].loc.line, c->lights[i].loc.column);
     snprintf(where, sizeof where, "light \"%s\"", l->name);
-    if (!(n = config_need(L, map, "vertices", where)) ||
-        !get_polygon(L, map, n, where, 3, POLYGON_INPUT_MAX, &l->polygon) ||
-        !(n = config_need(L, map, "radiance", where)) || !config_get_rgb(L, n, 0.0, INFINITY, &l->radiance))
+    if (is_mesh) {
+        if (!load_light_mesh(L, map, where, index, l)) return false;
+    } else if (!(n = config_need(L, map, "vertices", where)) ||
+               !get_polygon(L, map, n, where, 3, POLYGON_INPUT_MAX, &l->polygon)) {
+        return false;
+    }
+    if (!(n = config_need(L, map, "radiance", where)) || !config_get_rgb(L, n, 0.0, INFINITY, &l->radiance))
         return false;
     if (rgb_is_black(l->radiance))
         return config_fail(L, n, "%s has zero radiance (expected a positive component)", where);
@@ -530,7 +557,8 @@ static bool load_lights(struct loader *L, const yaml_node_t *root, struct config
                            "scene has no lights (expected a lights sequence with at least one light)");
     int n = config_seq_count(seq);
     c->lights = calloc((size_t)n, sizeof *c->lights);
-    if (!c->lights) return error_set(L->err, "%s: out of memory", L->file);
+    L->light_files = calloc((size_t)n, sizeof *L->light_files);
+    if (!c->lights || !L->light_files) return error_set(L->err, "%s: out of memory", L->file);
     c->n_lights = n;
     for (int i = 0; i < n; ++i)
         if (!load_light(L, config_seq_item(L, seq, i), i, c)) return false;
@@ -542,6 +570,26 @@ static bool load_lights(struct loader *L, const yaml_node_t *root, struct config
 static bool check_portal_placement(struct loader *L, const yaml_node_t *n, const struct portal_desc *p,
                                    const struct light_desc *l)
 {
+    if (l->mesh.n_triangles > 0) {
+        /* Each triangle becomes a light of this portal (antishadow.h): the
+           whole mesh must lie strictly on one side of the portal's plane. */
+        struct plane pp = polygon_plane(&p->polygon);
+        double tol = POLYGON_PLANARITY_TOLERANCE * polygon_diameter(&p->polygon);
+        int below = 0, above = 0;
+        for (int i = 0; i < l->mesh.n_vertices; ++i) {
+            double d = plane_distance(&pp, l->mesh.vertices[i]);
+            below += d < -tol;
+            above += d > tol;
+        }
+        if (below + above < l->mesh.n_vertices || (below && above))
+            return config_fail(L, n,
+                               "portal \"%s\" cuts its mesh light \"%s\": %d of its %d vertices lie on or across "
+                               "the portal's plane (expected the whole mesh on one side of it)",
+                               p->name, l->name,
+                               below && above ? (below < above ? below : above) : l->mesh.n_vertices - below - above,
+                               l->mesh.n_vertices);
+        return true;
+    }
     struct plane pl = polygon_plane(&l->polygon);
     double size = fmax(polygon_diameter(&l->polygon), polygon_diameter(&p->polygon));
     double tol = POLYGON_PLANARITY_TOLERANCE * size, dmin = INFINITY, dmax = -INFINITY;

@@ -16,6 +16,7 @@ struct light {
     bool two_sided;
     double power;                /* luminance flux: pi * area * Y(radiance) * sides */
     int first_portal, n_portals; /* range in scene.portals */
+    int emitter;                 /* index in scene.emitters */
 };
 
 /* Fills the light; false when the polygon is degenerate. */

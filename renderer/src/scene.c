@@ -26,20 +26,25 @@ static bool grow_geometries(struct scene *s, struct error *err)
     return true;
 }
 
-/* Attaches an indexed mesh of triangles (k = 3) or quads (k = 4). */
-static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces, int k,
-                     struct geometry_info info, struct error *err)
+/* A committed Embree geometry of an indexed mesh of triangles (k = 3) or
+   quads (k = 4); NULL with a message on failure. */
+static RTCGeometry new_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces,
+                            int k, struct error *err)
 {
     RTCDevice dev = s->device;
     RTCGeometry g = rtcNewGeometry(dev, k == 4 ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
-    if (!g) return error_set(err, "Embree could not create a geometry");
+    if (!g) {
+        error_set(err, "Embree could not create a geometry");
+        return NULL;
+    }
     float *vb =
         rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), (size_t)n_verts);
     unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, k == 4 ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
                                            (size_t)k * sizeof(unsigned), (size_t)n_faces);
     if (!vb || !ib) {
         rtcReleaseGeometry(g);
-        return error_set(err, "out of memory for Embree buffers");
+        error_set(err, "out of memory for Embree buffers");
+        return NULL;
     }
     for (int i = 0; i < n_verts; ++i) {
         vb[3 * i + 0] = (float)verts[i].x;
@@ -48,6 +53,15 @@ static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, con
     }
     for (int i = 0; i < k * n_faces; ++i) ib[i] = (unsigned)indices[i];
     rtcCommitGeometry(g);
+    return g;
+}
+
+/* Attaches an indexed mesh of triangles (k = 3) or quads (k = 4). */
+static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces, int k,
+                     struct geometry_info info, struct error *err)
+{
+    RTCGeometry g = new_mesh(s, verts, n_verts, indices, n_faces, k, err);
+    if (!g) return false;
     if (!grow_geometries(s, err)) {
         rtcReleaseGeometry(g);
         return false;
@@ -151,35 +165,75 @@ static const char *loc_file(const struct config *cfg, const struct source_loc *l
     return loc->file ? loc->file : cfg->path;
 }
 
+/* The polygon of member m of config light d: its own, or triangle m of its mesh. */
+static struct polygon member_polygon(const struct light_desc *d, int m)
+{
+    if (d->mesh.n_triangles == 0) return d->polygon;
+    struct polygon p;
+    p.n = 3;
+    for (int v = 0; v < 3; ++v) p.v[v] = d->mesh.vertices[d->mesh.triangles[m][v]];
+    return p;
+}
+
 static bool build_lights(struct scene *s, const struct config *cfg, struct error *err)
 {
-    s->lights = calloc((size_t)cfg->n_lights, sizeof *s->lights);
-    s->portals = calloc((size_t)(cfg->n_portals > 0 ? cfg->n_portals : 1), sizeof *s->portals);
-    if (!s->lights || !s->portals) return error_set(err, "out of memory for %d lights", cfg->n_lights);
-    s->n_lights = cfg->n_lights;
+    size_t n_lights = 0, n_portals = 0;
     for (int i = 0; i < cfg->n_lights; ++i) {
-        struct light *l = &s->lights[i];
-        if (!light_init(l, &cfg->lights[i].polygon, cfg->lights[i].radiance, cfg->lights[i].two_sided))
-            return error_at(err, loc_file(cfg, &cfg->lights[i].loc), cfg->lights[i].loc.line, cfg->lights[i].loc.column,
-                            "light \"%s\" is degenerate", cfg->lights[i].name);
-        /* Portals are grouped by light so that a light's portals are one range. */
-        l->first_portal = s->n_portals;
-        for (int j = 0; j < cfg->n_portals; ++j) {
-            if (cfg->portals[j].light != i) continue;
-            struct portal *pt = &s->portals[s->n_portals];
-            pt->light = i;
-            const struct portal_desc *pd = &cfg->portals[j];
-            struct error aerr;
-            if (!target_init(&pt->target, &pd->polygon))
-                return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column,
-                                "portal \"%s\" is degenerate", pd->name);
-            pt->centroid = polygon_centroid(&pt->target.polygon);
-            if (!antishadow_build(&l->target.polygon, &pt->target.polygon, &pt->antishadow, &aerr))
-                return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column, "portal \"%s\": %s",
-                                pd->name, aerr.message);
-            ++s->n_portals;
+        size_t members = cfg->lights[i].mesh.n_triangles > 0 ? (size_t)cfg->lights[i].mesh.n_triangles : 1;
+        n_lights += members;
+        for (int j = 0; j < cfg->n_portals; ++j) n_portals += cfg->portals[j].light == i ? members : 0;
+    }
+    if (n_lights > INT_MAX / 2 || n_portals > INT_MAX / 2)
+        return error_set(err, "too many lights (%zu) or light/portal pairs (%zu)", n_lights, n_portals);
+    s->lights = calloc(n_lights, sizeof *s->lights);
+    s->portals = calloc(n_portals > 0 ? n_portals : 1, sizeof *s->portals);
+    s->emitters = calloc((size_t)cfg->n_lights, sizeof *s->emitters);
+    if (!s->lights || !s->portals || !s->emitters) return error_set(err, "out of memory for %zu lights", n_lights);
+    s->n_emitters = cfg->n_lights;
+    for (int i = 0; i < cfg->n_lights; ++i) {
+        const struct light_desc *d = &cfg->lights[i];
+        struct emitter *e = &s->emitters[i];
+        e->first_light = s->n_lights;
+        e->n_lights = d->mesh.n_triangles > 0 ? d->mesh.n_triangles : 1;
+        e->power = 0.0;
+        for (int m = 0; m < e->n_lights; ++m) {
+            struct light *l = &s->lights[s->n_lights];
+            struct polygon poly = member_polygon(d, m);
+            if (!light_init(l, &poly, d->radiance, d->two_sided)) {
+                if (d->mesh.n_triangles > 0)
+                    return error_at(err, loc_file(cfg, &d->loc), d->loc.line, d->loc.column,
+                                    "light \"%s\": triangle %d is degenerate", d->name, m);
+                return error_at(err, loc_file(cfg, &d->loc), d->loc.line, d->loc.column, "light \"%s\" is degenerate",
+                                d->name);
+            }
+            l->emitter = i;
+            e->power += l->power;
+            /* Portals are grouped by light so that a light's portals are one range. */
+            l->first_portal = s->n_portals;
+            for (int j = 0; j < cfg->n_portals; ++j) {
+                if (cfg->portals[j].light != i) continue;
+                struct portal *pt = &s->portals[s->n_portals];
+                pt->light = s->n_lights;
+                const struct portal_desc *pd = &cfg->portals[j];
+                struct error aerr;
+                if (!target_init(&pt->target, &pd->polygon))
+                    return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column,
+                                    "portal \"%s\" is degenerate", pd->name);
+                pt->centroid = polygon_centroid(&pt->target.polygon);
+                if (!antishadow_build(&l->target.polygon, &pt->target.polygon, &pt->antishadow, &aerr)) {
+                    if (d->mesh.n_triangles > 0)
+                        return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column,
+                                        "portal \"%s\" with triangle %d of light \"%s\": %s", pd->name, m, d->name,
+                                        aerr.message);
+                    return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column, "portal \"%s\": %s",
+                                    pd->name, aerr.message);
+                }
+                ++s->n_portals;
+            }
+            l->n_portals = s->n_portals - l->first_portal;
+            e->n_portals = l->n_portals;
+            ++s->n_lights;
         }
-        l->n_portals = s->n_portals - l->first_portal;
     }
     return true;
 }
@@ -216,7 +270,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     if (!stitched) goto fail;
     for (int i = 0, face0 = 0; i < cfg->n_shapes; ++i) {
         const struct shape_desc *sh = &cfg->shapes[i];
-        struct geometry_info info = { sh->material, -1 };
+        struct geometry_info info = { sh->material, -1, false };
         for (int v = 0; v < sh->n_vertices; ++v) bounds_add(&lo, &hi, sh->vertices[v]);
         if (!add_shape(s, sh, &w, face0, info, err)) {
             watertight_free(&w);
@@ -226,9 +280,29 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     }
     watertight_free(&w);
     if (!build_lights(s, cfg, err)) goto fail;
-    for (int i = 0; i < s->n_lights; ++i) {
-        const struct polygon *poly = &s->lights[i].target.polygon;
-        struct geometry_info info = { -1, i };
+    for (int i = 0; i < s->n_emitters; ++i) {
+        const struct emitter *e = &s->emitters[i];
+        const struct shape_desc *mesh = &cfg->lights[i].mesh;
+        if (mesh->n_triangles > 0) {
+            /* One geometry for the whole mesh: its primitive k is light k. */
+            struct geometry_info info = { -1, e->first_light, true };
+            for (int v = 0; v < mesh->n_vertices; ++v) bounds_add(&lo, &hi, mesh->vertices[v]);
+            if (!add_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, 3, info, err))
+                goto fail;
+            /* And alone, for scene_emitter_hit. */
+            RTCGeometry g =
+                new_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, 3, err);
+            if (!g) goto fail;
+            RTCScene own = rtcNewScene(s->device);
+            rtcSetSceneFlags(own, RTC_SCENE_FLAG_ROBUST);
+            rtcAttachGeometry(own, g);
+            rtcReleaseGeometry(g);
+            rtcCommitScene(own);
+            s->emitters[i].rtc_scene = own;
+            continue;
+        }
+        const struct polygon *poly = &s->lights[e->first_light].target.polygon;
+        struct geometry_info info = { -1, e->first_light, false };
         int fan[3 * (POLYGON_MAX - 2)];
         for (int k = 0; k + 2 < poly->n; ++k) fan[3 * k] = 0, fan[3 * k + 1] = k + 1, fan[3 * k + 2] = k + 2;
         for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
@@ -259,6 +333,9 @@ void scene_destroy(struct scene *s)
     if (s->device) rtcReleaseDevice(s->device);
     free(s->materials);
     free(s->lights);
+    for (int i = 0; s->emitters && i < s->n_emitters; ++i)
+        if (s->emitters[i].rtc_scene) rtcReleaseScene(s->emitters[i].rtc_scene);
+    free(s->emitters);
     free(s->portals);
     free(s->geometries);
     memset(s, 0, sizeof *s);
@@ -284,7 +361,7 @@ static void hit_from_embree(const struct scene *s, struct vec3 o, struct vec3 d,
     h->p = vec3_madd(o, d, h->t);
     h->ng = vec3_normalize(vec3_make(rh->hit.Ng_x, rh->hit.Ng_y, rh->hit.Ng_z));
     h->material = g->material;
-    h->light = g->light;
+    h->light = geometry_light(g, rh->hit.primID);
 }
 
 static void rayhit_setup(struct RTCRayHit *rh, struct vec3 o, struct vec3 d, double tmax)
@@ -337,7 +414,7 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
     struct RTCRayHit rh;
-    return trace_closest(s, o, d, tmax, &rh) ? s->geometries[rh.hit.geomID].light : -1;
+    return trace_closest(s, o, d, tmax, &rh) ? geometry_light(&s->geometries[rh.hit.geomID], rh.hit.primID) : -1;
 }
 
 /* Embree's view of a stream's arrays. */
@@ -369,8 +446,31 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
     rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);
     for (int i = 0; i < n; ++i) {
         unsigned g = rays->geom_id[i];
-        light[i] = g != RTC_INVALID_GEOMETRY_ID ? s->geometries[g].light : -1;
+        light[i] = g != RTC_INVALID_GEOMETRY_ID ? geometry_light(&s->geometries[g], rays->prim_id[i]) : -1;
     }
+}
+
+int scene_emitter_hit(const struct scene *s, int emitter, struct vec3 o, struct vec3 d, double *dist)
+{
+    const struct emitter *e = &s->emitters[emitter];
+    if (!e->rtc_scene) {
+        /* A polygon light (or a scene built without Embree, as tests do). */
+        int best = -1;
+        for (int i = e->first_light; i < e->first_light + e->n_lights; ++i) {
+            double t;
+            if (polygon_intersect_ray(&s->lights[i].target.polygon, o, d, &t) && (best < 0 || t < *dist))
+                best = i, *dist = t;
+        }
+        return best;
+    }
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    rayhit_setup(&rh, o, d, INFINITY);
+    rtcIntersect1(e->rtc_scene, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
+    *dist = rh.ray.tfar;
+    return e->first_light + (int)rh.hit.primID;
 }
 
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)

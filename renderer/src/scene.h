@@ -25,17 +25,39 @@ struct portal {
     struct antishadow antishadow;
 };
 
+/* A light as the config names it: one polygon light, or a mesh light whose
+   every triangle is a light of its own (lights first_light.. first_light +
+   n_lights - 1, in the mesh's order). Each of its lights holds its own copy
+   of each of the emitter's n_portals portals, in the same order, with the
+   antishadow of that light and that portal; a portal therefore has the
+   index lights[l].first_portal + k in every light l of the emitter. */
+struct emitter {
+    int first_light, n_lights;
+    int n_portals;   /* per light */
+    double power;    /* sum of its lights' */
+    void *rtc_scene; /* a mesh light's triangles alone (RTCScene), NULL for a polygon light */
+};
+
 /* What a geometry stands for: a surface with a material, or a light. */
 struct geometry_info {
-    int material; /* -1 for lights */
-    int light;    /* -1 for surfaces */
+    int material;        /* -1 for lights */
+    int light;           /* -1 for surfaces; the first light of a mesh light */
+    bool light_per_prim; /* a mesh light: primitive k is light `light + k` */
 };
+
+/* The light a hit on primitive prim of geometry g found, -1 for a surface. */
+static inline int geometry_light(const struct geometry_info *g, unsigned prim)
+{
+    return g->light < 0 ? -1 : g->light + (g->light_per_prim ? (int)prim : 0);
+}
 
 struct scene {
     int n_materials;
     struct material *materials;
     int n_lights;
     struct light *lights;
+    int n_emitters;
+    struct emitter *emitters; /* one per config light; lights[i].emitter */
     int n_portals;
     struct portal *portals; /* grouped by light: light.first_portal.. */
     int n_geometries;
@@ -85,6 +107,11 @@ struct scene_ray {
     struct vec3 o, d;
     double tmax;
 };
+
+/* The light of emitter `emitter` that the ray o + t d (t > 0, d unit)
+   meets first, ignoring everything else in the scene, with its distance;
+   -1 when it misses the emitter. O(log n) in a mesh light's triangles. */
+int scene_emitter_hit(const struct scene *s, int emitter, struct vec3 o, struct vec3 d, double *dist);
 
 /* True when anything blocks o + t d for t in (0, tmax). */
 bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);

@@ -34,9 +34,14 @@ enum technique {
     TECHNIQUE_VISIBLE_SOLID /* uniform solid angle of that clipped projection */
 };
 
+/* A pair of an emitter (scene.h) and one of its portals. For a polygon
+   light, `light` is its light; for a mesh light, `light` and `portal` name
+   the first triangle's light and portal copy, and a sample first picks a
+   triangle by power (its "member" pair: the same portal of that triangle). */
 struct strategy_pair {
     int light;
     int portal; /* -1: the light alone */
+    int emitter;
 };
 
 struct strategy {
@@ -47,10 +52,12 @@ struct strategy {
     struct alias_table power; /* lights by power */
     int n_pairs;
     struct strategy_pair *pairs;
-    int *first_pair;     /* per light: index of its first pair */
-    bool use_bvh;        /* antishadow strategies: candidates from the BVH */
-    struct aabb *shade;  /* per light: where a point counts as inside its shade */
-    struct pair_bvh bvh; /* over the pairs' lit regions */
+    int *first_pair;             /* per emitter: index of its first pair */
+    struct alias_table *members; /* per emitter: its lights by power (n = 0 for a polygon light) */
+    struct vec3 *centre;         /* per emitter: area-weighted centroid (the distance heuristic) */
+    bool use_bvh;                /* antishadow strategies: candidates from the BVH */
+    struct aabb *shade;          /* per emitter: where a point counts as inside its shade */
+    struct pair_bvh bvh;         /* over the pairs' lit regions */
 };
 
 bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err);

@@ -1,5 +1,6 @@
 #include "watertight.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -28,34 +29,97 @@ static int cmp_vec3(const void *pa, const void *pb)
     return 0;
 }
 
-struct cell_entry {
-    uint64_t key;
+/* Hash of 64 bits (the finaliser of MurmurHash3): cell keys and vertex
+   bits are far from uniform, the table's slots must not be. */
+static uint64_t mix64(uint64_t h)
+{
+    h ^= h >> 33;
+    h *= 0xff51afd7ed558ccdull;
+    h ^= h >> 33;
+    h *= 0xc4ceb9fe1a85ec53ull;
+    h ^= h >> 33;
+    return h;
+}
+
+/* The smallest power of two >= 2 n (open addressing stays under half full). */
+static size_t table_size(size_t n)
+{
+    size_t size = 16;
+    while (size < 2 * n) size *= 2;
+    return size;
+}
+
+static uint64_t double_bits(double x)
+{
+    uint64_t u;
+    x += 0.0; /* -0 and +0 compare equal (cmp_vec3), so they must hash alike */
+    memcpy(&u, &x, sizeof u);
+    return u;
+}
+
+/* The distinct positions of corners[0..n) (equal under cmp_vec3), each the
+   first of its kind in corner order, sorted by cmp_vec3: what a stable
+   sort of all corners followed by keeping the first of each run gives, but
+   sorting only the distinct ones (a mesh's corners repeat each vertex about
+   six times). Returns their count, or -1 when out of memory. */
+static int unique_sorted(const struct vec3 *corners, size_t n, struct vec3 *out)
+{
+    size_t size = table_size(n);
+    int *slot = malloc(sizeof *slot * size);
+    if (!slot) return -1;
+    memset(slot, 0xff, sizeof *slot * size); /* -1: empty */
+    int u = 0;
+    for (size_t i = 0; i < n; ++i) {
+        struct vec3 p = corners[i];
+        uint64_t h = mix64(double_bits(p.x) ^ mix64(double_bits(p.y) ^ mix64(double_bits(p.z))));
+        size_t k = (size_t)h & (size - 1);
+        while (slot[k] >= 0 && cmp_vec3(&out[slot[k]], &p) != 0) k = (k + 1) & (size - 1);
+        if (slot[k] < 0) {
+            slot[k] = u;
+            out[u++] = p;
+        }
+    }
+    free(slot);
+    qsort(out, (size_t)u, sizeof *out, cmp_vec3);
+    return u;
+}
+
+/* A point entered in a cell, with its position: a cell's candidates are
+   then contiguous in memory (one cache miss per cell, not per point). */
+struct cell_point {
+    struct vec3 p;
     int point;
 };
 
-static int cmp_entry(const void *pa, const void *pb)
-{
-    const struct cell_entry *a = pa, *b = pb;
-    if (a->key != b->key) return a->key < b->key ? -1 : 1;
-    return (a->point > b->point) - (a->point < b->point);
-}
-
-/* A uniform grid over the distinct vertex positions, stored as entries
-   sorted by cell key (no hash table needed: a cell is a binary search). A
-   point is entered in every cell its tolerance box touches, so a query only
-   has to visit the cells the edge itself passes through. */
-struct grid {
-    struct vec3 lo;
-    double cell;
-    int n_points;
-    struct vec3 *points;
-    int n_entries;
-    struct cell_entry *entries;
+/* One occupied grid cell: its points are cell_points[start .. start +
+   count), in increasing point order. */
+struct cell_slot {
+    uint64_t key; /* CELL_EMPTY when the slot is free */
+    int start, count;
 };
 
-static int64_t cell_coord(double x, double lo, double cell)
+#define CELL_EMPTY UINT64_MAX /* cell keys use 3 * GRID_BITS < 64 bits */
+
+/* A uniform grid over the distinct vertex positions, as a hash table from
+   cell to the points in it (one probe per visited cell). A point is entered
+   in every cell its tolerance box touches, so a query only has to visit the
+   cells the edge itself passes through. */
+struct grid {
+    struct vec3 lo;
+    double cell, inv_cell;
+    int n_points;
+    struct vec3 *points;
+    size_t n_slots; /* a power of two */
+    struct cell_slot *slots;
+    struct cell_point *cell_points;
+};
+
+/* The cell of coordinate x, given 1 / cell size: any mapping that is
+   monotonic in x finds every point (a point and a segment piece within eps
+   of it share a cell on each axis), and the exact distance test decides. */
+static int64_t cell_coord(double x, double lo, double inv_cell)
 {
-    double c = floor((x - lo) / cell);
+    double c = floor((x - lo) * inv_cell);
     if (!(c >= 0.0)) return 0;
     return c >= (double)(GRID_MAX - 1) ? GRID_MAX - 1 : (int64_t)c;
 }
@@ -65,16 +129,50 @@ static uint64_t cell_key(int64_t ix, int64_t iy, int64_t iz)
     return (uint64_t)ix | (uint64_t)iy << GRID_BITS | (uint64_t)iz << (2 * GRID_BITS);
 }
 
-/* Index of the first entry with key >= k. */
-static int grid_lower_bound(const struct grid *g, uint64_t k)
+/* The slot of cell `key`: its own, or the free one where it would go. */
+static struct cell_slot *grid_slot(const struct grid *g, uint64_t key)
 {
-    int lo = 0, hi = g->n_entries;
-    while (lo < hi) {
-        int mid = lo + (hi - lo) / 2;
-        if (g->entries[mid].key < k) lo = mid + 1;
-        else hi = mid;
+    size_t k = (size_t)mix64(key) & (g->n_slots - 1);
+    while (g->slots[k].key != CELL_EMPTY && g->slots[k].key != key) k = (k + 1) & (g->n_slots - 1);
+    return &g->slots[k];
+}
+
+/* The last cells looked up, direct-mapped by position: neighbouring faces
+   (a mesh's faces come in surface order) visit the same cells, which then
+   cost no probe of the table, whose slots are scattered by the hash. */
+#define CELL_CACHE 256
+
+struct cell_cache {
+    uint64_t key[CELL_CACHE];
+    const struct cell_slot *slot[CELL_CACHE];
+};
+
+static const struct cell_slot *grid_cached(const struct grid *g, struct cell_cache *cache, int64_t x, int64_t y,
+                                           int64_t z)
+{
+    uint64_t key = cell_key(x, y, z);
+    size_t i = (size_t)(x + 17 * y + 31 * z) & (CELL_CACHE - 1);
+    if (cache->key[i] != key) {
+        cache->key[i] = key;
+        cache->slot[i] = grid_slot(g, key);
     }
-    return lo;
+    return cache->slot[i];
+}
+
+/* The cells point i's tolerance box touches, at most 2 per axis (eps is far
+   below a cell); returns how many were written to keys. */
+static int point_cells(const struct grid *g, double eps, int i, uint64_t keys[8])
+{
+    struct vec3 p = g->points[i];
+    double inv = g->inv_cell;
+    int64_t x0 = cell_coord(p.x - eps, g->lo.x, inv), x1 = cell_coord(p.x + eps, g->lo.x, inv);
+    int64_t y0 = cell_coord(p.y - eps, g->lo.y, inv), y1 = cell_coord(p.y + eps, g->lo.y, inv);
+    int64_t z0 = cell_coord(p.z - eps, g->lo.z, inv), z1 = cell_coord(p.z + eps, g->lo.z, inv);
+    int m = 0;
+    for (int64_t z = z0; z <= z1 && z <= z0 + 1; ++z)
+        for (int64_t y = y0; y <= y1 && y <= y0 + 1; ++y)
+            for (int64_t x = x0; x <= x1 && x <= x0 + 1; ++x) keys[m++] = cell_key(x, y, z);
+    return m;
 }
 
 static bool grid_build(const struct watertight_face *faces, int n, double *eps_out, struct grid *g, struct error *err)
@@ -82,20 +180,22 @@ static bool grid_build(const struct watertight_face *faces, int n, double *eps_o
     memset(g, 0, sizeof *g);
     size_t n_corners = 0;
     for (int f = 0; f < n; ++f) n_corners += (size_t)faces[f].n;
+    struct vec3 *corners = malloc(sizeof *corners * (n_corners > 0 ? n_corners : 1));
     g->points = malloc(sizeof *g->points * (n_corners > 0 ? n_corners : 1));
-    if (!g->points) return error_set(err, "out of memory stitching %d faces", n);
+    if (!corners || !g->points) {
+        free(corners);
+        return error_set(err, "out of memory stitching %d faces", n);
+    }
     double edge_sum = 0.0;
     size_t k = 0;
     for (int f = 0; f < n; ++f)
         for (int i = 0; i < faces[f].n; ++i) {
-            g->points[k++] = faces[f].v[i];
+            corners[k++] = faces[f].v[i];
             edge_sum += vec3_length(vec3_sub(faces[f].v[(i + 1) % faces[f].n], faces[f].v[i]));
         }
-    qsort(g->points, n_corners, sizeof *g->points, cmp_vec3);
-    size_t u = 0;
-    for (size_t i = 0; i < n_corners; ++i)
-        if (u == 0 || cmp_vec3(&g->points[u - 1], &g->points[i]) != 0) g->points[u++] = g->points[i];
-    g->n_points = (int)u;
+    g->n_points = unique_sorted(corners, n_corners, g->points);
+    free(corners);
+    if (g->n_points < 0) return error_set(err, "out of memory stitching %d faces", n);
 
     struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
     for (int i = 0; i < g->n_points; ++i) {
@@ -115,23 +215,41 @@ static bool grid_build(const struct watertight_face *faces, int n, double *eps_o
     if (!(cell > 0.0) || !isfinite(cell)) cell = scale;
     g->lo = vec3_make(lo.x - eps, lo.y - eps, lo.z - eps);
     g->cell = cell;
+    g->inv_cell = 1.0 / cell;
 
-    g->entries = malloc(sizeof *g->entries * (size_t)8 * (u > 0 ? u : 1));
-    if (!g->entries) return error_set(err, "out of memory stitching %d faces", n);
-    int m = 0;
+    /* Count the points per cell, lay the cells out one after the other,
+       then fill them in point order. The table has room for every (point,
+       cell) pair, so it stays at most half full. */
+    uint64_t keys[8];
+    size_t m = 0;
+    for (int i = 0; i < g->n_points; ++i) m += (size_t)point_cells(g, eps, i, keys);
+    if (m > (size_t)INT_MAX) return error_set(err, "too many vertices stitching %d faces", n);
+    g->n_slots = table_size(m);
+    g->slots = malloc(sizeof *g->slots * g->n_slots);
+    g->cell_points = malloc(sizeof *g->cell_points * (m > 0 ? m : 1));
+    if (!g->slots || !g->cell_points) return error_set(err, "out of memory stitching %d faces", n);
+    for (size_t s = 0; s < g->n_slots; ++s) g->slots[s] = (struct cell_slot){ CELL_EMPTY, 0, 0 };
     for (int i = 0; i < g->n_points; ++i) {
-        struct vec3 p = g->points[i];
-        int64_t x0 = cell_coord(p.x - eps, g->lo.x, cell), x1 = cell_coord(p.x + eps, g->lo.x, cell);
-        int64_t y0 = cell_coord(p.y - eps, g->lo.y, cell), y1 = cell_coord(p.y + eps, g->lo.y, cell);
-        int64_t z0 = cell_coord(p.z - eps, g->lo.z, cell), z1 = cell_coord(p.z + eps, g->lo.z, cell);
-        /* eps is far below a cell, so the box touches at most 2 cells per axis. */
-        for (int64_t z = z0; z <= z1 && z <= z0 + 1; ++z)
-            for (int64_t y = y0; y <= y1 && y <= y0 + 1; ++y)
-                for (int64_t x = x0; x <= x1 && x <= x0 + 1; ++x)
-                    g->entries[m++] = (struct cell_entry){ cell_key(x, y, z), i };
+        int nk = point_cells(g, eps, i, keys);
+        for (int j = 0; j < nk; ++j) {
+            struct cell_slot *c = grid_slot(g, keys[j]);
+            c->key = keys[j];
+            ++c->count;
+        }
     }
-    g->n_entries = m;
-    qsort(g->entries, (size_t)m, sizeof *g->entries, cmp_entry);
+    int start = 0;
+    for (size_t s = 0; s < g->n_slots; ++s) {
+        g->slots[s].start = start;
+        start += g->slots[s].count;
+        g->slots[s].count = 0;
+    }
+    for (int i = 0; i < g->n_points; ++i) {
+        int nk = point_cells(g, eps, i, keys);
+        for (int j = 0; j < nk; ++j) {
+            struct cell_slot *c = grid_slot(g, keys[j]);
+            g->cell_points[c->start + c->count++] = (struct cell_point){ g->points[i], i };
+        }
+    }
     *eps_out = eps;
     return true;
 }
@@ -139,7 +257,8 @@ static bool grid_build(const struct watertight_face *faces, int n, double *eps_o
 static void grid_free(struct grid *g)
 {
     free(g->points);
-    free(g->entries);
+    free(g->slots);
+    free(g->cell_points);
 }
 
 /* A vertex found on an edge: where along it (0..1), and which point. */
@@ -177,8 +296,8 @@ static bool list_push(struct on_edge_list *l, struct on_edge e, struct error *er
    open segment a..b and farther than eps from both ends. The segment is
    walked in pieces no longer than a cell, and each piece visits the cells
    of its bounding box. */
-static bool edge_find(const struct grid *g, double eps, struct vec3 a, struct vec3 b, struct on_edge_list *l,
-                      struct error *err)
+static bool edge_find(const struct grid *g, struct cell_cache *cache, double eps, struct vec3 a, struct vec3 b,
+                      struct on_edge_list *l, struct error *err)
 {
     struct vec3 d = vec3_sub(b, a);
     double len2 = vec3_length2(d), len = sqrt(len2);
@@ -188,24 +307,25 @@ static bool edge_find(const struct grid *g, double eps, struct vec3 a, struct ve
     int steps = steps_d < 1.0 ? 1 : steps_d > 4.0 * (double)GRID_MAX ? (int)(4 * GRID_MAX) : (int)steps_d;
     for (int s = 0; s < steps; ++s) {
         struct vec3 p0 = vec3_madd(a, d, (double)s / steps), p1 = vec3_madd(a, d, (double)(s + 1) / steps);
-        int64_t x0 = cell_coord(fmin(p0.x, p1.x), g->lo.x, g->cell),
-                x1 = cell_coord(fmax(p0.x, p1.x), g->lo.x, g->cell);
-        int64_t y0 = cell_coord(fmin(p0.y, p1.y), g->lo.y, g->cell),
-                y1 = cell_coord(fmax(p0.y, p1.y), g->lo.y, g->cell);
-        int64_t z0 = cell_coord(fmin(p0.z, p1.z), g->lo.z, g->cell),
-                z1 = cell_coord(fmax(p0.z, p1.z), g->lo.z, g->cell);
+        int64_t x0 = cell_coord(fmin(p0.x, p1.x), g->lo.x, g->inv_cell),
+                x1 = cell_coord(fmax(p0.x, p1.x), g->lo.x, g->inv_cell);
+        int64_t y0 = cell_coord(fmin(p0.y, p1.y), g->lo.y, g->inv_cell),
+                y1 = cell_coord(fmax(p0.y, p1.y), g->lo.y, g->inv_cell);
+        int64_t z0 = cell_coord(fmin(p0.z, p1.z), g->lo.z, g->inv_cell),
+                z1 = cell_coord(fmax(p0.z, p1.z), g->lo.z, g->inv_cell);
         for (int64_t z = z0; z <= z1; ++z)
             for (int64_t y = y0; y <= y1; ++y)
                 for (int64_t x = x0; x <= x1; ++x) {
-                    uint64_t key = cell_key(x, y, z);
-                    for (int e = grid_lower_bound(g, key); e < g->n_entries && g->entries[e].key == key; ++e) {
-                        struct vec3 p = g->points[g->entries[e].point];
+                    const struct cell_slot *c = grid_cached(g, cache, x, y, z);
+                    for (int e = c->start; e < c->start + c->count; ++e) {
+                        int point = g->cell_points[e].point;
+                        struct vec3 p = g->cell_points[e].p;
                         struct vec3 ap = vec3_sub(p, a);
                         double t = vec3_dot(ap, d) / len2;
                         double along = t * len;
                         if (!(along > eps && along < len - eps)) continue;
                         if (vec3_length(vec3_sub(ap, vec3_scale(d, t))) > eps) continue;
-                        if (!list_push(l, (struct on_edge){ t, g->entries[e].point }, err)) return false;
+                        if (!list_push(l, (struct on_edge){ t, point }, err)) return false;
                     }
                 }
     }
@@ -274,12 +394,19 @@ bool watertight_stitch(const struct watertight_face *faces, int n, struct watert
     struct on_edge_list edge = { 0, 0, NULL };
     struct vec3 *loop = NULL;
     int loop_cap = 0, tri_cap = 0;
+    struct cell_cache *cache = malloc(sizeof *cache);
+    if (!cache) {
+        free(out->first);
+        out->first = NULL;
+        return error_set(err, "out of memory stitching %d faces", n);
+    }
+    for (int i = 0; i < CELL_CACHE; ++i) cache->key[i] = CELL_EMPTY;
     bool ok = grid_build(faces, n, &eps, &g, err);
     for (int f = 0; ok && f < n; ++f) {
         const struct watertight_face *fc = &faces[f];
         int m = 0, corner_at[WATERTIGHT_FACE_MAX];
         for (int i = 0; ok && i < fc->n; ++i) {
-            ok = edge_find(&g, eps, fc->v[i], fc->v[(i + 1) % fc->n], &edge, err);
+            ok = edge_find(&g, cache, eps, fc->v[i], fc->v[(i + 1) % fc->n], &edge, err);
             if (!ok) break;
             if (m + 1 + edge.n > loop_cap) {
                 int cap = 2 * (m + 1 + edge.n);
@@ -302,6 +429,7 @@ bool watertight_stitch(const struct watertight_face *faces, int n, struct watert
     }
     free(loop);
     free(edge.items);
+    free(cache);
     grid_free(&g);
     if (!ok) watertight_free(out);
     return ok;

@@ -301,3 +301,58 @@ def test_09_the_pilot_sets_the_first_reference_time(
         assert 2.0 <= first["time_s"] <= 5.0 and abs(first["time_s"] - round(first["time_s"])) < 0.05, first
         assert second["time_s"] == pytest.approx(1.0, abs=0.02)
         assert all(c["ok"] for c in ref["noise"])
+
+
+def test_10_run_keys_follow_the_included_files_and_meshes(
+    cli: CliRunner,
+    write_experiment: Callable[..., Path],
+    fake_scene: Path,
+    results: Path,
+    render_log: Callable[[], list[str]],
+) -> None:
+    import yaml
+
+    # scenes/top.yaml includes parts/base.yaml (the tiny lampshade), which reads two
+    # meshes by paths relative to itself
+    meshes = fake_scene.parent.parent / "meshes"
+    meshes.mkdir()
+    for name in ("cube.obj", "polys_le.ply"):
+        shutil.copy(Path(__file__).resolve().parent.parent / "configs" / "meshes" / name, meshes / name)
+    tree = yaml.safe_load(fake_scene.read_text())
+    away = [{"translate": [40, 0, 0]}]  # out of sight: the fake renders from the effective config anyway
+    tree["shapes"] += [
+        {"name": "cube", "type": "mesh", "material": "white", "file": "../../meshes/cube.obj", "transform": away},
+        {"name": "polys", "type": "mesh", "material": "red", "file": "../../meshes/polys_le.ply", "transform": away},
+    ]
+    base = fake_scene.parent / "parts" / "base.yaml"
+    base.parent.mkdir()
+    base.write_text(yaml.safe_dump(tree, sort_keys=False))
+    (fake_scene.parent / "top.yaml").write_text("include: parts/base.yaml\nfilm: {width: 16}\n")
+    exp = write_experiment(scene="../scenes/top.yaml")
+
+    def sweep() -> set[str]:
+        before = len(render_log())
+        status, out, err = cli("sweep", str(exp), "--no-progress")
+        assert status == 0, out + err
+        return set(_keys_rendered(render_log()[before:]))
+
+    first = sweep()
+    assert len(first) == 2 + 2 + 4  # region maps, references, runs
+    assert sweep() == set()
+    # a touched file with the same bytes is the same scene: nothing is rendered again
+    for f in (meshes / "cube.obj", meshes / "polys_le.ply", base):
+        os.utime(f, ns=(0, 0))
+    assert sweep() == set()
+    # new bytes in a mesh, or in the included file: every render is redone, under new keys
+    ply = (meshes / "polys_le.ply").read_bytes()
+    at = ply.index(b"end_header\n") + len(b"end_header\n")  # the lowest byte of the first vertex's x
+    seen = set(first)
+    for f, data in (
+        (meshes / "polys_le.ply", ply[:at] + bytes([ply[at] ^ 1]) + ply[at + 1 :]),
+        (meshes / "cube.obj", (meshes / "cube.obj").read_bytes() + b"# more\n"),
+        (base, base.read_bytes() + b"# more\n"),
+    ):
+        f.write_bytes(data)
+        rendered = sweep()
+        assert len(rendered) == 8 and not rendered & seen, f.name
+        seen |= rendered

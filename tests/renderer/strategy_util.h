@@ -10,12 +10,13 @@
 #include "strategy.h"
 #include "testlib.h"
 
-#define TS_MAX 8
+#define TS_MAX 16
 
 struct test_scene {
     struct scene scene;
     struct light lights[TS_MAX];
     struct portal portals[TS_MAX];
+    struct emitter emitters[TS_MAX]; /* one per light (polygon lights) */
 };
 
 static inline struct polygon square_y(double cx, double y, double cz, double side, bool facing_down)
@@ -37,6 +38,7 @@ static inline void ts_init(struct test_scene *ts)
     memset(ts, 0, sizeof *ts);
     ts->scene.lights = ts->lights;
     ts->scene.portals = ts->portals;
+    ts->scene.emitters = ts->emitters;
     /* Bounds as scene_create would set them: a room around everything. */
     ts->scene.bounds_lo = vec3_make(-5, -1, -5);
     ts->scene.bounds_hi = vec3_make(5, 5, 5);
@@ -49,6 +51,9 @@ static inline int ts_add_light(struct test_scene *ts, struct polygon poly, struc
     int i = ts->scene.n_lights++;
     CHECK(light_init(&ts->lights[i], &poly, radiance, two_sided));
     ts->lights[i].first_portal = ts->scene.n_portals;
+    int e = ts->scene.n_emitters++;
+    ts->lights[i].emitter = e;
+    ts->emitters[e] = (struct emitter){ i, 1, 0, ts->lights[i].power, NULL };
     return i;
 }
 
@@ -63,6 +68,29 @@ static inline void ts_add_portal(struct test_scene *ts, int light, struct polygo
     bool ok = antishadow_build(&ts->lights[light].target.polygon, &pt->target.polygon, &pt->antishadow, &err);
     CHECK_MSG(ok, "antishadow_build: %s", err.message);
     ts->lights[light].n_portals++;
+    ts->emitters[ts->lights[light].emitter].n_portals++;
+}
+
+/* Adds a mesh light: each of the n triangles becomes a light of one new
+   emitter, each with its own copy of each of the n_portals portals (the
+   layout scene_create builds, scene.h). Returns the emitter. */
+static inline int ts_add_mesh_light(struct test_scene *ts, const struct polygon *tris, int n, struct rgb radiance,
+                                    bool two_sided, const struct polygon *portals, int n_portals)
+{
+    int e = ts->scene.n_emitters++;
+    ts->emitters[e] = (struct emitter){ ts->scene.n_lights, n, n_portals, 0.0, NULL };
+    for (int i = 0; i < n; ++i) {
+        int l = ts->scene.n_lights++;
+        CHECK(light_init(&ts->lights[l], &tris[i], radiance, two_sided));
+        ts->lights[l].first_portal = ts->scene.n_portals;
+        ts->lights[l].emitter = e;
+        ts->emitters[e].power += ts->lights[l].power;
+        for (int k = 0; k < n_portals; ++k) {
+            ts_add_portal(ts, l, portals[k]);
+            ts->emitters[e].n_portals--; /* ts_add_portal counts per light; the emitter's count is per light too */
+        }
+    }
+    return e;
 }
 
 /* The first light along dir from p (-1 if none) and its distance. */

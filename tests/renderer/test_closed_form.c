@@ -212,7 +212,102 @@ static void test_multi_lamp_brute_force(void)
     config_free(&cfg);
 }
 
+/* The lampshade's lamp as a mesh light (good/mesh_light_grid.yaml: the
+   same square as 12 unequal triangles) gives the quad lamp's closed form at
+   floor points of every region: each strategy picks a triangle by power and
+   classifies it on its own, so a point sees triangles of several regions. */
+static void test_mesh_light_grid(void)
+{
+    struct config cfg, qcfg;
+    struct scene sc, qsc;
+    if (!load_scene("tests/configs/good/mesh_light_grid.yaml", NULL, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    if (!load_scene("configs/scenes/lampshade.yaml", "0.6", &qcfg, &qsc)) {
+        CHECK(false);
+        scene_destroy(&sc);
+        config_free(&cfg);
+        return;
+    }
+    CHECK(sc.n_emitters == 1 && sc.n_lights == 12 && sc.n_portals == 12);
+    int white = material_named(&cfg, "white");
+    struct vec3 points[] = { { 0, 0, 0 },      { -0.3, 0, 0.2 }, { -0.676, 0, 0 },
+                             { -1.0, 0, 0.4 }, { 0, 0, 2.0 },    { -2.55, 0, 0.3 } };
+    for (size_t i = 0; i < sizeof points / sizeof points[0]; ++i) {
+        double exact = lampshade_exact(&qsc, &qcfg, material_named(&qcfg, "white"), points[i]);
+        check_estimates(&sc, &cfg, white, points[i], vec3_make(0, 1, 0), exact, 0.0, "mesh light grid");
+    }
+    scene_destroy(&qsc);
+    config_free(&qcfg);
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
+/* Midpoint rule over every light triangle (each cut into g^2 triangles),
+   with ray-traced visibility from p (normal n): sum of L_e cos cos / r^2 dA. */
+static double brute_force_triangles(const struct scene *sc, struct vec3 p, struct vec3 n, double albedo, int g)
+{
+    struct vec3 origin = scene_offset_origin(sc, p, n, n);
+    double sum = 0.0;
+    for (int l = 0; l < sc->n_lights; ++l) {
+        const struct light *li = &sc->lights[l];
+        if (li->target.polygon.n != 3) return NAN;
+        const struct vec3 *v = li->target.polygon.v;
+        struct vec3 e1 = vec3_sub(v[1], v[0]), e2 = vec3_sub(v[2], v[0]);
+        double da = li->target.area / ((double)g * g);
+        for (int i = 0; i < g; ++i)
+            for (int j = 0; i + j < g; ++j)
+                for (int up = 0; up < (i + j < g - 1 ? 2 : 1); ++up) {
+                    double a = (3.0 * i + 1.0 + up) / (3.0 * g), b = (3.0 * j + 1.0 + up) / (3.0 * g);
+                    struct vec3 y = vec3_add(v[0], vec3_add(vec3_scale(e1, a), vec3_scale(e2, b)));
+                    struct vec3 d = vec3_sub(y, p);
+                    double r2 = vec3_length2(d);
+                    struct vec3 w = vec3_scale(d, 1.0 / sqrt(r2));
+                    double cos_p = vec3_dot(w, n);
+                    double le = light_emitted(li, vec3_neg(w)).r;
+                    if (cos_p <= 0.0 || le == 0.0) continue;
+                    if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w))))
+                        continue;
+                    sum += le * cos_p * fabs(vec3_dot(w, li->target.normal)) / r2 * da;
+                }
+    }
+    return albedo / M_PI * sum;
+}
+
+/* A round bulb (good/mesh_light_sphere.yaml: 80 triangles emitting
+   outwards, moved off-centre by a transform) behind the square opening:
+   floor points below and beside the opening, and a point inside the shade
+   on the inner face of its left wall, against brute-force integration. */
+static void test_mesh_light_sphere(void)
+{
+    struct config cfg;
+    struct scene sc;
+    if (!load_scene("tests/configs/good/mesh_light_sphere.yaml", NULL, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    CHECK(sc.n_emitters == 1 && sc.n_lights == 80);
+    int white = material_named(&cfg, "white");
+    double albedo = cfg.materials[white].albedo.r;
+    static const struct {
+        struct vec3 p, n;
+    } cases[] = {
+        { { 0.0, 0, 0.0 }, { 0, 1, 0 } }, { { 0.3, 0, -0.2 }, { 0, 1, 0 } },    { { -0.8, 0, 0.5 }, { 0, 1, 0 } },
+        { { 0.0, 0, 1.6 }, { 0, 1, 0 } }, { { -0.35, 2.4, 0.0 }, { 1, 0, 0 } },
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        double fine = brute_force_triangles(&sc, cases[i].p, cases[i].n, albedo, 24);
+        double coarse = brute_force_triangles(&sc, cases[i].p, cases[i].n, albedo, 12);
+        check_estimates(&sc, &cfg, white, cases[i].p, cases[i].n, fine, 2.0 * fabs(fine - coarse), "mesh light sphere");
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
 static const struct test_case tests[] = {
+    { "mesh_light_grid", test_mesh_light_grid },
+    { "mesh_light_sphere", test_mesh_light_sphere },
     { "lampshade_closed_form", test_lampshade_closed_form },
     { "multi_lamp_brute_force", test_multi_lamp_brute_force },
     { "inside_shade", test_inside_shade },

@@ -320,7 +320,35 @@ static void test_sample_many_matches_one(void)
     config_free(&cfg);
 }
 
+/* An octahedron of 8 triangles emitting outwards (a mesh light, one
+   emitter) behind a square portal, beside a quad light: every strategy
+   picks a triangle by power within the mesh light's pair, so the density
+   of a direction is that of the triangle it reaches. */
+static void test_mesh_light(void)
+{
+    struct test_scene ts;
+    ts_init(&ts);
+    struct vec3 c = vec3_make(0.05, 2.45, 0.0), ax[3] = { { 0.12, 0, 0 }, { 0, 0.1, 0 }, { 0, 0, 0.08 } };
+    struct polygon tris[8];
+    for (int i = 0; i < 8; ++i) {
+        struct vec3 x = vec3_scale(ax[0], i & 1 ? -1 : 1), y = vec3_scale(ax[1], i & 2 ? -1 : 1),
+                    z = vec3_scale(ax[2], i & 4 ? -1 : 1);
+        /* Counter-clockwise seen from outside: x, y, z is right-handed for an even number of flips. */
+        bool even = ((i & 1) + ((i >> 1) & 1) + ((i >> 2) & 1)) % 2 == 0;
+        tris[i] = (struct polygon){ 3, { vec3_add(c, x), vec3_add(c, even ? y : z), vec3_add(c, even ? z : y) } };
+    }
+    struct polygon portal = square_y(0, 2.2, 0, 0.3, true);
+    ts_add_mesh_light(&ts, tris, 8, warm, false, &portal, 1);
+    int l = ts_add_light(&ts, square_y(1.2, 2.6, 0.3, 0.2, true), warm, false);
+    ts_add_portal(&ts, l, square_y(1.2, 2.2, 0.3, 0.15, true));
+    CHECK(ts.scene.n_emitters == 2 && ts.scene.n_lights == 9 && ts.scene.n_portals == 9);
+    check_strategies(&ts, vec3_make(0.0, 0, 0.05), "mesh light below", 700, false);
+    check_strategies(&ts, vec3_make(0.7, 0, -0.4), "mesh light penumbra", 800, false);
+    check_strategies(&ts, vec3_make(0.15, 2.3, -0.1), "mesh light inside the shade", 900, true);
+}
+
 static const struct test_case tests[] = {
+    { "mesh_light", test_mesh_light },
     { "lampshade_regions", test_lampshade_regions },
     { "tilted_pentagon", test_tilted_pentagon },
     { "many_lights", test_many_lights },

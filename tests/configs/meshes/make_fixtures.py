@@ -108,6 +108,52 @@ def ply_ascii() -> bytes:
     return b
 
 
+def lamp_grid_obj() -> str:
+    """The lampshade's square lamp (side 0.6 at y = 2.6, emitting down) as 12
+    triangles of unequal areas, for the mesh-light tests."""
+    xs, zs = (-0.3, -0.1, 0.05, 0.3), (-0.3, 0.0, 0.3)
+    lines = ["# the lampshade's lamp at s_L = 0.6 as a mesh light: an uneven 3 x 2 grid, counter-clockwise from below"]
+    for z in zs:
+        lines.extend(f"v {x} 2.6 {z}" for x in xs)
+    for j in range(len(zs) - 1):
+        for i in range(len(xs) - 1):
+            a, b = 1 + j * len(xs) + i, 2 + j * len(xs) + i
+            c, d = b + len(xs), a + len(xs)
+            lines.append(f"f {a} {b} {c}")
+            lines.append(f"f {a} {c} {d}")
+    return "\n".join(lines) + "\n"
+
+
+def lamp_sphere_obj(segments: int = 8, rings: int = 6, radius: float = 0.12) -> str:
+    """A UV sphere of 2 * segments * (rings - 1) triangles centred at (0, 2.45, 0),
+    wound counter-clockwise seen from outside (it emits outwards): a bulb inside
+    the lampshade, for the mesh-light tests."""
+    import math
+
+    lines = [f"# UV sphere, radius {radius}, centre (0, 2.45, 0), {segments} segments, {rings} rings, outward"]
+    lines.append(f"v 0 {2.45 + radius} 0")
+    for r in range(1, rings):
+        theta = math.pi * r / rings
+        for k in range(segments):
+            phi = 2 * math.pi * k / segments
+            x, y, z = math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi)
+            lines.append(f"v {radius * x:.9f} {2.45 + radius * y:.9f} {radius * z:.9f}")
+    lines.append(f"v 0 {2.45 - radius} 0")
+    south = 2 + segments * (rings - 1)
+
+    def ring(r: int, k: int) -> int:
+        return 2 + (r - 1) * segments + k % segments
+
+    for k in range(segments):
+        lines.append(f"f 1 {ring(1, k + 1)} {ring(1, k)}")
+        lines.append(f"f {south} {ring(rings - 1, k)} {ring(rings - 1, k + 1)}")
+        for r in range(1, rings - 1):
+            a, b, c, d = ring(r, k), ring(r, k + 1), ring(r + 1, k + 1), ring(r + 1, k)
+            lines.append(f"f {a} {b} {c}")
+            lines.append(f"f {a} {c} {d}")
+    return "\n".join(lines) + "\n"
+
+
 def write(path: pathlib.Path, data: str | bytes) -> None:
     path.write_bytes(data if isinstance(data, bytes) else data.encode())
 
@@ -118,6 +164,8 @@ def main() -> None:
     write(HERE / "polys_ascii.ply", ply_ascii())
     write(HERE / "polys_le.ply", ply_binary("<"))
     write(HERE / "polys_be.ply", ply_binary(">"))
+    write(HERE / "lamp_grid.obj", lamp_grid_obj())
+    write(HERE / "lamp_sphere.obj", lamp_sphere_obj())
     # Bad ones.
     write(BAD / "index_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
     write(BAD / "negative_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n")
