@@ -33,17 +33,21 @@ SRCS := $(filter-out renderer/src/main.c,$(wildcard renderer/src/*.c))
 OBJS := $(SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
 TEST_SRCS := $(wildcard tests/renderer/test_*.c)
 TEST_BINS := $(TEST_SRCS:tests/renderer/%.c=$(BUILD)/tests/%)
-# The benchmark programs and the config fuzzer's plain replay driver, built
-# with the library's flags by every test-c so that they cannot rot.
+# The benchmark programs and the fuzzers' plain replay drivers, built with
+# the library's flags by every test-c so that they cannot rot.
 BENCH_BINS := $(BUILD)/bench/micro $(BUILD)/bench/raw_embree $(BUILD)/bench/mesh_load
 FUZZ_REPLAY := $(BUILD)/fuzz/fuzz_config_replay
 FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard tests/configs/fuzz)
-# The libFuzzer build (make fuzz): clang, the config loader's sources only.
+FUZZ_MESH_REPLAY := $(BUILD)/fuzz/fuzz_mesh_replay
+FUZZ_MESH_CORPUS := tests/configs/meshes tests/configs/bad/meshes $(wildcard tests/configs/fuzz_mesh)
+# The libFuzzer builds (make fuzz): clang, the config loader's sources only,
+# and the mesh loaders' sources only.
 FUZZ_CC ?= clang
 FUZZ_BUILD := renderer/build-fuzz
 FUZZ_SRCS := $(wildcard renderer/src/config*.c) $(wildcard renderer/src/*_kind.c) renderer/src/json_write.c \
              renderer/src/mesh_file.c renderer/src/ply_check.c renderer/src/transform.c \
              renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
+FUZZ_MESH_SRCS := renderer/src/mesh_file.c renderer/src/ply_check.c renderer/src/error.c
 DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
 VENV_STAMP := $(VENV)/.installed
@@ -121,18 +125,26 @@ $(BUILD)/fuzz/%.o: renderer/fuzz/%.c | $(DEPS_STAMP)
 $(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(FUZZ_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
 	$(CC) $(ALL_CFLAGS) $^ -o $@ -lyaml -lassimp -lm -pthread
 
+$(FUZZ_MESH_REPLAY): $(BUILD)/fuzz/fuzz_mesh.o $(BUILD)/fuzz/replay.o $(FUZZ_MESH_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
+	$(CC) $(ALL_CFLAGS) $^ -o $@ -lassimp -lm -pthread
+
 # libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
+FUZZ_FLAGS := -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
+              -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
 $(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*.h)
 	@mkdir -p $(@D)
-	$(FUZZ_CC) -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
-	  -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined $(filter %.c,$^) -o $@ -lyaml -lassimp -lm
+	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lyaml -lassimp -lm
+$(FUZZ_BUILD)/fuzz_mesh: renderer/fuzz/fuzz_mesh.c $(FUZZ_MESH_SRCS) $(wildcard renderer/src/*.h)
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lassimp -lm
 
 # C tests: every tests/renderer/test_*.c is its own executable. The runner
 # also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
-test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(FUZZ_REPLAY)
+test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY)
 	@tests/run_c_tests.sh $(BUILD)
 	@tests/check_run_c_tests.sh $(BUILD)
 	@$(FUZZ_REPLAY) $(FUZZ_CORPUS)
+	@$(FUZZ_MESH_REPLAY) $(FUZZ_MESH_CORPUS)
 
 test-c-san:
 	@$(MAKE) --no-print-directory SANITIZE=1 test-c
@@ -206,7 +218,7 @@ clean:
 	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)
 
 -include $(OBJS:.o=.d) $(BUILD)/obj/main.d $(TEST_BINS:=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
-  $(BUILD)/fuzz/replay.d
+  $(BUILD)/fuzz/fuzz_mesh.d $(BUILD)/fuzz/replay.d
 
 # Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c
 # (kills at random moments, inside snapshot and final writes too) run

@@ -23,8 +23,14 @@
    antishadow_exact@W with each other weight W (the weight decides how much
    strategy_prepare computes per pair),
    over two point sets: "floor" (uniform over the floor square) and
-   "antishadow" (floor points whose region is not outside). Prints one JSON
-   object on stdout. */
+   "antishadow" (floor points whose region is not outside).
+
+   Then, under "ngon", the cost against the vertex count: the first portal
+   ("portal"), or the portal and its light ("light_portal"), replaced by a
+   regular n-gon of the same area, centroid, plane and winding, n = 8, 16,
+   32 (POLYGON_INPUT_MAX), with the cells classify and
+   prepare_sample.antishadow_exact over the same two point sets of that
+   scene. Prints one JSON object on stdout. */
 #include <stdint.h>
 
 #include "antishadow.h"
@@ -198,6 +204,108 @@ static int run_cell(const struct cell *c, const struct point_set *ps, const stru
     return calls;
 }
 
+/* Times one cell over one set: reps rounds of at least min_ms each;
+   fills cl->ns and cl->wall_ns. */
+static void time_cell(struct cell *cl, const struct point_set *ps, const struct scene *sc, struct strategy *strategies,
+                      struct strategy_scratch *scratches, int r, double min_ms, double *sink)
+{
+    long calls = 0;
+    double c0 = timing_thread_cpu_s(), w0 = timing_now_s(), c1 = c0;
+    do {
+        calls += run_cell(cl, ps, sc, strategies, scratches, sink);
+        c1 = timing_thread_cpu_s();
+    } while ((c1 - c0) * 1e3 < min_ms && calls < 100000000L);
+    double w1 = timing_now_s();
+    cl->ns[r] = calls ? (c1 - c0) * 1e9 / (double)calls : 0.0;
+    cl->wall_ns[r] = calls ? (w1 - w0) * 1e9 / (double)calls : 0.0;
+}
+
+/* A regular n-gon with the area, centroid, plane and winding of poly (its
+   first vertex towards poly's first vertex). */
+static struct polygon ngon_like(const struct polygon *poly, int n)
+{
+    struct vec3 c = polygon_centroid(poly), nrm = polygon_normal(poly);
+    double r = sqrt(2.0 * polygon_area(poly) / (n * sin(2.0 * M_PI / n)));
+    struct vec3 d = vec3_sub(poly->v[0], c);
+    struct vec3 u = vec3_normalize(vec3_sub(d, vec3_scale(nrm, vec3_dot(d, nrm))));
+    struct vec3 w = vec3_cross(nrm, u); /* u, w, nrm right-handed: counter-clockwise about nrm */
+    struct polygon out;
+    out.n = n;
+    for (int i = 0; i < n; ++i) {
+        double a = 2.0 * M_PI * i / n;
+        out.v[i] = vec3_add(c, vec3_add(vec3_scale(u, r * cos(a)), vec3_scale(w, r * sin(a))));
+    }
+    return out;
+}
+
+static const int ngon_counts[] = { 8, 16, 32 };
+static const char *const ngon_variants[] = { "portal", "light_portal" };
+#define N_NGON (3 * 2)
+
+/* The two cells of one n-gon scene, per point set. */
+struct ngon_result {
+    int n, variant;
+    int points[2], regions[2][4];
+    struct cell classify[2], sample[2];
+};
+
+/* Builds the n-gon variant of cfg's first pair and times its cells. False
+   with a message when the scene cannot be built. */
+static bool ngon_run(const struct config *cfg, int n, int variant, double lo, double hi, int reps, double min_ms,
+                     struct ngon_result *res, double *sink, struct error *err)
+{
+    static struct point_set sets[2];
+    struct config c = *cfg;
+    struct portal_desc *portals = malloc(sizeof *portals * (size_t)cfg->n_portals);
+    struct light_desc *lights = malloc(sizeof *lights * (size_t)cfg->n_lights);
+    if (!portals || !lights) {
+        free(portals);
+        free(lights);
+        return error_set(err, "out of memory");
+    }
+    memcpy(portals, cfg->portals, sizeof *portals * (size_t)cfg->n_portals);
+    memcpy(lights, cfg->lights, sizeof *lights * (size_t)cfg->n_lights);
+    portals[0].polygon = ngon_like(&cfg->portals[0].polygon, n);
+    if (variant == 1) lights[portals[0].light].polygon = ngon_like(&cfg->lights[portals[0].light].polygon, n);
+    c.portals = portals;
+    c.lights = lights;
+    struct scene sc;
+    struct strategy st;
+    struct strategy_scratch scr;
+    struct render_desc rd = cfg->render;
+    rd.strategy = STRATEGY_ANTISHADOW_EXACT;
+    bool ok = scene_create(&c, &sc, err);
+    if (ok && !(strategy_init(&st, &sc, &rd, err) && strategy_scratch_init(&st, &scr, err))) {
+        scene_destroy(&sc);
+        ok = false;
+    }
+    if (ok) {
+        res->n = n;
+        res->variant = variant;
+        make_points(&sets[0], "floor", &sc, lo, hi, false);
+        make_points(&sets[1], "antishadow", &sc, lo, hi, true);
+        for (int s = 0; s < 2; ++s) {
+            res->points[s] = sets[s].n;
+            memcpy(res->regions[s], sets[s].regions, sizeof res->regions[s]);
+            res->classify[s] = (struct cell){ .kind = CELL_CLASSIFY };
+            res->sample[s] = (struct cell){ .kind = CELL_PREPARE_SAMPLE, .strategy = 0 };
+            run_cell(&res->classify[s], &sets[s], &sc, &st, &scr, sink); /* warm-up */
+            run_cell(&res->sample[s], &sets[s], &sc, &st, &scr, sink);
+        }
+        for (int r = 0; r < reps; ++r)
+            for (int s = 0; s < 2; ++s) {
+                time_cell(&res->classify[s], &sets[s], &sc, &st, &scr, r, min_ms, sink);
+                time_cell(&res->sample[s], &sets[s], &sc, &st, &scr, r, min_ms, sink);
+            }
+        strategy_scratch_free(&scr);
+        strategy_free(&st);
+        scene_destroy(&sc);
+    }
+    free(portals);
+    free(lights);
+    return ok;
+}
+
 static void usage(const char *argv0)
 {
     fprintf(stderr,
@@ -304,17 +412,17 @@ int main(int argc, char **argv)
         fprintf(stderr, "micro: round %d/%d\n", r + 1, reps);
         for (int s = 0; s < 2; ++s)
             for (int c = 0; c < n_cells; ++c) {
-                struct cell *cl = &cells[s][c];
-                long calls = 0;
-                double c0 = timing_thread_cpu_s(), w0 = timing_now_s(), c1 = c0;
-                do {
-                    calls += run_cell(cl, &sets[s], &sc, strategies, scratches, &sink);
-                    c1 = timing_thread_cpu_s();
-                } while ((c1 - c0) * 1e3 < min_ms && calls < 100000000L);
-                double w1 = timing_now_s();
-                cl->ns[r] = calls ? (c1 - c0) * 1e9 / (double)calls : 0.0;
-                cl->wall_ns[r] = calls ? (w1 - w0) * 1e9 / (double)calls : 0.0;
+                time_cell(&cells[s][c], &sets[s], &sc, strategies, scratches, r, min_ms, &sink);
             }
+    }
+    static struct ngon_result ngon[N_NGON];
+    for (int k = 0; k < N_NGON; ++k) {
+        int n = ngon_counts[k / 2], variant = k % 2;
+        fprintf(stderr, "micro: %d-gon %s\n", n, ngon_variants[variant]);
+        if (!ngon_run(&cfg, n, variant, lo, hi, reps, min_ms, &ngon[k], &sink, &err)) {
+            fprintf(stderr, "micro: %d-gon %s: %s\n", n, ngon_variants[variant], err.message);
+            return 1;
+        }
     }
 
     printf("{\"config\":\"%s\",\"portal_weight\":\"%s\",\"reps\":%d,\"min_ms\":%g,\"floor\":[%g,%g],"
@@ -341,7 +449,20 @@ int main(int argc, char **argv)
         }
         printf("}}");
     }
-    printf("},\"sink\":%g}\n", sink != sink ? 0.0 : 1.0);
+    printf("},\"ngon\":[");
+    for (int k = 0; k < N_NGON; ++k) {
+        struct ngon_result *g = &ngon[k];
+        printf("%s{\"n\":%d,\"variant\":\"%s\",\"sets\":{", k ? "," : "", g->n, ngon_variants[g->variant]);
+        for (int s = 0; s < 2; ++s)
+            printf("%s\"%s\":{\"points\":%d,\"regions\":{\"outside\":%d,\"anti_umbra\":%d,\"anti_penumbra\":%d,"
+                   "\"anti_antumbra\":%d},\"classify_ns\":%.3f,\"prepare_sample_ns\":%.3f}",
+                   s ? "," : "", sets[s].name, g->points[s], g->regions[s][REGION_OUTSIDE],
+                   g->regions[s][REGION_ANTI_UMBRA], g->regions[s][REGION_ANTI_PENUMBRA],
+                   g->regions[s][REGION_ANTI_ANTUMBRA], bench_median(g->classify[s].ns, reps),
+                   bench_median(g->sample[s].ns, reps));
+        printf("}}");
+    }
+    printf("],\"sink\":%g}\n", sink != sink ? 0.0 : 1.0);
 
     for (int k = 0; k < n_variants; ++k) {
         strategy_scratch_free(&scratches[k]);

@@ -504,11 +504,33 @@ def micro(d: dict[str, Any]) -> list[str]:
         for n in names
     ]
     regions = d["results"]["raw"]["sets"]["floor"]["regions"]
+    ngon_rows = [
+        [
+            str(g["n"]),
+            g["variant"],
+            f(g["sets"]["floor"]["classify_ns"], ".1f"),
+            f(g["sets"]["floor"]["prepare_sample_ns"], ".0f"),
+            f(g["sets"]["antishadow"]["classify_ns"], ".1f"),
+            f(g["sets"]["antishadow"]["prepare_sample_ns"], ".0f"),
+        ]
+        for g in d["results"]["raw"].get("ngon", [])
+    ]
+    ngon = [
+        "",
+        "The same cells with the portal (or the light and the portal) replaced by a regular n-gon of the same "
+        "area (micro.c, `ngon`): ns per `antishadow_classify` and per `antishadow_exact` prepare + sample.",
+        "",
+        *table(
+            ["n", "replaced", "floor classify", "floor sample", "antishadow classify", "antishadow sample"],
+            ngon_rows,
+        ),
+    ]
     return [
         f"Thread CPU ns per call; floor points uniform over the floor (regions: {regions}); antishadow points "
         "= floor points not outside.",
         "",
         *table(["cell", "floor ns", "floor x shadow ray", "antishadow ns", "antishadow x shadow ray"], rows),
+        *(ngon if ngon_rows else []),
     ]
 
 

@@ -1,9 +1,9 @@
-/* replay.c: a plain driver for the libFuzzer target fuzz_config.c, built
-   with the normal compiler (no libFuzzer needed): runs the target once on
-   every file named, and on every file in every folder named, so that
-   `make test-c` compiles the target every time and replays the seed
-   corpus through it (under ASan and UBSan in the sanitizer build). The
-   target aborts on a bug; this prints how many inputs ran. */
+/* replay.c: a plain driver for a libFuzzer target (fuzz_config.c,
+   fuzz_mesh.c), built with the normal compiler (no libFuzzer needed): runs
+   the target once on every file named, and on every file in every folder
+   named, so that `make test-c` compiles the target every time and replays
+   the seed corpus through it (under ASan and UBSan in the sanitizer build).
+   The target aborts on a bug; this prints how many inputs ran. */
 #include <dirent.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -77,6 +77,7 @@ int main(int argc, char **argv)
         }
         closedir(d);
     }
-    printf("fuzz_config replay: %ld inputs, no failure\n", inputs);
+    const char *name = strrchr(argv[0], '/');
+    printf("%s: %ld inputs, no failure\n", name ? name + 1 : argv[0], inputs);
     return 0;
 }

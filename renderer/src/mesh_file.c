@@ -12,6 +12,7 @@
 #include <ctype.h>
 #include <limits.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -56,18 +57,58 @@ static bool precheck(const unsigned char *data, size_t size, enum mesh_format fo
     return true;
 }
 
+/* Identical vertices are joined here, not by assimp's
+   aiProcess_JoinIdenticalVertices: aiApplyPostProcessing crashes (assimp
+   5.2.5, inside aiReleaseImport) when its validation fails, as it does for
+   an OBJ file with vertices but no faces, and its join is slower than one
+   hash table for a 1M-triangle mesh. Positions are joined when their
+   coordinates are equal as floats (-0 and +0 alike); NaN never reaches
+   here (check_finite). */
+struct vertex_table {
+    size_t mask;   /* capacity - 1, a power of two minus one */
+    int *slot;     /* output vertex index, or -1 when empty */
+    uint32_t *key; /* 3 per slot: the coordinates' bits */
+};
+
+static uint32_t float_key(float f)
+{
+    uint32_t u;
+    if (f == 0.0f) f = 0.0f; /* -0 joins +0 */
+    memcpy(&u, &f, sizeof u);
+    return u;
+}
+
+/* The slot of key k: an empty one or the one that holds it (linear probing
+   from a multiplicative hash). */
+static size_t table_find(const struct vertex_table *t, const uint32_t k[3])
+{
+    uint64_t h = ((uint64_t)k[0] * 0x9E3779B97F4A7C15u) ^ ((uint64_t)k[1] * 0xC2B2AE3D27D4EB4Fu) ^
+                 ((uint64_t)k[2] * 0x165667B19E3779F9u);
+    size_t i = (size_t)(h ^ (h >> 29)) & t->mask;
+    while (t->slot[i] >= 0 && memcmp(&t->key[3 * i], k, 3 * sizeof k[0]) != 0) i = (i + 1) & t->mask;
+    return i;
+}
+
 /* Triangles of the meshes of s, concatenated, with only the vertices they
-   use (a point or line of an OBJ file keeps no vertex). OBJ and PLY scenes
-   have an identity node hierarchy, so the meshes are read as they are. */
+   use (a point or line of an OBJ file keeps no vertex), identical positions
+   joined. OBJ and PLY scenes have an identity node hierarchy, so the meshes
+   are read as they are. Checks every index against its mesh: assimp's own
+   validation is not run (see vertex_table). */
 static bool collect(const struct aiScene *s, struct mesh_data *out, struct error *err)
 {
     long long nt = 0, nv = 0;
     for (unsigned m = 0; m < s->mNumMeshes; ++m) {
         const struct aiMesh *mesh = s->mMeshes[m];
         for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
-            unsigned k = mesh->mFaces[f].mNumIndices;
+            const struct aiFace *face = &mesh->mFaces[f];
+            unsigned k = face->mNumIndices;
             if (k > 3) return error_set(err, "assimp left a face of %u corners after triangulation", k);
-            nt += k == 3;
+            if (k != 3) continue;
+            for (int c = 0; c < 3; ++c)
+                if (face->mIndices[c] >= mesh->mNumVertices)
+                    return error_set(err, "face %u of object %u has vertex index %u, out of range (expected 0 to %u)",
+                                     f, m, face->mIndices[c], mesh->mNumVertices - 1);
+            ++nt;
         }
         nv += mesh->mNumVertices;
     }
@@ -75,14 +116,22 @@ static bool collect(const struct aiScene *s, struct mesh_data *out, struct error
     if (nt > MESH_FILE_TRIANGLES_MAX || nv > INT_MAX / 2)
         return error_set(err, "%lld triangles, %lld vertices (expected at most %d triangles)", nt, nv,
                          MESH_FILE_TRIANGLES_MAX);
-    out->vertices = malloc(sizeof *out->vertices * (size_t)nv);
+    /* At most 3 nt vertices are used: the table stays at most half full. */
+    long long used_max = nv < 3 * nt ? nv : 3 * nt;
+    size_t cap = 16;
+    while (cap < 2 * (size_t)used_max) cap *= 2;
+    struct vertex_table t = { cap - 1, malloc(sizeof *t.slot * cap), malloc(sizeof *t.key * 3 * cap) };
+    out->vertices = malloc(sizeof *out->vertices * (size_t)used_max);
     out->triangles = malloc(sizeof *out->triangles * (size_t)nt);
     int *remap = malloc(sizeof *remap * (size_t)nv);
-    if (!out->vertices || !out->triangles || !remap) {
+    if (!out->vertices || !out->triangles || !remap || !t.slot || !t.key) {
         free(remap);
+        free(t.slot);
+        free(t.key);
         mesh_data_free(out);
         return error_set(err, "out of memory for %lld triangles", nt);
     }
+    for (size_t i = 0; i < cap; ++i) t.slot[i] = -1;
     for (long long i = 0; i < nv; ++i) remap[i] = -1;
     int v_out = 0, t_out = 0;
     long long base = 0;
@@ -93,20 +142,27 @@ static bool collect(const struct aiScene *s, struct mesh_data *out, struct error
             if (face->mNumIndices != 3) continue;
             for (int c = 0; c < 3; ++c) {
                 unsigned idx = face->mIndices[c];
-                /* ValidateDataStructure checked the range already. */
-                int *slot = &remap[base + idx];
-                if (*slot < 0) {
+                int *r = &remap[base + idx];
+                if (*r < 0) {
                     const struct aiVector3D *p = &mesh->mVertices[idx];
-                    out->vertices[v_out] = vec3_make(p->x, p->y, p->z);
-                    *slot = v_out++;
+                    uint32_t k[3] = { float_key(p->x), float_key(p->y), float_key(p->z) };
+                    size_t i = table_find(&t, k);
+                    if (t.slot[i] < 0) {
+                        t.slot[i] = v_out;
+                        memcpy(&t.key[3 * i], k, sizeof k);
+                        out->vertices[v_out++] = vec3_make(p->x, p->y, p->z);
+                    }
+                    *r = t.slot[i];
                 }
-                out->triangles[t_out][c] = *slot;
+                out->triangles[t_out][c] = *r;
             }
             ++t_out;
         }
         base += mesh->mNumVertices;
     }
     free(remap);
+    free(t.slot);
+    free(t.key);
     out->n_vertices = v_out;
     out->n_triangles = t_out;
     return true;
@@ -132,19 +188,15 @@ bool mesh_file_parse(const void *data, size_t size, enum mesh_format format, str
 {
     memset(out, 0, sizeof *out);
     if (!precheck(data, size, format, err)) return false;
-    /* Triangulate in the import; validate (index ranges) and join after
-       the checks of our own, which say more than assimp's validation.
-       No normals or smoothing: the renderer uses geometric normals. */
+    /* Triangulate in the import, nothing else: the index checks and the
+       join are collect's (no aiApplyPostProcessing, see vertex_table). No
+       normals or smoothing: the renderer uses geometric normals. */
     const struct aiScene *s =
         aiImportFileFromMemory(data, (unsigned)size, aiProcess_Triangulate, format == MESH_FORMAT_OBJ ? "obj" : "ply");
     if (!s) return error_set(err, "assimp: %s", aiGetErrorString());
-    bool ok = s->mNumMeshes > 0 || error_set(err, "no triangles (expected faces: OBJ f lines, or a PLY face element)");
-    ok = ok && check_finite(s, err);
-    if (ok) {
-        s = aiApplyPostProcessing(s, aiProcess_ValidateDataStructure | aiProcess_JoinIdenticalVertices);
-        ok = s != NULL || error_set(err, "assimp: %s", aiGetErrorString());
-    }
-    ok = ok && collect(s, out, err);
-    if (s) aiReleaseImport(s);
+    bool ok =
+        (s->mNumMeshes > 0 || error_set(err, "no triangles (expected faces: OBJ f lines, or a PLY face element)")) &&
+        check_finite(s, err) && collect(s, out, err);
+    aiReleaseImport(s);
     return ok;
 }

@@ -124,10 +124,30 @@ enum polygon_defect polygon_check(const struct polygon *poly)
     return POLYGON_DEFECT_NONE;
 }
 
+/* Why this implies polygon_check's verdict NONE, with d the longest edge
+   (the diameter), |x| the largest coordinate and e = 2.2e-16:
+   - area = |cross| / 2 >= 5e-3 d^2, far above POLYGON_AREA_REL d^2;
+   - convexity: every edge is at least the height (>= 1e-2 d) and every
+     vertex is at least the height from the opposite edge's line, against
+     POLYGON_CONVEX_REL * size <= 1.8e-9 d;
+   - planarity: three points are exactly planar; the computed distances
+     err by about (normal error) * d + e |x|, where the normal's relative
+     error is about 2 e |x| d / |cross| <= 200 e |x| / d, so by at most
+     about 200 e |x| <= 4.4e-9 d, against POLYGON_PLANARITY_TOLERANCE *
+     size >= 1e-6 d. */
+bool polygon_triangle_is_sound(struct vec3 a, struct vec3 b, struct vec3 c)
+{
+    struct vec3 ab = vec3_sub(b, a), ac = vec3_sub(c, a), bc = vec3_sub(c, b);
+    double d2 = fmax(vec3_length2(ab), fmax(vec3_length2(ac), vec3_length2(bc)));
+    double m = fmax(vec3_max_abs(a), fmax(vec3_max_abs(b), vec3_max_abs(c)));
+    /* Height over the longest edge >= 1e-2 d <=> |cross| >= 1e-2 d^2. */
+    return vec3_length2(vec3_cross(ab, ac)) >= 1e-4 * d2 * d2 && m * m <= 1e10 * d2 && isfinite(m) && d2 > 0.0;
+}
+
 /* Every other vertex must lie strictly on the inner side of every edge (the
    side the winding normal turns to). This rejects collinear and repeated
    vertices, reflex corners, and self-intersecting or multiply wound polygons
-   (a pentagram has all left turns but fails the edge test). O(n^2), n <= 24. */
+   (a pentagram has all left turns but fails the edge test). O(n^2), n <= POLYGON_MAX. */
 bool polygon_is_convex(const struct polygon *poly)
 {
     int n = poly->n;
@@ -203,7 +223,7 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
         if (d[i] < 0.0) all_in = false;
     }
     if (all_in) {
-        if (out != in) *out = *in;
+        polygon_copy(out, in);
         return out->n;
     }
     struct vec3 buf[2 * POLYGON_MAX + 2];
@@ -253,8 +273,10 @@ int polygon_clip_by_planes(const struct polygon *subject, const struct clip_plan
         out->n = 0;
         return 0;
     }
-    *out = *subject;
-    for (int i = 0; i < cp->n && out->n > 0; ++i) polygon_clip_plane(out, &cp->plane[i], out);
+    /* The first plane reads the subject, the others clip in place: no copy
+       of the whole subject. */
+    polygon_clip_plane(subject, &cp->plane[0], out);
+    for (int i = 1; i < cp->n && out->n > 0; ++i) polygon_clip_plane(out, &cp->plane[i], out);
     return out->n;
 }
 

@@ -10,14 +10,26 @@
 #include "vec.h"
 
 /* Clipping a convex n-gon by a convex m-gon yields at most n + m vertices;
-   lights and portals have at most POLYGON_INPUT_MAX so clipped results fit. */
-#define POLYGON_INPUT_MAX 8
-#define POLYGON_MAX       24
+   lights and portals have at most POLYGON_INPUT_MAX so that a light clipped
+   to a portal (64) and then to a horizon plane (65) fits. 32 vertices let a
+   regular polygon fit a round opening to 0.5% of its radius. */
+#define POLYGON_INPUT_MAX 32
+#define POLYGON_MAX       96
 
+/* Only v[0..n) is meaningful: the struct is 2.3 KB, so hot paths copy a
+   polygon with polygon_copy (its n vertices), never by assignment. */
 struct polygon {
     int n;
     struct vec3 v[POLYGON_MAX];
 };
+
+/* *dst = *src for the vertices in use (dst and src may be the same). */
+static inline void polygon_copy(struct polygon *dst, const struct polygon *src)
+{
+    if (dst == src) return;
+    dst->n = src->n;
+    for (int i = 0; i < src->n; ++i) dst->v[i] = src->v[i];
+}
 
 /* Plane dot(normal, x) = offset, normal unit length. */
 struct plane {
@@ -62,6 +74,13 @@ enum polygon_defect {
    area, planar and convex, all relative to its size. Callers turn the
    defect into their message. */
 enum polygon_defect polygon_check(const struct polygon *poly);
+/* A quick sufficient test that polygon_check finds no defect in the
+   triangle a, b, c (one cross product instead of its O(n^2) walk): true
+   when the triangle is finite, its height over its longest edge is at least
+   1% of that edge, and no coordinate exceeds 1e5 times that edge (so that
+   rounding stays far inside polygon_check's tolerances). False says
+   nothing: ask polygon_check. For the loops over a mesh's triangles. */
+bool polygon_triangle_is_sound(struct vec3 a, struct vec3 b, struct vec3 c);
 /* The largest distance between two vertices (0 for fewer than two). */
 double polygon_diameter(const struct polygon *poly);
 

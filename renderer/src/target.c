@@ -9,30 +9,31 @@
 #define TARGET_MIN_REL_HEIGHT  1e-6
 
 /* Drops vertices that repeat or lie on the segment between their
-   neighbours (relative tolerance), preserving order. */
+   neighbours (relative tolerance), preserving order. Writes only the
+   vertices in use (a polygon is 2.3 KB; this runs per shading point). */
 static void simplify(const struct polygon *in, struct polygon *out)
 {
     double scale = 0.0;
     for (int i = 0; i < in->n; ++i) scale = fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
     double tol2 = 1e-20 * scale * scale + 1e-300;
-    int n = in->n;
-    struct polygon cur = *in;
+    polygon_copy(out, in);
+    int n = out->n;
+    struct vec3 *v = out->v;
     bool changed = true;
     while (changed && n >= 3) {
         changed = false;
         for (int i = 0; i < n && n >= 3; ++i) {
-            struct vec3 a = cur.v[(i + n - 1) % n], b = cur.v[i], c = cur.v[(i + 1) % n];
+            struct vec3 a = v[(i + n - 1) % n], b = v[i], c = v[(i + 1) % n];
             struct vec3 cr = vec3_cross(vec3_sub(b, a), vec3_sub(c, b));
             if (vec3_length2(cr) <= tol2 || vec3_length2(vec3_sub(b, a)) <= 1e-24 * scale) {
-                for (int k = i; k + 1 < n; ++k) cur.v[k] = cur.v[k + 1];
+                for (int k = i; k + 1 < n; ++k) v[k] = v[k + 1];
                 --n;
                 changed = true;
                 break;
             }
         }
     }
-    cur.n = n;
-    *out = cur;
+    out->n = n;
 }
 
 bool target_init(struct target *t, const struct polygon *poly)

@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include "antishadow.h"
+#include "config.h"
 #include "polygon.h"
 #include "rng.h"
 #include "testlib.h"
@@ -519,13 +520,18 @@ static void test_brute_force_fixed(void)
     printf("  fixed configurations: %d points compared, %d disagreements\n", total_compared, total_disagree);
 }
 
+/* The random polygons' vertex counts: 3..8. Random angles with a minimum
+   gap of 0.15 rad are rejection-sampled, which never ends for 32 vertices;
+   the 32-gons are tested as regular polygons (test_round_portal). */
+#define RANDOM_POLYGON_MAX 8
+
 /* A random strictly convex polygon: n points at sorted random angles on an
    ellipse, in a random orientation. */
 static struct polygon random_polygon(struct rng *r, struct vec3 centre, double size)
 {
-    int n = 3 + (int)(rng_uniform(r) * (POLYGON_INPUT_MAX - 2));
-    if (n > POLYGON_INPUT_MAX) n = POLYGON_INPUT_MAX;
-    double ang[POLYGON_INPUT_MAX] = { 0 };
+    int n = 3 + (int)(rng_uniform(r) * (RANDOM_POLYGON_MAX - 2));
+    if (n > RANDOM_POLYGON_MAX) n = RANDOM_POLYGON_MAX;
+    double ang[RANDOM_POLYGON_MAX] = { 0 };
     for (;;) {
         for (int i = 0; i < n; ++i) ang[i] = 2.0 * M_PI * rng_uniform(r);
         for (int i = 1; i < n; ++i)
@@ -607,90 +613,195 @@ static void test_brute_force_random_pairs(void)
    anti-antumbra; the clip without the region shortcut agrees; random points
    of it lie on the portal and lead to the light, and random portal points
    whose rays hit the light lie in it (and those that miss lie outside it). */
+/* The checks above at `points` points of one setup; adds the points per
+   region to checked and the rays traced to *rays. */
+static void check_visible(const struct pair_setup *c, uint64_t seed, int points, int checked[4], int *rays)
+{
+    struct antishadow a;
+    struct error err;
+    if (!antishadow_build(&c->light, &c->portal, &a, &err)) {
+        CHECK_MSG(false, "%s: %s", c->name, err.message);
+        return;
+    }
+    struct brute b;
+    brute_init(&b, &c->light, &c->portal, 500 + seed);
+    struct rng r;
+    rng_seed(&r, 600 + seed, 0, 0);
+    int fails = 0;
+    for (int k = 0; k < points; ++k) {
+        struct vec3 p = setup_point(c, &b, &r, k);
+        enum region reg = antishadow_classify(&a, p);
+        struct polygon vis, clip;
+        int n = antishadow_visible_polygon(&a, p, &vis);
+        int n_clip = antishadow_visible_polygon_in(&a, p, REGION_ANTI_PENUMBRA, &clip);
+        double om = n >= 3 ? polygon_solid_angle(&vis, p) : 0.0;
+        double om_clip = n_clip >= 3 ? polygon_solid_angle(&clip, p) : 0.0;
+        double om_light = polygon_solid_angle(&c->light, p), om_portal = polygon_solid_angle(&c->portal, p);
+        ++checked[reg];
+        int before = test_failures_;
+        switch (reg) {
+        case REGION_OUTSIDE:
+            CHECK(n == 0);
+            CHECK(om_clip <= 1e-9 * om_portal);
+            break;
+        case REGION_ANTI_UMBRA:
+            CHECK_NEAR(om, om_light, 1e-9 * om_light);
+            CHECK_NEAR(om_clip, om_light, 1e-9 * om_light);
+            break;
+        case REGION_ANTI_ANTUMBRA:
+            CHECK_NEAR(om, om_portal, 1e-9 * om_portal);
+            CHECK_NEAR(om_clip, om_portal, 1e-9 * om_portal);
+            break;
+        case REGION_ANTI_PENUMBRA:
+            CHECK(om > 0.0 && om <= fmin(om_light, om_portal) * (1.0 + 1e-9));
+            CHECK_NEAR(om_clip, om, 1e-12);
+            break;
+        case REGION_INSIDE: /* the strategies' class, never the classifier's */
+            CHECK(reg != REGION_INSIDE);
+            break;
+        }
+        /* Rays: points of the visible polygon lie on the portal and their
+           rays from p hit the light. */
+        struct flat vf;
+        bool has_vis = n >= 3 && flat_init(&vf, &vis);
+        for (int s = 0; has_vis && s < 16; ++s) {
+            struct vec3 y = polygon_uniform(&vis, &r);
+            CHECK(flat_inside(&b.portal_flat, y) >= -1e-9);
+            CHECK(portal_point_margin(&b, p, y) >= -1e-9);
+            double t;
+            CHECK(polygon_intersect_ray(&c->light, p, vec3_sub(y, p), &t) || portal_point_margin(&b, p, y) < 1e-7);
+            ++*rays;
+        }
+        /* Portal points: a ray that hits the light passes through the
+           visible polygon; one that misses does not. */
+        for (int s = 0; s < 16; ++s) {
+            struct vec3 q = polygon_uniform(&c->portal, &r);
+            double u = portal_point_margin(&b, p, q);
+            if (beyond_distance(&b, p) <= 0.0) u = -INFINITY; /* the ray p -> q never goes on to the light */
+            if (u > 1e-9) {
+                CHECK(has_vis && flat_inside(&vf, q) >= -1e-9);
+            } else if (u < -1e-9 && has_vis) {
+                CHECK(flat_inside(&vf, q) <= 1e-9);
+            }
+            ++*rays;
+        }
+        if (test_failures_ != before && ++fails <= 3)
+            fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g) region %d, %d vertices\n", c->name, p.x, p.y, p.z, (int)reg,
+                    n);
+    }
+}
+
 static void test_visible_polygon(void)
 {
     struct pair_setup c[N_FIXED];
     fixed_setups(c);
     int checked[4] = { 0, 0, 0, 0 }, rays = 0;
-    for (int i = 0; i < N_FIXED; ++i) {
-        struct antishadow a;
-        struct error err;
-        if (!antishadow_build(&c[i].light, &c[i].portal, &a, &err)) {
-            CHECK_MSG(false, "%s: %s", c[i].name, err.message);
-            continue;
-        }
-        struct brute b;
-        brute_init(&b, &c[i].light, &c[i].portal, 500 + (uint64_t)i);
-        struct rng r;
-        rng_seed(&r, 600 + (uint64_t)i, 0, 0);
-        int fails = 0;
-        for (int k = 0; k < 600; ++k) {
-            struct vec3 p = setup_point(&c[i], &b, &r, k);
-            enum region reg = antishadow_classify(&a, p);
-            struct polygon vis, clip;
-            int n = antishadow_visible_polygon(&a, p, &vis);
-            int n_clip = antishadow_visible_polygon_in(&a, p, REGION_ANTI_PENUMBRA, &clip);
-            double om = n >= 3 ? polygon_solid_angle(&vis, p) : 0.0;
-            double om_clip = n_clip >= 3 ? polygon_solid_angle(&clip, p) : 0.0;
-            double om_light = polygon_solid_angle(&c[i].light, p), om_portal = polygon_solid_angle(&c[i].portal, p);
-            ++checked[reg];
-            int before = test_failures_;
-            switch (reg) {
-            case REGION_OUTSIDE:
-                CHECK(n == 0);
-                CHECK(om_clip <= 1e-9 * om_portal);
-                break;
-            case REGION_ANTI_UMBRA:
-                CHECK_NEAR(om, om_light, 1e-9 * om_light);
-                CHECK_NEAR(om_clip, om_light, 1e-9 * om_light);
-                break;
-            case REGION_ANTI_ANTUMBRA:
-                CHECK_NEAR(om, om_portal, 1e-9 * om_portal);
-                CHECK_NEAR(om_clip, om_portal, 1e-9 * om_portal);
-                break;
-            case REGION_ANTI_PENUMBRA:
-                CHECK(om > 0.0 && om <= fmin(om_light, om_portal) * (1.0 + 1e-9));
-                CHECK_NEAR(om_clip, om, 1e-12);
-                break;
-            case REGION_INSIDE: /* the strategies' class, never the classifier's */
-                CHECK(reg != REGION_INSIDE);
-                break;
-            }
-            /* Rays: points of the visible polygon lie on the portal and their
-               rays from p hit the light. */
-            struct flat vf;
-            bool has_vis = n >= 3 && flat_init(&vf, &vis);
-            for (int s = 0; has_vis && s < 16; ++s) {
-                struct vec3 y = polygon_uniform(&vis, &r);
-                CHECK(flat_inside(&b.portal_flat, y) >= -1e-9);
-                CHECK(portal_point_margin(&b, p, y) >= -1e-9);
-                double t;
-                CHECK(polygon_intersect_ray(&c[i].light, p, vec3_sub(y, p), &t) ||
-                      portal_point_margin(&b, p, y) < 1e-7);
-                ++rays;
-            }
-            /* Portal points: a ray that hits the light passes through the
-               visible polygon; one that misses does not. */
-            for (int s = 0; s < 16; ++s) {
-                struct vec3 q = polygon_uniform(&c[i].portal, &r);
-                double u = portal_point_margin(&b, p, q);
-                if (beyond_distance(&b, p) <= 0.0) u = -INFINITY; /* the ray p -> q never goes on to the light */
-                if (u > 1e-9) {
-                    CHECK(has_vis && flat_inside(&vf, q) >= -1e-9);
-                } else if (u < -1e-9 && has_vis) {
-                    CHECK(flat_inside(&vf, q) <= 1e-9);
-                }
-                ++rays;
-            }
-            if (test_failures_ != before && ++fails <= 3)
-                fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g) region %d, %d vertices\n", c[i].name, p.x, p.y, p.z,
-                        (int)reg, n);
-        }
-    }
+    for (int i = 0; i < N_FIXED; ++i) check_visible(&c[i], (uint64_t)i, 600, checked, &rays);
     printf("  visible polygon at %d outside, %d umbra, %d penumbra, %d antumbra points; %d ray checks\n", checked[0],
            checked[1], checked[2], checked[3], rays);
     CHECK(checked[REGION_ANTI_UMBRA] > 100 && checked[REGION_ANTI_PENUMBRA] > 100 &&
           checked[REGION_ANTI_ANTUMBRA] > 100);
+}
+
+/* Every 32 / k-th vertex of a regular 32-gon: the inscribed regular k-gon. */
+static struct polygon inscribed(const struct polygon *p, int k)
+{
+    struct polygon q;
+    q.n = k;
+    for (int i = 0; i < k; ++i) q.v[i] = p->v[i * (p->n / k)];
+    return q;
+}
+
+/* Round lamps: a 32-gon light over a 32-gon opening (the most vertices
+   POLYGON_INPUT_MAX allows), level and tilted. The classifier agrees with
+   the brute force, the visible polygon passes check_visible's tests (solid
+   angle of the light in the anti-umbra, of the portal in the anti-antumbra),
+   and the regions nest as they must with the inscribed octagons that the
+   8-vertex machinery handled: a smaller portal P8 inside P32 has the
+   smaller anti-umbra and the larger outside and anti-antumbra, a smaller
+   light L8 inside L32 the larger anti-umbra and the smaller anti-antumbra. */
+static void test_round_32(void)
+{
+    struct polygon light = ngon(vec3_make(0, 2.6, 0), Z, X, 0.3, 32, 0.0); /* winding normal -y */
+    struct polygon portal = ngon(vec3_make(0, 2.2, 0), X, Z, 0.17, 32, 0.05);
+    struct pair_setup c[2];
+    c[0] = setup_make("32-gon light over a 32-gon portal", light, portal, true);
+    c[1] = setup_make("32-gon light, 32-gon portal tilted 20 deg", light,
+                      rotated(&portal, vec3_make(0, 2.2, 0), X, 20.0 * M_PI / 180.0), true);
+    int checked[4] = { 0, 0, 0, 0 }, rays = 0;
+    for (int i = 0; i < 2; ++i) {
+        struct antishadow a;
+        struct error err = { { 0 } };
+        bool ok = antishadow_build(&c[i].light, &c[i].portal, &a, &err);
+        CHECK_MSG(ok, "%s: %s", c[i].name, err.message);
+        if (!ok) continue;
+        CHECK(a.n_umbra == 32 && a.has_antumbra && a.n_antumbra == 32);
+        CHECK(a.n_separating >= 32 && a.n_separating <= 96);
+        struct brute b;
+        brute_init(&b, &c[i].light, &c[i].portal, 700 + (uint64_t)i);
+        const int n = 20000;
+        struct agreement g = agree(&a, &b, &c[i], n, 800 + (uint64_t)i);
+        printf("  %-50s separating %2d compared %5d skipped %3d disagree %d  (out %d umbra %d pen %d antumbra %d)\n",
+               c[i].name, a.n_separating, g.compared, g.skipped, g.disagreements, g.count[REGION_OUTSIDE],
+               g.count[REGION_ANTI_UMBRA], g.count[REGION_ANTI_PENUMBRA], g.count[REGION_ANTI_ANTUMBRA]);
+        CHECK(g.disagreements == 0);
+        CHECK(g.skipped < n / 50);
+        CHECK(g.count[REGION_OUTSIDE] > 100 && g.count[REGION_ANTI_UMBRA] > 50 && g.count[REGION_ANTI_PENUMBRA] > 100 &&
+              g.count[REGION_ANTI_ANTUMBRA] > 100);
+        check_visible(&c[i], 900 + (uint64_t)i, 600, checked, &rays);
+
+        /* Nesting with the inscribed octagons. */
+        struct polygon l8 = inscribed(&c[i].light, 8), p8 = inscribed(&c[i].portal, 8);
+        struct antishadow a_p8, a_l8;
+        CHECK(antishadow_build(&c[i].light, &p8, &a_p8, &err));
+        CHECK(antishadow_build(&l8, &c[i].portal, &a_l8, &err));
+        struct rng r;
+        rng_seed(&r, 1000 + (uint64_t)i, 0, 0);
+        int nested = 0;
+        for (int k = 0; k < 20000; ++k) {
+            struct vec3 p = setup_point(&c[i], &b, &r, k);
+            enum region r32 = antishadow_classify(&a, p), rp8 = antishadow_classify(&a_p8, p),
+                        rl8 = antishadow_classify(&a_l8, p);
+            int before = test_failures_;
+            if (rp8 == REGION_ANTI_UMBRA) CHECK(r32 == REGION_ANTI_UMBRA);
+            if (r32 == REGION_OUTSIDE) CHECK(rp8 == REGION_OUTSIDE);
+            if (r32 == REGION_ANTI_ANTUMBRA) CHECK(rp8 == REGION_ANTI_ANTUMBRA);
+            if (r32 == REGION_ANTI_UMBRA) CHECK(rl8 == REGION_ANTI_UMBRA);
+            if (rl8 == REGION_ANTI_ANTUMBRA) CHECK(r32 == REGION_ANTI_ANTUMBRA);
+            if (rl8 == REGION_OUTSIDE) CHECK(r32 == REGION_OUTSIDE || r32 == REGION_ANTI_PENUMBRA);
+            if (test_failures_ != before && ++nested <= 3)
+                fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g): 32/32 %d, 32/8 %d, 8/32 %d\n", c[i].name, p.x, p.y, p.z,
+                        (int)r32, (int)rp8, (int)rl8);
+        }
+    }
+    printf("  32-gon visible polygon at %d outside, %d umbra, %d penumbra, %d antumbra points; %d ray checks\n",
+           checked[0], checked[1], checked[2], checked[3], rays);
+    CHECK(checked[REGION_ANTI_UMBRA] > 20 && checked[REGION_ANTI_PENUMBRA] > 100 &&
+          checked[REGION_ANTI_ANTUMBRA] > 100);
+}
+
+/* The round lamp of the good catalogue (32-gon light and portal, the limit)
+   loads with every vertex, and its pair builds; 33 vertices are refused at
+   the list's file:line:column (tests/configs/bad/portal_33_vertices.yaml,
+   light_33_vertices.yaml, checked by test_config's bad catalogue). */
+static void test_round_config(void)
+{
+    struct config c;
+    struct error err = { "" };
+    bool ok = config_load("tests/configs/good/round_portal_32.yaml", NULL, 0, &c, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK(c.n_lights == 1 && c.n_portals == 1);
+    CHECK(c.lights[0].polygon.n == 32 && c.portals[0].polygon.n == 32);
+    struct antishadow a;
+    CHECK_MSG(antishadow_build(&c.lights[0].polygon, &c.portals[0].polygon, &a, &err), "%s", err.message);
+    /* Straight below the opening, near it: the whole lamp is seen. */
+    CHECK(antishadow_classify(&a, vec3_make(0, 1.7, 0)) == REGION_ANTI_UMBRA);
+    config_free(&c);
+    ok = config_load("tests/configs/bad/portal_33_vertices.yaml", NULL, 0, &c, &err);
+    CHECK(!ok);
+    CHECK_MSG(strstr(err.message, "portal_33_vertices.yaml:24:15: portal \"round\" has 33 vertices (expected 3 to 32)"),
+              "%s", err.message);
 }
 
 static void test_build_errors(void)
@@ -796,6 +907,8 @@ static const struct test_case antishadow_tests[] = {
     { "brute_force_fixed", test_brute_force_fixed },
     { "brute_force_random_pairs", test_brute_force_random_pairs },
     { "visible_polygon", test_visible_polygon },
+    { "round_32", test_round_32 },
+    { "round_config", test_round_config },
     { "build_errors", test_build_errors },
     { "timing", test_timing },
 };

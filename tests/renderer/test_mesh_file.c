@@ -149,6 +149,8 @@ static void test_bad_files(void)
         { "no_end_header.ply", "line 5: the file ends in the header (expected end_header)" },
         { "face_index.ply", "line 22: face 0 has vertex index 9, out of range (expected 0 to 5)" },
         { "points_only.ply", "no face element in the header" },
+        { "vertices_only.obj", "no triangles" },
+        { "lines_only.obj", "no triangles" },
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
         char path[256];
@@ -164,6 +166,29 @@ static void test_bad_files(void)
     CHECK(!mesh_format_from_path(BAD_MESHES "/cube.stl", &fmt));
     CHECK(!mesh_format_from_path("a.obj/cube", &fmt));
     CHECK(mesh_format_from_path("dir.x/CUBE.PLY", &fmt) && fmt == MESH_FORMAT_PLY);
+}
+
+/* Identical positions are joined by mesh_file.c itself (not by assimp's
+   post-processing, which crashed on an OBJ without faces): repeated v lines,
+   -0 and +0 alike, and only the vertices some triangle uses are kept, in
+   the order of first use. */
+static void test_join_identical(void)
+{
+    static const char obj[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 9 9 9\n"
+                              "v 1 -0 0\nv -0 1 0\nv 1 1 0\n"
+                              "f 1 2 3\nf 5 7 6\nl 1 4\n";
+    struct mesh_data m;
+    struct error err = { "" };
+    bool ok = mesh_file_parse(obj, sizeof obj - 1, MESH_FORMAT_OBJ, &m, &err);
+    CHECK_MSG(ok, "%s", err.message);
+    if (!ok) return;
+    CHECK(m.n_triangles == 2 && m.n_vertices == 4);
+    if (m.n_triangles == 2 && m.n_vertices == 4) {
+        CHECK(m.triangles[0][0] == 0 && m.triangles[0][1] == 1 && m.triangles[0][2] == 2);
+        CHECK(m.triangles[1][0] == 1 && m.triangles[1][1] == 3 && m.triangles[1][2] == 2);
+        CHECK(m.vertices[3].x == 1.0 && m.vertices[3].y == 1.0 && m.vertices[3].z == 0.0);
+    }
+    mesh_data_free(&m);
 }
 
 /* Truncating a binary and an ASCII PLY at every byte: an error each time
@@ -441,6 +466,7 @@ static void test_cube_matches_box(void)
 static const struct test_case tests[] = {
     { "good_fixtures", test_good_fixtures },
     { "bad_files", test_bad_files },
+    { "join_identical", test_join_identical },
     { "ply_every_truncation", test_ply_every_truncation },
     { "no_stdout", test_no_stdout },
     { "config_meshes", test_config_meshes },

@@ -2,6 +2,8 @@
    centroid, validity checks, clipping, ray hits, solid angle, vector
    irradiance and projected solid angle. */
 #include <float.h>
+#include <stdint.h>
+#include <string.h>
 
 #include "polygon.h"
 #include "testlib.h"
@@ -295,17 +297,94 @@ static void test_clip_plane(void)
     pl.offset = 1e-13;
     pl.normal = vec3_make(1, 0, 0);
     CHECK(polygon_clip_plane(&tri, &pl, &out) == 3);
-    /* A 24-gon losing one corner would need 25 vertices: capped at
-       POLYGON_MAX by dropping the least significant vertex. */
+    /* A POLYGON_MAX-gon (96) losing one corner would need 97 vertices:
+       capped at POLYGON_MAX by dropping the least significant vertex. */
     struct polygon big = regular_ngon(POLYGON_MAX, 1.0, 0.0);
     pl.normal = vec3_make(-1, 0, 0);
     pl.offset = -0.999;
     CHECK(polygon_clip_plane(&big, &pl, &out) == POLYGON_MAX);
-    /* The corner cut off loses 7.6e-6; dropping the least-area vertex (one
-       of the two new ones) about 2.5e-4 more, of an area of 3.1. */
+    /* The corner cut off loses 3.05e-5; dropping the least-area vertex (one
+       of the two new ones) 3.49e-5 more, of an area of 3.1. */
     double lost = polygon_area(&big) - polygon_area(&out);
-    CHECK(lost > 7e-6 && lost < 3e-4);
+    CHECK(lost > 6.4e-5 && lost < 6.7e-5);
     CHECK(polygon_is_convex(&out));
+}
+
+/* The largest clip the renderer makes: a light of POLYGON_INPUT_MAX (32)
+   vertices clipped to a portal of 32 (the anti-penumbra's visible polygon),
+   then to a horizon plane (polygon_projected_solid_angle). Two regular
+   32-gons turned by half a step meet in a regular 64-gon (every edge of
+   each cuts a corner of the other), whose area is closed-form; a horizon
+   that cuts off one of its corners adds one vertex: 65. */
+static void test_clip_32_by_32(void)
+{
+    int n = POLYGON_INPUT_MAX;
+    struct polygon a = regular_ngon(n, 1.0, 0.0), b = regular_ngon(n, 1.0, M_PI / n), out;
+    CHECK(polygon_clip_convex(&a, &b, &out) == 2 * n);
+    CHECK(polygon_is_convex(&out));
+    /* The 64-gon's inradius is the 32-gons' apothem cos(pi / 32), so its
+       area is 64 tan(pi / 64) cos^2(pi / 32). */
+    double inr = cos(M_PI / n);
+    CHECK_NEAR(polygon_area(&out), 2 * n * tan(M_PI / (2 * n)) * inr * inr, 1e-12);
+    /* Its neighbours lie at cos(2 pi / 64) = 0.995 of a corner's distance
+       along that corner's direction. */
+    struct vec3 corner = out.v[0];
+    struct plane cut = { vec3_neg(vec3_normalize(corner)), -0.999 * vec3_length(corner) };
+    struct polygon above;
+    CHECK(polygon_clip_plane(&out, &cut, &above) == 2 * n + 1);
+    CHECK(2 * n + 1 <= POLYGON_MAX);
+    CHECK(polygon_is_convex(&above));
+    CHECK(polygon_area(&above) < polygon_area(&out) && polygon_area(&above) > 0.9999 * polygon_area(&out));
+    /* polygon_copy copies the vertices in use, also onto itself. */
+    struct polygon copy;
+    polygon_copy(&copy, &above);
+    CHECK(copy.n == above.n && memcmp(copy.v, above.v, sizeof copy.v[0] * (size_t)copy.n) == 0);
+    polygon_copy(&copy, &copy);
+    CHECK(copy.n == above.n);
+}
+
+/* polygon_triangle_is_sound is sufficient for polygon_check: over random
+   triangles of every shape (slivers, needles, tiny and far from the
+   origin, collinear, repeated vertices), whenever it says yes,
+   polygon_check finds no defect; and it says yes for ordinary triangles. */
+static void test_triangle_is_sound(void)
+{
+    uint64_t state = 0x9E3779B97F4A7C15u;
+    int sound = 0, agreed_bad = 0, fallback = 0, n = 200000;
+    for (int i = 0; i < n; ++i) {
+        double u[10];
+        for (int k = 0; k < 10; ++k) {
+            state = state * 6364136223846793005u + 1442695040888963407u;
+            u[k] = (double)(state >> 11) * 0x1.0p-53;
+        }
+        /* Scale 1e-6..1e2, offset up to 1e8, flatness 1e-12..1. */
+        double scale = pow(10.0, -6.0 + 8.0 * u[0]), off = pow(10.0, 8.0 * u[1]) * (u[2] - 0.5);
+        double flat = pow(10.0, -12.0 * u[3]);
+        struct vec3 o = vec3_make(off, -0.7 * off, 0.3 * off);
+        struct polygon t;
+        t.n = 3;
+        t.v[0] = vec3_add(o, rotate(vec3_make(0, 0, 0)));
+        t.v[1] = vec3_add(o, rotate(vec3_make(scale * u[4], scale * flat * (u[5] - 0.5), 0)));
+        t.v[2] = vec3_add(o, rotate(vec3_make(scale * u[6], scale * flat * (u[7] - 0.5) + scale * flat, 0)));
+        if (i % 50 == 0) t.v[2] = t.v[1]; /* a repeated vertex */
+        bool quick = polygon_triangle_is_sound(t.v[0], t.v[1], t.v[2]);
+        enum polygon_defect d = polygon_check(&t);
+        CHECK_MSG(!quick || d == POLYGON_DEFECT_NONE, "triangle %d: quick yes, polygon_check %d", i, (int)d);
+        sound += quick;
+        agreed_bad += !quick && d != POLYGON_DEFECT_NONE;
+        fallback += !quick && d == POLYGON_DEFECT_NONE;
+    }
+    /* Most of these triangles are extreme on purpose (far, flat or tiny):
+       the quick test leaves them to polygon_check. */
+    printf("  %d random triangles: %d sound by the quick test, %d left to polygon_check and valid, %d invalid\n", n,
+           sound, fallback, agreed_bad);
+    CHECK(sound > n / 20 && agreed_bad > n / 10);
+    struct vec3 a = vec3_make(0, 0, 0), b = vec3_make(1, 0, 0), c = vec3_make(0, 1, 0);
+    CHECK(polygon_triangle_is_sound(a, b, c));
+    CHECK(!polygon_triangle_is_sound(a, b, b));
+    CHECK(!polygon_triangle_is_sound(a, b, vec3_make(0.5, 1e-3, 0))); /* height 0.1% of the edge */
+    CHECK(!polygon_triangle_is_sound(a, b, vec3_make(NAN, 1, 0)));
+    CHECK(!polygon_triangle_is_sound(vec3_make(1e6, 0, 0), vec3_make(1e6 + 1e-3, 0, 0), vec3_make(1e6, 1e-3, 0)));
 }
 
 static void test_intersect_contains(void)
@@ -521,6 +600,8 @@ static const struct test_case polygon_tests[] = {
     { "check", test_check },
     { "clip_convex", test_clip_convex },
     { "clip_plane", test_clip_plane },
+    { "clip_32_by_32", test_clip_32_by_32 },
+    { "triangle_is_sound", test_triangle_is_sound },
     { "intersect_contains", test_intersect_contains },
     { "solid_angle", test_solid_angle },
     { "vector_irradiance", test_vector_irradiance },
