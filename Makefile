@@ -180,9 +180,14 @@ lint-py: $(VENV_STAMP)
 
 test: lint-c test-c test-c-san test-py lint-py
 
+# The experiments of make figures, each at its small default (FULL=1: the
+# paper-quality file NAME_full.yaml).
+FIGURE_EXPERIMENTS := lampshade_ratio little_lamp
 figures: $(BUILD)/render $(VENV_STAMP)
-	$(VENV)/bin/portal-harness sweep configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml
-	$(VENV)/bin/portal-harness figures configs/experiments/lampshade_ratio$(if $(FULL),_full,).yaml
+	@set -e; for e in $(FIGURE_EXPERIMENTS); do \
+	  $(VENV)/bin/portal-harness sweep configs/experiments/$$e$(if $(FULL),_full,).yaml; \
+	  $(VENV)/bin/portal-harness figures configs/experiments/$$e$(if $(FULL),_full,).yaml; \
+	done
 
 bench: $(BUILD)/render $(BENCH_BINS)
 	@renderer/bench/run.sh $(BUILD)

@@ -18,6 +18,11 @@ summary.py turns them into results/bench/summary.md. Sections:
   mesh_load       load time and peak memory of a 1M-triangle binary PLY
                   (render --print-config; config_load, stitching and scene
                   build apart, C, mesh_load.c)
+  mesh_lights     light vs antishadow_exact per sample on the Little Lamp
+                  (a 400-triangle bulb behind two 32-gon portals), and on
+                  the lampshade with a 16- and a 1,000-triangle bulb behind
+                  its opening: the per-sample cost must not grow with the
+                  triangles
 
 usage: bench.py BUILD_DIR [--quick] [--only SECTION[,SECTION...]]
 """
@@ -26,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import importlib.util
 import json
 import math
 import os
@@ -871,6 +877,77 @@ def section_mesh_load(ctx: Context) -> dict[str, Any]:
     return results
 
 
+# ---- 13. mesh lights ------------------------------------------------------------
+
+LITTLE_LAMP = bl.ROOT / "configs" / "scenes" / "little_lamp.yaml"
+
+
+def sphere_bulb_scene(folder: Path, segments: int, rings: int) -> Path:
+    """The lampshade with a UV-sphere bulb of 2 segments (rings - 1)
+    triangles behind its opening, made by the mesh fixtures' own generator."""
+    spec = importlib.util.spec_from_file_location(
+        "make_fixtures", bl.ROOT / "tests" / "configs" / "meshes" / "make_fixtures.py"
+    )
+    assert spec is not None and spec.loader is not None
+    make_fixtures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_fixtures)
+    folder.mkdir(parents=True, exist_ok=True)
+    obj = folder / f"bulb_{segments}x{rings}.obj"
+    obj.write_text(make_fixtures.lamp_sphere_obj(segments, rings))
+    scene = folder / f"bulb_{segments}x{rings}.yaml"
+    scene.write_text(
+        f"include: {LAMPSHADE}\n"
+        f"lights:\n  - {{name: bulb, mesh: {{file: {obj.name}}}, radiance: [30, 25, 20]}}\n"
+        "portals:\n  - {name: opening, light: bulb,\n"
+        '     vertices: [["=-h", 2.2, "=-h"], ["=h", 2.2, "=-h"], ["=h", 2.2, "=h"], ["=-h", 2.2, "=h"]]}\n'
+    )
+    return scene
+
+
+def section_mesh_lights(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    reps, spp = (1, 2) if q else (5, 8)
+    scenes = {
+        "little_lamp": LITTLE_LAMP,
+        "bulb_16": sphere_bulb_scene(TMP / "mesh_lights", 4, 3),
+        "bulb_1000": sphere_bulb_scene(TMP / "mesh_lights", 25, 21),
+    }
+    params = {
+        "scenes": {k: str(v.relative_to(bl.ROOT)) if v.is_relative_to(bl.ROOT) else v.name for k, v in scenes.items()},
+        "spp": spp,
+        "reps": reps,
+        "threads": 1,
+        "integrator": "direct",
+        "order": "round-robin over (scene, strategy) per round; seed = round",
+        "cost": "render CPU ns per camera sample (render_cpu_s / samples), median over rounds",
+    }
+    out = TMP / "runs" / "mesh_lights"
+    runs: dict[str, list[dict[str, Any]]] = {}
+    for r in range(reps):
+        log(f"mesh_lights: round {r + 1}/{reps}")
+        for name, scene in scenes.items():
+            for s in ("light", "antishadow_exact"):
+                common = ["--threads", "1", "--strategy", s, "--seed", str(r + 1), "--spp", str(spp)]
+                a = bl.run_render(ctx, scene, out / f"{name}_{s}", *common).summary()
+                runs.setdefault(f"{name}/{s}", []).append({**a, "render": render_rates(a)})
+    table: dict[str, Any] = {}
+    for key, rs in runs.items():
+        name, s = key.split("/")
+        light = runs[f"{name}/light"]
+        table[key] = {
+            "ns_per_sample": median([1e9 / x["render"]["samples_per_cpu_s"] for x in rs]),
+            "cost_vs_light_cpu": ratio_stats(
+                [
+                    lt["render"]["samples_per_cpu_s"] / x["render"]["samples_per_cpu_s"]
+                    for x, lt in zip(rs, light, strict=True)
+                ]
+            ),
+            **{k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")},
+        }
+    bl.write_result(ctx, "mesh_lights", params, {"table": table, "runs": runs})
+    return table
+
+
 SECTIONS: dict[str, Callable[[Context], Any]] = {
     "raw_embree": section_raw_embree,
     "micro": section_micro,
@@ -882,6 +959,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "efficiency": section_efficiency,
     "portal_weights": section_portal_weights,
     "mesh_load": section_mesh_load,
+    "mesh_lights": section_mesh_lights,
 }
 
 
