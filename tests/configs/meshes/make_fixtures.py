@@ -169,6 +169,7 @@ def main() -> None:
     # Bad ones.
     write(BAD / "index_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
     write(BAD / "negative_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n")
+    write(BAD / "zero_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
     write(BAD / "nan_vertex.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
     write(BAD / "inf_vertex.ply", ply_ascii().replace(b"\n1 0 0 200", b"\ninf 0 0 200"))
     write(BAD / "garbage.obj", "this is not a mesh\nat all\n")
