@@ -152,8 +152,10 @@ static bool build_emitters(struct strategy *s, struct error *err)
     int n = sc->n_emitters > 0 ? sc->n_emitters : 1;
     s->members = calloc((size_t)n, sizeof *s->members);
     s->centre = calloc((size_t)n, sizeof *s->centre);
+    s->reach = calloc((size_t)n, sizeof *s->reach);
     s->shade = malloc(sizeof *s->shade * (size_t)n);
-    if (!s->members || !s->centre || !s->shade) return error_set(err, "out of memory for %d lights", sc->n_emitters);
+    if (!s->members || !s->centre || !s->reach || !s->shade)
+        return error_set(err, "out of memory for %d lights", sc->n_emitters);
     for (int i = 0; i < sc->n_emitters; ++i) {
         const struct emitter *e = &sc->emitters[i];
         s->shade[i] = shade_box(sc, e);
@@ -165,6 +167,11 @@ static bool build_emitters(struct strategy *s, struct error *err)
             area += t->area;
         }
         s->centre[i] = vec3_scale(c, 1.0 / area);
+        for (int k = 0; k < e->n_lights; ++k) {
+            const struct polygon *poly = &sc->lights[e->first_light + k].target.polygon;
+            for (int v = 0; v < poly->n; ++v)
+                s->reach[i] = fmax(s->reach[i], vec3_length(vec3_sub(poly->v[v], s->centre[i])));
+        }
         if (e->n_lights == 1) continue;
         double *power = malloc(sizeof *power * (size_t)e->n_lights);
         if (!power) return error_set(err, "out of memory for %d lights", e->n_lights);
@@ -186,6 +193,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
     s->first_pair = NULL;
     s->members = NULL;
     s->centre = NULL;
+    s->reach = NULL;
     s->n_pairs = 0;
     s->use_bvh = false;
     s->shade = NULL;
@@ -235,9 +243,11 @@ void strategy_free(struct strategy *s)
     for (int i = 0; s->members && i < s->scene->n_emitters; ++i) alias_free(&s->members[i]);
     free(s->members);
     free(s->centre);
+    free(s->reach);
     free(s->shade);
     s->members = NULL;
     s->centre = NULL;
+    s->reach = NULL;
     s->shade = NULL;
     free(s->pairs);
     free(s->first_pair);
@@ -420,6 +430,19 @@ static double emitter_weight(const struct strategy *s, int emitter, enum portal_
     return 0.0;
 }
 
+/* The `irradiance` weight of a mesh light's portal pair: the radiance
+   times the portal's solid angle as a small polygon's, area |cos| / d^2
+   (capped at a hemisphere), as if the light filled the portal (pair_weight
+   says why). */
+static double mesh_portal_irradiance(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
+{
+    const struct portal *pt = &s->scene->portals[pair->portal];
+    struct vec3 d = vec3_sub(pt->centroid, p);
+    double d2 = fmax(vec3_length2(d), 1e-12);
+    double sa = pt->target.area * fabs(vec3_dot(d, pt->target.normal)) / (d2 * sqrt(d2));
+    return rgb_luminance(s->scene->lights[pair->light].radiance) * fmin(sa, 2.0 * M_PI);
+}
+
 /* Weight of pair i at the point under the strategy's heuristic; sets the
    pair's region. A mesh light's pair is classified as a whole only by the
    portal's plane (REGION_ANTI_PENUMBRA beyond it): its triangles are
@@ -483,12 +506,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
            32-gon cost more than the sample it weighs (measured on the Little
            Lamp at 16 spp: antishadow_exact 2.4-2.7x the CPU time of light,
            1.3-1.4x with this). */
-        if (mesh) {
-            struct vec3 d = vec3_sub(pt->centroid, p);
-            double d2 = fmax(vec3_length2(d), 1e-12);
-            double sa = pt->target.area * fabs(vec3_dot(d, pt->target.normal)) / (d2 * sqrt(d2));
-            return rgb_luminance(l->radiance) * fmin(sa, 2.0 * M_PI);
-        }
+        if (mesh) return mesh_portal_irradiance(s, pair, p);
         const struct target *vis = visible_target(s, ptp, i);
         return vis ? rgb_luminance(l->radiance) * irradiance_factor(&vis->polygon, p, n) : 0.0;
     }
@@ -523,28 +541,62 @@ static double member_irradiance(const struct strategy *s, const struct strategy_
     return rgb_luminance(l->radiance) * irradiance_factor(&vis, p, n);
 }
 
-/* A mesh light's pair sums its triangles (linear in them: this serves the
-   region AOV, not sampling) and takes the region of the triangle that
-   gives the most. */
+/* The region of a mesh light's pair at p (beyond the portal's plane):
+   decided for the whole mesh by its bounding sphere when the sphere's cone
+   from p lies inside every edge plane of the portal (anti-umbra: every
+   triangle is seen whole) or wholly outside one of them (outside); else by
+   its triangles, one by one: the common region when they all share one,
+   the anti-penumbra otherwise. O(portal edges) where the sphere decides,
+   which is everywhere but near the anti-penumbra. */
+static enum region mesh_pair_region(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
+{
+    const struct scene *sc = s->scene;
+    const struct portal *pt = &sc->portals[pair->portal];
+    if (plane_distance(&pt->antishadow.portal_plane, p) <= 0.0) return REGION_OUTSIDE;
+    struct vec3 c = s->centre[pair->emitter];
+    double r = s->reach[pair->emitter], nearest = INFINITY;
+    const struct polygon *q = &pt->target.polygon;
+    for (int k = 0; k < q->n; ++k) {
+        /* The plane through p and edge k, positive towards the portal's inside. */
+        struct vec3 a = vec3_sub(q->v[k], p), b = vec3_sub(q->v[(k + 1) % q->n], p);
+        struct vec3 nrm = vec3_normalize(vec3_cross(a, b));
+        if (vec3_dot(nrm, vec3_sub(pt->centroid, p)) < 0.0) nrm = vec3_neg(nrm);
+        double d = vec3_dot(nrm, vec3_sub(c, p));
+        if (d <= -r) return REGION_OUTSIDE;
+        nearest = fmin(nearest, d);
+    }
+    if (nearest >= r) return REGION_ANTI_UMBRA;
+    const struct emitter *e = &sc->emitters[pair->emitter];
+    enum region common = REGION_INSIDE; /* none yet */
+    for (int k = 0; k < e->n_lights; ++k) {
+        struct strategy_pair m = member_of(sc, pair, e->first_light + k);
+        enum region r_k = antishadow_classify(&sc->portals[m.portal].antishadow, p);
+        if (common == REGION_INSIDE) common = r_k;
+        else if (r_k != common) return REGION_ANTI_PENUMBRA;
+    }
+    return common;
+}
+
+/* A mesh light's pair: its region (mesh_pair_region, or REGION_INSIDE) and
+   the O(1) estimate of its irradiance that its sampling weight uses
+   (pair_weight's `irradiance` case): the region AOV needs the region
+   exactly and only a ranking of the pairs. */
 double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, struct vec3 n, enum region *region)
 {
     const struct strategy_pair *pair = &s->pairs[i];
     const struct emitter *e = &s->scene->emitters[pair->emitter];
     if (e->n_lights == 1) return member_irradiance(s, pair, p, n, region);
-    double sum = 0.0, best = 0.0;
-    *region = REGION_OUTSIDE;
-    for (int k = 0; k < e->n_lights; ++k) {
-        struct strategy_pair m = member_of(s->scene, pair, e->first_light + k);
-        enum region r;
-        double w = member_irradiance(s, &m, p, n, &r);
-        if (!(w > 0.0)) continue;
-        sum += w;
-        if (w > best) {
-            best = w;
-            *region = r;
-        }
+    if (pair->portal < 0) {
+        *region = REGION_ANTI_UMBRA;
+        return emitter_weight(s, pair->emitter, PORTAL_WEIGHT_IRRADIANCE, p, n);
     }
-    return sum;
+    const struct light *l = &s->scene->lights[pair->light];
+    if (on_light_side(s, pair->emitter, p)) {
+        *region = REGION_INSIDE;
+        return pair->portal == l->first_portal ? emitter_weight(s, pair->emitter, PORTAL_WEIGHT_IRRADIANCE, p, n) : 0.0;
+    }
+    *region = mesh_pair_region(s, pair, p);
+    return *region == REGION_OUTSIDE ? 0.0 : mesh_portal_irradiance(s, pair, p);
 }
 
 int strategy_candidates(const struct strategy *s, struct vec3 p, int *out)

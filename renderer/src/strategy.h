@@ -55,6 +55,7 @@ struct strategy {
     int *first_pair;             /* per emitter: index of its first pair */
     struct alias_table *members; /* per emitter: its lights by power (n = 0 for a polygon light) */
     struct vec3 *centre;         /* per emitter: area-weighted centroid (the distance heuristic) */
+    double *reach;               /* per emitter: radius of the sphere about centre that holds it */
     bool use_bvh;                /* antishadow strategies: candidates from the BVH */
     struct aabb *shade;          /* per emitter: where a point counts as inside its shade */
     struct pair_bvh bvh;         /* over the pairs' lit regions */

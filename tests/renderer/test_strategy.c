@@ -347,7 +347,53 @@ static void test_mesh_light(void)
     check_strategies(&ts, vec3_make(0.15, 2.3, -0.1), "mesh light inside the shade", 900, true);
 }
 
+/* The region of a mesh light's pair (strategy_pair_irradiance, as the
+   region AOV asks) against the quad it tessellates: the same class at
+   every point where the quad is outside, in the anti-umbra or in the
+   anti-penumbra; in the quad's anti-antumbra the mesh says anti-antumbra
+   or anti-penumbra (no one triangle need fill the portal). */
+static void test_mesh_pair_region(void)
+{
+    for (int size = 0; size < 2; ++size) {
+        double s_l = size ? 0.6 : 0.15;
+        struct test_scene quad, mesh;
+        lampshade(&quad, s_l);
+        ts_init(&mesh);
+        struct polygon sq = square_y(0, 2.6, 0, s_l, true), tris[4];
+        struct vec3 mid = vec3_make(0.0, 2.6, 0.0);
+        for (int k = 0; k < 4; ++k) tris[k] = (struct polygon){ 3, { sq.v[k], sq.v[(k + 1) % 4], mid } };
+        struct polygon portal = square_y(0, 2.2, 0, 0.3, true);
+        ts_add_mesh_light(&mesh, tris, 4, warm, false, &portal, 1);
+        struct render_desc rd;
+        memset(&rd, 0, sizeof rd);
+        rd.strategy = STRATEGY_ANTISHADOW_EXACT;
+        struct strategy sq_s, mesh_s;
+        struct error err;
+        CHECK(strategy_init(&sq_s, &quad.scene, &rd, &err) && strategy_init(&mesh_s, &mesh.scene, &rd, &err));
+        struct rng r;
+        rng_seed(&r, 4242, (uint64_t)size, 0);
+        int counts[5] = { 0 }, mismatches = 0;
+        for (int i = 0; i < 20000; ++i) {
+            struct vec3 p = vec3_make(6 * rng_uniform(&r) - 3, 2.15 * rng_uniform(&r), 6 * rng_uniform(&r) - 3);
+            enum region rq, rm;
+            strategy_pair_irradiance(&sq_s, 0, p, vec3_make(0, 0, 0), &rq);
+            strategy_pair_irradiance(&mesh_s, 0, p, vec3_make(0, 0, 0), &rm);
+            ++counts[rq];
+            bool ok = rq == REGION_ANTI_ANTUMBRA ? rm == REGION_ANTI_ANTUMBRA || rm == REGION_ANTI_PENUMBRA : rm == rq;
+            if (!ok && mismatches++ < 5)
+                fprintf(stderr, "  s_L %.2f (%.3f, %.3f, %.3f): quad %d mesh %d\n", s_l, p.x, p.y, p.z, rq, rm);
+        }
+        CHECK_MSG(mismatches == 0, "s_L %.2f: %d points where the mesh's region differs", s_l, mismatches);
+        /* Every class the quad has here was visited. */
+        CHECK(counts[REGION_OUTSIDE] > 0 && counts[REGION_ANTI_PENUMBRA] > 0);
+        CHECK(counts[size ? REGION_ANTI_ANTUMBRA : REGION_ANTI_UMBRA] > 0);
+        strategy_free(&sq_s);
+        strategy_free(&mesh_s);
+    }
+}
+
 static const struct test_case tests[] = {
+    { "mesh_pair_region", test_mesh_pair_region },
     { "mesh_light", test_mesh_light },
     { "lampshade_regions", test_lampshade_regions },
     { "tilted_pentagon", test_tilted_pentagon },
