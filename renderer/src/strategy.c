@@ -430,6 +430,51 @@ static double emitter_weight(const struct strategy *s, int emitter, enum portal_
     return 0.0;
 }
 
+/* What the bounding sphere of a mesh light tells of its pair at p (beyond
+   the portal's plane): REGION_OUTSIDE when the sphere lies wholly outside
+   one edge plane of the portal as seen from p (no triangle can be seen
+   through the portal), REGION_ANTI_UMBRA when its cone from p lies inside
+   every one (every triangle is seen whole), REGION_ANTI_PENUMBRA when it
+   cannot tell. O(portal edges), and it decides everywhere but near the
+   anti-penumbra. */
+static enum region mesh_pair_bound(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
+{
+    const struct portal *pt = &s->scene->portals[pair->portal];
+    if (plane_distance(&pt->antishadow.portal_plane, p) <= 0.0) return REGION_OUTSIDE;
+    struct vec3 c = s->centre[pair->emitter];
+    double r = s->reach[pair->emitter], nearest = INFINITY;
+    const struct polygon *q = &pt->target.polygon;
+    for (int k = 0; k < q->n; ++k) {
+        /* The plane through p and edge k, positive towards the portal's inside. */
+        struct vec3 a = vec3_sub(q->v[k], p), b = vec3_sub(q->v[(k + 1) % q->n], p);
+        struct vec3 nrm = vec3_normalize(vec3_cross(a, b));
+        if (vec3_dot(nrm, vec3_sub(pt->centroid, p)) < 0.0) nrm = vec3_neg(nrm);
+        double d = vec3_dot(nrm, vec3_sub(c, p));
+        if (d <= -r) return REGION_OUTSIDE;
+        nearest = fmin(nearest, d);
+    }
+    return nearest >= r ? REGION_ANTI_UMBRA : REGION_ANTI_PENUMBRA;
+}
+
+/* The region of a mesh light's pair at p, exactly: mesh_pair_bound where
+   it decides, else its triangles' common region, the anti-penumbra when
+   they differ. */
+static enum region mesh_pair_region(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
+{
+    enum region bound = mesh_pair_bound(s, pair, p);
+    if (bound != REGION_ANTI_PENUMBRA) return bound;
+    const struct scene *sc = s->scene;
+    const struct emitter *e = &sc->emitters[pair->emitter];
+    enum region common = REGION_INSIDE; /* none yet */
+    for (int k = 0; k < e->n_lights; ++k) {
+        struct strategy_pair m = member_of(sc, pair, e->first_light + k);
+        enum region r_k = antishadow_classify(&sc->portals[m.portal].antishadow, p);
+        if (common == REGION_INSIDE) common = r_k;
+        else if (r_k != common) return REGION_ANTI_PENUMBRA;
+    }
+    return common;
+}
+
 /* The `irradiance` weight of a mesh light's portal pair: the radiance
    times the portal's solid angle as a small polygon's, area |cos| / d^2
    (capped at a hemisphere), as if the light filled the portal (pair_weight
@@ -444,9 +489,10 @@ static double mesh_portal_irradiance(const struct strategy *s, const struct stra
 }
 
 /* Weight of pair i at the point under the strategy's heuristic; sets the
-   pair's region. A mesh light's pair is classified as a whole only by the
-   portal's plane (REGION_ANTI_PENUMBRA beyond it): its triangles are
-   classified one by one when a sample or a pdf picks one. */
+   pair's region. A mesh light's pair is classified as a whole by its
+   bounding sphere (mesh_pair_bound): no weight where no triangle can be
+   seen through the portal, and where the sphere cannot tell, its
+   triangles are classified one by one when a sample or a pdf picks one. */
 static double pair_weight(const struct strategy *s, const struct strategy_point *ptp, int i)
 {
     const struct scene *sc = s->scene;
@@ -475,8 +521,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
             if (pair->portal != l->first_portal || (!mesh && !above_horizon(&l->target.polygon, p, n))) return 0.0;
             return s->n_pairs == 1 ? 1.0 : emitter_weight(s, pair->emitter, heuristic, p, n);
         }
-        *region = mesh ? (plane_distance(&pt->antishadow.portal_plane, p) > 0.0 ? REGION_ANTI_PENUMBRA : REGION_OUTSIDE)
-                       : (unsigned char)antishadow_classify(&pt->antishadow, p);
+        *region = (unsigned char)(mesh ? mesh_pair_bound(s, pair, p) : antishadow_classify(&pt->antishadow, p));
         if (*region == REGION_OUTSIDE) return 0.0;
         /* A lone pair needs no weight beyond "can light p". */
         if (s->n_pairs == 1) return 1.0;
@@ -539,42 +584,6 @@ static double member_irradiance(const struct strategy *s, const struct strategy_
     struct polygon vis;
     if (antishadow_visible_polygon_in(a, p, r, &vis) < 3) return 0.0;
     return rgb_luminance(l->radiance) * irradiance_factor(&vis, p, n);
-}
-
-/* The region of a mesh light's pair at p (beyond the portal's plane):
-   decided for the whole mesh by its bounding sphere when the sphere's cone
-   from p lies inside every edge plane of the portal (anti-umbra: every
-   triangle is seen whole) or wholly outside one of them (outside); else by
-   its triangles, one by one: the common region when they all share one,
-   the anti-penumbra otherwise. O(portal edges) where the sphere decides,
-   which is everywhere but near the anti-penumbra. */
-static enum region mesh_pair_region(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
-{
-    const struct scene *sc = s->scene;
-    const struct portal *pt = &sc->portals[pair->portal];
-    if (plane_distance(&pt->antishadow.portal_plane, p) <= 0.0) return REGION_OUTSIDE;
-    struct vec3 c = s->centre[pair->emitter];
-    double r = s->reach[pair->emitter], nearest = INFINITY;
-    const struct polygon *q = &pt->target.polygon;
-    for (int k = 0; k < q->n; ++k) {
-        /* The plane through p and edge k, positive towards the portal's inside. */
-        struct vec3 a = vec3_sub(q->v[k], p), b = vec3_sub(q->v[(k + 1) % q->n], p);
-        struct vec3 nrm = vec3_normalize(vec3_cross(a, b));
-        if (vec3_dot(nrm, vec3_sub(pt->centroid, p)) < 0.0) nrm = vec3_neg(nrm);
-        double d = vec3_dot(nrm, vec3_sub(c, p));
-        if (d <= -r) return REGION_OUTSIDE;
-        nearest = fmin(nearest, d);
-    }
-    if (nearest >= r) return REGION_ANTI_UMBRA;
-    const struct emitter *e = &sc->emitters[pair->emitter];
-    enum region common = REGION_INSIDE; /* none yet */
-    for (int k = 0; k < e->n_lights; ++k) {
-        struct strategy_pair m = member_of(sc, pair, e->first_light + k);
-        enum region r_k = antishadow_classify(&sc->portals[m.portal].antishadow, p);
-        if (common == REGION_INSIDE) common = r_k;
-        else if (r_k != common) return REGION_ANTI_PENUMBRA;
-    }
-    return common;
 }
 
 /* A mesh light's pair: its region (mesh_pair_region, or REGION_INSIDE) and
@@ -711,7 +720,8 @@ static enum region member_region(const struct strategy *s, const struct strategy
                                  const struct strategy_pair *member)
 {
     enum region r = region_of(pt, pair_index);
-    if (r == REGION_INSIDE || !classifies(s->kind) || member->portal < 0) return r;
+    /* REGION_ANTI_UMBRA here is mesh_pair_bound's: every triangle's too. */
+    if (r == REGION_INSIDE || r == REGION_ANTI_UMBRA || !classifies(s->kind) || member->portal < 0) return r;
     return antishadow_classify(&s->scene->portals[member->portal].antishadow, pt->p);
 }
 
