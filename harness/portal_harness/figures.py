@@ -17,7 +17,10 @@ through exr.py):
    triangles where the value is only a lower bound; below it, the
    equal-error speed-up in the same layout. Facets are line styles (a
    legend names each key=value); an experiment without an axis has the
-   strategies along x and a colour per facet value.
+   strategies along x and a colour per facet value;
+4. the antishadow regions: the region classes of each point's region map
+   and section view, and what each strategy's shadow rays were spent on
+   (region_figures.py).
 
 PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}; the
 tables of the summary (tables.py) to results/experiments/<experiment>/summary.tex.
@@ -40,22 +43,18 @@ matplotlib.use("Agg")  # pinned: figures are files, never windows
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axis import Axis as MplAxis
-from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import (
-    Patch,
-    Rectangle,
-)
+from matplotlib.patches import Rectangle
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from portal_harness import display, exr, facets, index, tables
+from portal_harness import class_style, display, exr, facets, index, tables
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError, HarnessError
 from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
 from portal_harness.metrics import WHOLE_IMAGE, Region, crop
 from portal_harness.paths import ResultsLayout, RunLayout
-from portal_harness.regions import LIT, class_map
+from portal_harness.regions import LIT
 from portal_harness.spec import format_value
 
 # Display only: a colour and a label for the strategies drawn so far. The
@@ -87,10 +86,6 @@ def strategy_colour(strategy: str, strategies: Sequence[str]) -> str:
 
 INSET_COLOURS = ("#ffd700", "#00e5ff", "#ff4fd8", "#7CFC00")
 METRIC_LABELS = {"rel_mse": "relMSE", "mse": "MSE"}
-# One colour per region class (exr.REGION_CLASSES order), and grey for no majority.
-CLASS_COLOURS = ("#3b3b3b", "#f5d142", "#e8743b", "#4a90d9", "#9b59b6", "#ffffff", "#111111")
-CLASS_LABELS = ("outside", "anti-umbra", "anti-penumbra", "anti-antumbra", "inside shade", "emitter", "miss")
-NO_MAJORITY_COLOUR = "#9a9a9a"
 
 
 @dataclass(frozen=True)
@@ -290,7 +285,7 @@ def _region_title(region: str) -> str:
     if region == LIT:
         return "lit pixels"
     if region in exr.REGION_CLASSES:
-        return CLASS_LABELS[exr.REGION_CLASSES.index(region)]
+        return class_style.class_label(region)
     return f"inset {region}"
 
 
@@ -431,8 +426,7 @@ def figure_insets(
                 text = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
     fig.legend(
-        handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS, strict=True)]
-        + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
+        handles=class_style.legend_handles(exr.REGION_CLASSES),
         loc="lower center",
         ncol=8,
         fontsize=7,
@@ -448,9 +442,7 @@ def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
     if reference.regions is None:
         ax.text(0.5, 0.5, "no region AOV", ha="center", va="center", fontsize=7, transform=ax.transAxes)
         return
-    classes = class_map(reference.regions)
-    cmap = ListedColormap([NO_MAJORITY_COLOUR, *CLASS_COLOURS])
-    ax.imshow(classes + 1, cmap=cmap, vmin=-0.5, vmax=len(CLASS_COLOURS) + 0.5, interpolation="nearest")
+    class_style.draw_class_map(ax, reference.regions, exr.REGION_CLASSES)
 
 
 def _summary_regions(data: ExperimentData) -> list[str]:
@@ -598,6 +590,10 @@ def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
         paths += figure_error_curves(experiment, data, conn, layout)
         paths += figure_insets(experiment, data, conn, layout)
         paths += figure_efficiency(experiment, data, conn, layout)
+        # Imported here: region_figures builds on this module's helpers.
+        from portal_harness.region_figures import figure_regions
+
+        paths += figure_regions(experiment, data, conn, layout)
     finally:
         conn.close()
     return paths
