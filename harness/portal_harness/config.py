@@ -100,6 +100,7 @@ class RegionSections:
     scene: Path
     scene_sha256: str  # of the scene and its includes, read once at load
     spp: int = 64
+    label: str = ""  # the figure's name of the view (default: the scene file's stem)
 
 
 @dataclass(frozen=True)
@@ -548,13 +549,13 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     )
 
 
-REGION_SECTION_KEYS = {"scene", "spp"}
+REGION_SECTION_KEYS = {"scene", "spp", "label"}
 
 
 def _region_sections(
     r: Reader, path: Path, renderer: str, node: Any, fixed: Overrides, points: tuple[Point, ...]
 ) -> RegionSections:
-    """figures.region_sections: {scene, spp}; the scene must exist and the
+    """figures.region_sections: {scene, spp, label}; the scene must exist and the
     renderer must accept it with every point's overrides (it is rendered
     at each reference point, like the region map)."""
     m = r.mapping(node, "figures.region_sections", REGION_SECTION_KEYS, {"scene"})
@@ -562,6 +563,7 @@ def _region_sections(
     if not scene.is_file():
         raise r.fail("figures.region_sections.scene", f"scene file {scene} not found")
     spp = r.integer(m.get("spp", REGION_MAP_SPP), "figures.region_sections.spp", minimum=1)
+    label = r.string(m.get("label", scene.stem), "figures.region_sections.label")
     try:
         info = read_scene(renderer, scene, fixed)
     except ConfigError as e:
@@ -574,7 +576,7 @@ def _region_sections(
             raise r.fail(
                 "figures.region_sections.scene", f"the renderer rejects the scene at the point {point.id}: {e}"
             ) from None
-    return RegionSections(scene=scene, scene_sha256=info.sha256, spp=spp)
+    return RegionSections(scene=scene, scene_sha256=info.sha256, spp=spp, label=label)
 
 
 def _value(r: Reader, names: contract.Contract, key: str, node: Any, where: str) -> Any:

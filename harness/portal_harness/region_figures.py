@@ -38,10 +38,10 @@ from portal_harness.paths import ResultsLayout, RunLayout
 
 # The parts of a strategy's next-event samples, bottom to top: (label, colour, ShadowCounters attribute).
 SAMPLE_FATES = (
-    ("useful: reached the light", "#2ca02c", "useful"),
-    ("blocked (shadow ray occluded)", "#d62728", "shadow_blocked"),
-    ("missed the light (no ray)", "#ff7f0e", "light_missed"),
-    ("nothing to deliver (no ray)", "#c7c7c7", "no_ray"),
+    ("useful: unoccluded shadow ray", "#2ca02c", "useful"),
+    ("blocked: occluded shadow ray", "#d62728", "shadow_blocked"),
+    ("missed the light: no ray traced", "#ff7f0e", "light_missed"),
+    ("nothing to deliver (below the horizon, light's back): no ray", "#c7c7c7", "no_ray"),
 )
 
 
@@ -100,13 +100,16 @@ def draw_sample_fates(ax: Any, experiment: Experiment, data: ExperimentData, poi
             share = getattr(found, attribute) / found.light_samples
             ax.bar(s_i, share, bottom=bottom, width=0.7, color=colour, edgecolor="k", lw=0.4)
             bottom += share
-        ax.text(s_i, 1.02, f"{found.useful / found.light_samples:.0%}", ha="center", va="bottom", fontsize=6.5)
+        note = f"{found.useful / found.light_samples:.0%}"
+        if found.camera_samples > 0:
+            note += f"\n{found.light_samples / found.camera_samples:.2f}"
+        ax.text(s_i, 1.02, note, ha="center", va="bottom", fontsize=6.5, linespacing=1.1)
     ax.set_xticks(range(len(strategies)))
     ax.set_xticklabels([strategy_label(s) for s in strategies], rotation=35, ha="right", fontsize=7)
     for label, strategy in zip(ax.get_xticklabels(), strategies, strict=True):
         label.set_color(strategy_colour(strategy, strategies))
     ax.set_xlim(-0.6, len(strategies) - 0.4)
-    ax.set_ylim(0, 1.12)
+    ax.set_ylim(0, 1.2)
     ax.set_yticks([0, 0.25, 0.5, 0.75, 1.0])
     ax.tick_params(axis="y", labelsize=7)
     ax.grid(True, axis="y", alpha=0.2)
@@ -121,24 +124,51 @@ def figure_regions(
     classes = _classes(experiment)
     renders = region_renders(conn, experiment)
     points = data.points
-    rows: list[tuple[str, str | None]] = [("region classes, experiment's view", ROLE_REGION_MAP)]
+    rows: list[tuple[str, str | None]] = [(f"{experiment.scene.stem}: camera view", ROLE_REGION_MAP)]
     if experiment.region_sections is not None:
-        section_name = experiment.region_sections.scene.stem
-        rows.append((f"region classes, {section_name}", ROLE_REGION_SECTION))
+        rows.append((experiment.region_sections.label, ROLE_REGION_SECTION))
     rows.append(("fraction of next-event samples", None))
+    reps = experiment.budget.replicates if experiment.budget else 1
+    caption = (
+        "Antishadow region classes from the renderer's classifier (its region AOV: each pixel in the class of "
+        "most of its camera samples)"
+        + (
+            f"; row 2: {experiment.region_sections.label}, rendered with only that plane, the light and its "
+            "portal (the classes are geometric, from unoccluded irradiance: removing the other shapes does not "
+            "change them)"
+            if experiment.region_sections is not None
+            else ""
+        )
+        + ". Bottom: what the next-event samples each strategy drew became"
+        + (f" (its {reps} replicates together)" if reps > 1 else "")
+        + "; above each bar, the useful share and the samples drawn per camera sample (where no direction "
+        "reaches the light, e.g. outside every antishadow for the antishadow strategies, a strategy that knows it "
+        "draws none: such points are neither counted nor wasted)."
+    )
+    # Sizes in inches: columns of col_in, image rows at the image's aspect,
+    # the caption above, the bars' labels and the legend below.
     col_in = 3.0
     image_h = col_in * experiment.height / experiment.width
-    heights = [image_h if role else 2.4 for _, role in rows]
-    fig, axes = plt.subplots(
+    heights = [image_h if role else 2.2 for _, role in rows]
+    width = col_in * len(points) + 0.8
+    lines = textwrap.wrap(caption, width=max(60, int(width * 15)))
+    top_in, bottom_in, gap_in = 0.5 + 0.14 * len(lines), 1.45, 0.35
+    height = sum(heights) + gap_in * (len(rows) - 1) + top_in + bottom_in
+    fig = plt.figure(figsize=(width, height))
+    grid = fig.add_gridspec(
         len(rows),
         len(points),
-        figsize=(col_in * len(points) + 0.6, sum(heights) + 2.4),
-        squeeze=False,
-        gridspec_kw={"height_ratios": heights},
+        height_ratios=heights,
+        top=1 - top_in / height,
+        bottom=bottom_in / height,
+        left=0.6 / width,
+        right=1 - 0.2 / width,
+        hspace=gap_in / (sum(heights) / len(rows)),
+        wspace=0.08,
     )
     for p_i, point in enumerate(points):
         for r_i, (label, role) in enumerate(rows):
-            ax = axes[r_i][p_i]
+            ax = fig.add_subplot(grid[r_i, p_i])
             if role is None:
                 draw_sample_fates(ax, experiment, data, point.id)
             else:
@@ -148,32 +178,24 @@ def figure_regions(
                 ax.set_title(_point_title(experiment, point), fontsize=9)
             if p_i == 0:
                 ax.set_ylabel(label, fontsize=8)
+            elif role is None:
+                ax.set_yticklabels([])
     class_handles = class_style.legend_handles(classes)
     fate_handles = [Patch(fc=colour, ec="k", lw=0.4, label=label) for label, colour, _ in SAMPLE_FATES]
-    fig.legend(
-        handles=class_handles + fate_handles,
-        loc="lower center",
-        ncol=min(6, len(class_handles)),
-        fontsize=7.5,
-        frameon=False,
-        bbox_to_anchor=(0.5, 0.0),
-    )
-    reps = experiment.budget.replicates if experiment.budget else 1
-    caption = (
-        f"{experiment.name}: the antishadow region classes of the renderer's classifier (its region AOV; "
-        "each pixel in the class of most of its camera samples)"
-        + (
-            f"; second row: the plane of {experiment.region_sections.scene.name}, in which the camera sees only "
-            "that plane, the light and its portal (the classes are geometric: the classifier uses unoccluded "
-            "irradiance, so the removed shapes do not change them)"
-            if experiment.region_sections is not None
-            else ""
+    for handles, y_in in ((class_handles, 0.5), (fate_handles, 0.2)):
+        fig.legend(
+            handles=handles,
+            loc="center",
+            ncol=len(handles) if width > 9 else (len(handles) + 1) // 2,
+            fontsize=7.5,
+            frameon=False,
+            bbox_to_anchor=(0.5, y_in / height),
         )
-        + f". Bottom: what each strategy's next-event samples became, over {reps} replicate"
-        f"{'s' if reps > 1 else ''}; on top, the useful share."
+    fig.suptitle(
+        f"{experiment.name}: the antishadow regions, and what the shadow rays were spent on",
+        fontsize=10,
+        y=1 - 0.08 / height,
+        va="top",
     )
-    fig.suptitle("\n".join(textwrap.wrap(caption, width=int(22 * col_in * len(points)) or 80)), fontsize=9)
-    n_caption = len(textwrap.wrap(caption, width=int(22 * col_in * len(points)) or 80))
-    height = fig.get_figheight()
-    fig.tight_layout(rect=(0, 1.0 / height, 1, 1 - (0.2 * n_caption + 0.1) / height))
+    fig.text(0.5, 1 - 0.34 / height, "\n".join(lines), ha="center", va="top", fontsize=7.5)
     return _save(fig, layout, experiment, "regions")

@@ -132,9 +132,7 @@ def test_03_counters_are_read_from_each_runs_final_event(
         got = counters.read_final_counters(Path(run_dir))
         assert got is not None
         # what the fake renderer wrote: its counters for this run's passes at 16x16
-        assert got == counters.ShadowCounters(
-            **{k: v for k, v in fake_counters(strategy, spp, 16, 16).items() if k in counters.COUNTER_FIELDS}
-        )
+        assert got == counters.ShadowCounters(**fake_counters(strategy, spp, 16, 16), camera_samples=spp * 16 * 16)
         assert got.useful + got.shadow_blocked + got.light_missed + got.no_ray == got.light_samples
 
 
@@ -152,10 +150,15 @@ def test_04_counters_of_hand_written_events(tmp_path: Path) -> None:
         "shadow_rays": 60,
         "shadow_blocked": 15,
     }
-    run = _events(tmp_path / "a", [{"event": "start"}, "not json", {"event": "snapshot"}, final])
+    start = {"event": "start", "width": 4, "height": 5}
+    run = _events(tmp_path / "a", [start, "not json", {"event": "snapshot"}, {**final, "spp": 2}])
     c = counters.read_final_counters(run)
-    assert c == counters.ShadowCounters(light_samples=100, light_missed=30, shadow_rays=60, shadow_blocked=15)
+    assert c == counters.ShadowCounters(
+        light_samples=100, light_missed=30, shadow_rays=60, shadow_blocked=15, camera_samples=2 * 4 * 5
+    )
     assert c is not None and (c.useful, c.no_ray) == (45, 10)
+    # without the start event (or the final spp) the camera samples are unknown: 0
+    assert counters.read_final_counters(_events(tmp_path / "e", [final])) == counters.ShadowCounters(100, 30, 60, 15)
     # a renderer without the counters, no final event, no events file
     assert counters.read_final_counters(_events(tmp_path / "b", [{"event": "final", "spp": 4}])) is None
     assert counters.read_final_counters(_events(tmp_path / "c", [{"event": "start"}])) is None
@@ -163,7 +166,7 @@ def test_04_counters_of_hand_written_events(tmp_path: Path) -> None:
     bad = {**final, "shadow_rays": -1}
     assert counters.read_final_counters(_events(tmp_path / "d", [bad])) is None
     # summed over replicates, runs without counters left out
-    assert counters.total([c, None, c]) == counters.ShadowCounters(200, 60, 120, 30)
+    assert counters.total([c, None, c]) == counters.ShadowCounters(200, 60, 120, 30, 80)
     assert counters.total([None]) is None
 
 
@@ -263,6 +266,7 @@ def test_07_shipped_ratio_experiments_render_the_lamp_section(
         exp = load_experiment(REPO / "configs" / "experiments" / f"{name}.yaml", str(real_renderer))
         assert exp.region_sections is not None
         assert exp.region_sections.scene == (REPO / "configs" / "scenes" / "lampshade_section.yaml").resolve()
+        assert exp.region_sections.label == "vertical section z = 0 through the lamp"
         # the classes are the renderer's (render --describe), the ones exr.py reads
         assert exp.region_classes == exr.REGION_CLASSES
         point = exp.reference_points()[0]
