@@ -130,7 +130,7 @@ def load(experiment: Experiment, conn: sqlite3.Connection, layout: ResultsLayout
     return ExperimentData(points, runs, replicates, references, summary)
 
 
-def _point_title(experiment: Experiment, point: Point) -> str:
+def point_title(experiment: Experiment, point: Point) -> str:
     """The axis value and the facets of a point: `light/portal ratio = 2, portal_weight=area`."""
     parts = [] if experiment.axis is None else [f"{experiment.axis.label} = {point.axis_value:g}"]
     if point.facets:
@@ -156,7 +156,7 @@ def _row_has_facets(row: dict[str, Any], values: FacetValues) -> bool:
     return all(k in row and format_value(row[k]) == format_value(v) for k, v in values)
 
 
-def _save(fig: Figure, layout: ResultsLayout, experiment: Experiment, name: str) -> list[Path]:
+def save_figure(fig: Figure, layout: ResultsLayout, experiment: Experiment, name: str) -> list[Path]:
     layout.figures_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for ext in ("png", "pdf"):
@@ -176,7 +176,7 @@ def _plain_log_ticks(axis: MplAxis) -> None:
     axis.set_minor_formatter(plain if lo > 0 and hi / lo < 10 else NullFormatter())
 
 
-def _done(cell: Cell | None) -> bool:
+def cell_done(cell: Cell | None) -> bool:
     return cell is not None and cell.status == "done" and cell.run_dir is not None
 
 
@@ -224,7 +224,7 @@ def figure_error_curves(
         ax.set_visible(True)
         floor: float | None = None
         for strategy in experiment.strategies:
-            cells = [c for c in data.replicates.get((point.id, strategy), []) if _done(c)]
+            cells = [c for c in data.replicates.get((point.id, strategy), []) if cell_done(c)]
             curves = [c for c in (_curve(conn, cell, region, metric) for cell in cells) if c]
             if not curves:
                 continue
@@ -239,7 +239,7 @@ def figure_error_curves(
         ax.set_xscale("log")
         ax.set_yscale("log")
         sep = "\n" if point.facets else ": "  # facets make the title long: the region on a line of its own
-        ax.set_title(f"{_point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
+        ax.set_title(f"{point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
         ax.set_xlabel("render time (s)", fontsize=8)
         if i == 0:
             ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
@@ -255,7 +255,7 @@ def figure_error_curves(
         fontsize=10,
     )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.12 / fig.get_figheight()))  # room for the title
-    return _save(fig, layout, experiment, "error_time")
+    return save_figure(fig, layout, experiment, "error_time")
 
 
 def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, str]] = ()) -> None:
@@ -317,7 +317,7 @@ def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: Experimen
     finals = []
     for strategy in experiment.strategies:
         cell = data.runs.get((point.id, strategy))
-        if _done(cell):
+        if cell_done(cell):
             assert cell is not None
             row = index.run_row(conn, cell.key)
             if row is not None and row["final_time_s"]:
@@ -358,8 +358,8 @@ def figure_insets(
         class_ax.set_yticks([])
         ref_ax.set_xticks([])
         ref_ax.set_yticks([])
-        ref_ax.set_ylabel(_point_title(experiment, point), fontsize=8)
-        if not _done(ref_cell):
+        ref_ax.set_ylabel(point_title(experiment, point), fontsize=8)
+        if not cell_done(ref_cell):
             ref_ax.text(0.5, 0.5, "reference\nmissing", ha="center", va="center", fontsize=8)
             continue
         assert ref_cell is not None and ref_cell.run_dir is not None
@@ -384,7 +384,7 @@ def figure_insets(
             class_ax.set_title("antishadow region classes", fontsize=8)
         t_eq = equal_time(experiment, conn, data, point)
         if math.isfinite(t_eq):
-            ref_ax.set_ylabel(f"{_point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
+            ref_ax.set_ylabel(f"{point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
         for c_i, column in enumerate(columns):
             image: np.ndarray | None = None
             label = ""
@@ -396,7 +396,7 @@ def figure_insets(
                 cell = data.runs.get((point.id, column))
                 values = {}
                 label_time = ""
-                if _done(cell):
+                if cell_done(cell):
                     assert cell is not None
                     chosen = _choose_image(conn, cell, t_eq)
                     if chosen is not None:
@@ -434,7 +434,7 @@ def figure_insets(
         bbox_to_anchor=(0.5, -0.01),
     )
     fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10, y=0.995)
-    return _save(fig, layout, experiment, "insets")
+    return save_figure(fig, layout, experiment, "insets")
 
 
 def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
@@ -570,7 +570,7 @@ def figure_efficiency(
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, layout, experiment, "efficiency")
+    return save_figure(fig, layout, experiment, "efficiency")
 
 
 def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:

@@ -32,7 +32,7 @@ from matplotlib.patches import Patch
 from portal_harness import class_style, counters, exr, index
 from portal_harness.config import Experiment
 from portal_harness.errors import CorruptExrError, HarnessError
-from portal_harness.figures import ExperimentData, _done, _point_title, _save, strategy_colour, strategy_label
+from portal_harness.figures import ExperimentData, cell_done, point_title, save_figure, strategy_colour, strategy_label
 from portal_harness.index import ROLE_REGION_MAP, ROLE_REGION_SECTION
 from portal_harness.paths import ResultsLayout, RunLayout
 
@@ -90,7 +90,7 @@ def draw_sample_fates(ax: Any, experiment: Experiment, data: ExperimentData, poi
     samples (all replicates) that each fate took; the useful share printed on top."""
     strategies = experiment.strategies
     for s_i, strategy in enumerate(strategies):
-        cells = [c for c in data.replicates.get((point_id, strategy), []) if _done(c)]
+        cells = [c for c in data.replicates.get((point_id, strategy), []) if cell_done(c)]
         found = counters.total(counters.read_final_counters(c.run_dir) for c in cells if c.run_dir is not None)
         if found is None or found.light_samples == 0:
             ax.text(s_i, 0.5, "no\ncounters", ha="center", va="center", fontsize=6, rotation=90)
@@ -152,7 +152,13 @@ def figure_regions(
     heights = [image_h if role else 2.2 for _, role in rows]
     width = col_in * len(points) + 0.8
     lines = textwrap.wrap(caption, width=max(60, int(width * 15)))
-    top_in, bottom_in, gap_in = 0.5 + 0.14 * len(lines), 1.45, 0.35
+    # The legends: classes above the sample fates, on one row each when the figure is wide enough.
+    class_handles = class_style.legend_handles(classes)
+    fate_handles = [Patch(fc=colour, ec="k", lw=0.4, label=label) for label, colour, _ in SAMPLE_FATES]
+    legend_rows = 1 if width > 9 else 2
+    line_in = 0.19
+    top_in, gap_in = 0.5 + 0.14 * len(lines), 0.35
+    bottom_in = 1.05 + 2 * legend_rows * line_in + 0.2
     height = sum(heights) + gap_in * (len(rows) - 1) + top_in + bottom_in
     fig = plt.figure(figsize=(width, height))
     grid = fig.add_gridspec(
@@ -175,18 +181,18 @@ def figure_regions(
                 fractions = read_fractions(renders.get((point.id, role)))
                 _draw_view(ax, fractions, classes, "no region AOV\n(run the sweep)")
             if r_i == 0:
-                ax.set_title(_point_title(experiment, point), fontsize=9)
+                ax.set_title(point_title(experiment, point), fontsize=9)
             if p_i == 0:
                 ax.set_ylabel(label, fontsize=8)
             elif role is None:
                 ax.set_yticklabels([])
-    class_handles = class_style.legend_handles(classes)
-    fate_handles = [Patch(fc=colour, ec="k", lw=0.4, label=label) for label, colour, _ in SAMPLE_FATES]
-    for handles, y_in in ((class_handles, 0.5), (fate_handles, 0.2)):
+    fate_y = 0.1 + legend_rows * line_in / 2
+    class_y = fate_y + legend_rows * line_in + 0.08
+    for handles, y_in in ((class_handles, class_y), (fate_handles, fate_y)):
         fig.legend(
             handles=handles,
             loc="center",
-            ncol=len(handles) if width > 9 else (len(handles) + 1) // 2,
+            ncol=-(-len(handles) // legend_rows),
             fontsize=7.5,
             frameon=False,
             bbox_to_anchor=(0.5, y_in / height),
@@ -198,4 +204,4 @@ def figure_regions(
         va="top",
     )
     fig.text(0.5, 1 - 0.34 / height, "\n".join(lines), ha="center", va="top", fontsize=7.5)
-    return _save(fig, layout, experiment, "regions")
+    return save_figure(fig, layout, experiment, "regions")
