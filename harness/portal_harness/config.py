@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -90,6 +90,20 @@ class RegressSettings:
 
 
 @dataclass(frozen=True)
+class RegionSections:
+    """figures.region_sections: a second view of each reference point for
+    the region figures (region_figures.py), e.g. a vertical section through
+    the lamp: a render of `scene` with the region AOV and the point's
+    overrides. Its classes come from the renderer's classifier, so the view
+    is any scene the renderer reads with the same lights and portals."""
+
+    scene: Path
+    scene_sha256: str  # of the scene and its includes, read once at load
+    spp: int = 64
+    label: str = ""  # the figure's name of the view (default: the scene file's stem)
+
+
+@dataclass(frozen=True)
 class Point:
     """One point of the sweep's cross product. `facets` are its values of
     the swept keys that are not the axis (facets.py); `axis_value` is NaN
@@ -130,6 +144,9 @@ class Experiment:
     point_list: tuple[Point, ...]
     lit_threshold: float = 0.001  # regions.lit_threshold: reference radiance above which a pixel is lit
     facets: tuple[str, ...] = ()  # swept keys that are not the axis, in sweep order (facets.py)
+    region_sections: RegionSections | None = None  # figures.region_sections
+    # The region AOV's classes, in the renderer's order (render --describe: aov.region).
+    region_classes: tuple[str, ...] = REGION_CLASSES
 
     def points(self) -> list[Point]:
         return list(self.point_list)
@@ -275,6 +292,25 @@ class Experiment:
             extra=AOV_OVERRIDES,
             label="region_map",
         )
+
+    def region_section_spec(self, point: Point) -> RunSpec:
+        """The render of figures.region_sections.scene whose region AOV gives
+        the point's classes in that view (region_figures.py)."""
+        sections = self.region_sections
+        if sections is None:
+            raise ConfigError(str(self.path), "figures.region_sections", "required by the region figures")
+        r = self.reference
+        spec = self._spec(
+            point,
+            "light",
+            spp=sections.spp,
+            time_s=0.0,
+            seed=r.seed + 3000,
+            threads=r.threads,
+            extra=AOV_OVERRIDES,
+            label="region_section",
+        )
+        return replace(spec, scene=str(sections.scene), scene_sha256=sections.scene_sha256)
 
 
 def point_overrides(fixed: Overrides, values: tuple[tuple[str, Any], ...]) -> Overrides:
@@ -479,8 +515,13 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
     lit_threshold = r.number(regions_node.get("lit_threshold", 0.001), "regions.lit_threshold", positive=True)
 
-    fig = r.mapping(root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric"})
+    fig = r.mapping(root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric", "region_sections"})
     equal_time = fig.get("equal_time_s")
+    sections = (
+        _region_sections(r, p, renderer, fig["region_sections"], fixed_overrides, points)
+        if "region_sections" in fig
+        else None
+    )
     return Experiment(
         name=name,
         path=p,
@@ -503,7 +544,39 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
         point_list=points,
         lit_threshold=lit_threshold,
         facets=facet_keys,
+        region_sections=sections,
+        region_classes=tuple(c.removeprefix("region.") for c in names.region_channels),
     )
+
+
+REGION_SECTION_KEYS = {"scene", "spp", "label"}
+
+
+def _region_sections(
+    r: Reader, path: Path, renderer: str, node: Any, fixed: Overrides, points: tuple[Point, ...]
+) -> RegionSections:
+    """figures.region_sections: {scene, spp, label}; the scene must exist and the
+    renderer must accept it with every point's overrides (it is rendered
+    at each reference point, like the region map)."""
+    m = r.mapping(node, "figures.region_sections", REGION_SECTION_KEYS, {"scene"})
+    scene = (path.parent / r.string(m["scene"], "figures.region_sections.scene")).resolve()
+    if not scene.is_file():
+        raise r.fail("figures.region_sections.scene", f"scene file {scene} not found")
+    spp = r.integer(m.get("spp", REGION_MAP_SPP), "figures.region_sections.spp", minimum=1)
+    label = r.string(m.get("label", scene.stem), "figures.region_sections.label")
+    try:
+        info = read_scene(renderer, scene, fixed)
+    except ConfigError as e:
+        raise r.fail("figures.region_sections.scene", f"the renderer rejects the scene: {e}") from None
+    for point in points:
+        values = tuple((k, v) for k, v in point.values if k not in facets.SWEEPABLE_HARNESS_KEYS)
+        try:
+            contract.print_config(renderer, scene, point_overrides(fixed, values))
+        except ConfigError as e:
+            raise r.fail(
+                "figures.region_sections.scene", f"the renderer rejects the scene at the point {point.id}: {e}"
+            ) from None
+    return RegionSections(scene=scene, scene_sha256=info.sha256, spp=spp, label=label)
 
 
 def _value(r: Reader, names: contract.Contract, key: str, node: Any, where: str) -> Any:

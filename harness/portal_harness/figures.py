@@ -17,7 +17,10 @@ through exr.py):
    triangles where the value is only a lower bound; below it, the
    equal-error speed-up in the same layout. Facets are line styles (a
    legend names each key=value); an experiment without an axis has the
-   strategies along x and a colour per facet value.
+   strategies along x and a colour per facet value;
+4. the antishadow regions: the region classes of each point's region map
+   and section view, and what each strategy's shadow rays were spent on
+   (region_figures.py).
 
 PNG and PDF go to results/figures/<experiment>_<figure>.{png,pdf}; the
 tables of the summary (tables.py) to results/experiments/<experiment>/summary.tex.
@@ -40,22 +43,18 @@ matplotlib.use("Agg")  # pinned: figures are files, never windows
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axis import Axis as MplAxis
-from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import (
-    Patch,
-    Rectangle,
-)
+from matplotlib.patches import Rectangle
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from portal_harness import display, exr, facets, index, tables
+from portal_harness import class_style, display, exr, facets, index, tables
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError, HarnessError
 from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
 from portal_harness.metrics import WHOLE_IMAGE, Region, crop
 from portal_harness.paths import ResultsLayout, RunLayout
-from portal_harness.regions import LIT, class_map
+from portal_harness.regions import LIT
 from portal_harness.spec import format_value
 
 # Display only: a colour and a label for the strategies drawn so far. The
@@ -87,10 +86,6 @@ def strategy_colour(strategy: str, strategies: Sequence[str]) -> str:
 
 INSET_COLOURS = ("#ffd700", "#00e5ff", "#ff4fd8", "#7CFC00")
 METRIC_LABELS = {"rel_mse": "relMSE", "mse": "MSE"}
-# One colour per region class (exr.REGION_CLASSES order), and grey for no majority.
-CLASS_COLOURS = ("#3b3b3b", "#f5d142", "#e8743b", "#4a90d9", "#9b59b6", "#ffffff", "#111111")
-CLASS_LABELS = ("outside", "anti-umbra", "anti-penumbra", "anti-antumbra", "inside shade", "emitter", "miss")
-NO_MAJORITY_COLOUR = "#9a9a9a"
 
 
 @dataclass(frozen=True)
@@ -135,7 +130,7 @@ def load(experiment: Experiment, conn: sqlite3.Connection, layout: ResultsLayout
     return ExperimentData(points, runs, replicates, references, summary)
 
 
-def _point_title(experiment: Experiment, point: Point) -> str:
+def point_title(experiment: Experiment, point: Point) -> str:
     """The axis value and the facets of a point: `light/portal ratio = 2, portal_weight=area`."""
     parts = [] if experiment.axis is None else [f"{experiment.axis.label} = {point.axis_value:g}"]
     if point.facets:
@@ -161,7 +156,7 @@ def _row_has_facets(row: dict[str, Any], values: FacetValues) -> bool:
     return all(k in row and format_value(row[k]) == format_value(v) for k, v in values)
 
 
-def _save(fig: Figure, layout: ResultsLayout, experiment: Experiment, name: str) -> list[Path]:
+def save_figure(fig: Figure, layout: ResultsLayout, experiment: Experiment, name: str) -> list[Path]:
     layout.figures_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for ext in ("png", "pdf"):
@@ -181,7 +176,7 @@ def _plain_log_ticks(axis: MplAxis) -> None:
     axis.set_minor_formatter(plain if lo > 0 and hi / lo < 10 else NullFormatter())
 
 
-def _done(cell: Cell | None) -> bool:
+def cell_done(cell: Cell | None) -> bool:
     return cell is not None and cell.status == "done" and cell.run_dir is not None
 
 
@@ -229,7 +224,7 @@ def figure_error_curves(
         ax.set_visible(True)
         floor: float | None = None
         for strategy in experiment.strategies:
-            cells = [c for c in data.replicates.get((point.id, strategy), []) if _done(c)]
+            cells = [c for c in data.replicates.get((point.id, strategy), []) if cell_done(c)]
             curves = [c for c in (_curve(conn, cell, region, metric) for cell in cells) if c]
             if not curves:
                 continue
@@ -244,7 +239,7 @@ def figure_error_curves(
         ax.set_xscale("log")
         ax.set_yscale("log")
         sep = "\n" if point.facets else ": "  # facets make the title long: the region on a line of its own
-        ax.set_title(f"{_point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
+        ax.set_title(f"{point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
         ax.set_xlabel("render time (s)", fontsize=8)
         if i == 0:
             ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
@@ -260,7 +255,7 @@ def figure_error_curves(
         fontsize=10,
     )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.12 / fig.get_figheight()))  # room for the title
-    return _save(fig, layout, experiment, "error_time")
+    return save_figure(fig, layout, experiment, "error_time")
 
 
 def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, str]] = ()) -> None:
@@ -290,7 +285,7 @@ def _region_title(region: str) -> str:
     if region == LIT:
         return "lit pixels"
     if region in exr.REGION_CLASSES:
-        return CLASS_LABELS[exr.REGION_CLASSES.index(region)]
+        return class_style.class_label(region)
     return f"inset {region}"
 
 
@@ -322,7 +317,7 @@ def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: Experimen
     finals = []
     for strategy in experiment.strategies:
         cell = data.runs.get((point.id, strategy))
-        if _done(cell):
+        if cell_done(cell):
             assert cell is not None
             row = index.run_row(conn, cell.key)
             if row is not None and row["final_time_s"]:
@@ -363,8 +358,8 @@ def figure_insets(
         class_ax.set_yticks([])
         ref_ax.set_xticks([])
         ref_ax.set_yticks([])
-        ref_ax.set_ylabel(_point_title(experiment, point), fontsize=8)
-        if not _done(ref_cell):
+        ref_ax.set_ylabel(point_title(experiment, point), fontsize=8)
+        if not cell_done(ref_cell):
             ref_ax.text(0.5, 0.5, "reference\nmissing", ha="center", va="center", fontsize=8)
             continue
         assert ref_cell is not None and ref_cell.run_dir is not None
@@ -389,7 +384,7 @@ def figure_insets(
             class_ax.set_title("antishadow region classes", fontsize=8)
         t_eq = equal_time(experiment, conn, data, point)
         if math.isfinite(t_eq):
-            ref_ax.set_ylabel(f"{_point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
+            ref_ax.set_ylabel(f"{point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
         for c_i, column in enumerate(columns):
             image: np.ndarray | None = None
             label = ""
@@ -401,7 +396,7 @@ def figure_insets(
                 cell = data.runs.get((point.id, column))
                 values = {}
                 label_time = ""
-                if _done(cell):
+                if cell_done(cell):
                     assert cell is not None
                     chosen = _choose_image(conn, cell, t_eq)
                     if chosen is not None:
@@ -431,8 +426,7 @@ def figure_insets(
                 text = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
                 ax.set_xlabel(text, fontsize=7, labelpad=1.5)
     fig.legend(
-        handles=[Patch(fc=c, ec="k", lw=0.5, label=lab) for c, lab in zip(CLASS_COLOURS, CLASS_LABELS, strict=True)]
-        + [Patch(fc=NO_MAJORITY_COLOUR, ec="k", lw=0.5, label="no majority")],
+        handles=class_style.legend_handles(exr.REGION_CLASSES),
         loc="lower center",
         ncol=8,
         fontsize=7,
@@ -440,7 +434,7 @@ def figure_insets(
         bbox_to_anchor=(0.5, -0.01),
     )
     fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10, y=0.995)
-    return _save(fig, layout, experiment, "insets")
+    return save_figure(fig, layout, experiment, "insets")
 
 
 def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
@@ -448,9 +442,7 @@ def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
     if reference.regions is None:
         ax.text(0.5, 0.5, "no region AOV", ha="center", va="center", fontsize=7, transform=ax.transAxes)
         return
-    classes = class_map(reference.regions)
-    cmap = ListedColormap([NO_MAJORITY_COLOUR, *CLASS_COLOURS])
-    ax.imshow(classes + 1, cmap=cmap, vmin=-0.5, vmax=len(CLASS_COLOURS) + 0.5, interpolation="nearest")
+    class_style.draw_class_map(ax, reference.regions, exr.REGION_CLASSES)
 
 
 def _summary_regions(data: ExperimentData) -> list[str]:
@@ -578,7 +570,7 @@ def figure_efficiency(
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, layout, experiment, "efficiency")
+    return save_figure(fig, layout, experiment, "efficiency")
 
 
 def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
@@ -598,6 +590,10 @@ def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
         paths += figure_error_curves(experiment, data, conn, layout)
         paths += figure_insets(experiment, data, conn, layout)
         paths += figure_efficiency(experiment, data, conn, layout)
+        # Imported here: region_figures builds on this module's helpers.
+        from portal_harness.region_figures import figure_regions
+
+        paths += figure_regions(experiment, data, conn, layout)
     finally:
         conn.close()
     return paths

@@ -163,6 +163,7 @@ ROLE_REFERENCE = "reference"  # the point's (combined) reference
 ROLE_REFERENCE_PART = "reference_part"  # one of its independent renders (replicate = part)
 ROLE_PILOT = "pilot"  # a pilot render choosing the reference strategy
 ROLE_REGION_MAP = "region_map"  # the render whose region AOV gives the point's classes
+ROLE_REGION_SECTION = "region_section"  # the same in the view of figures.region_sections
 
 MembershipRow = tuple[str, str, str, int, str, str | None, float]
 

@@ -39,7 +39,14 @@ from portal_harness import exr, extend, index, measure, noise_check, pilot, refe
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError
 from portal_harness.execute import Target, plan_jobs, run_dask, run_local
-from portal_harness.index import ROLE_PILOT, ROLE_REFERENCE, ROLE_REFERENCE_PART, ROLE_REGION_MAP, ROLE_RUN
+from portal_harness.index import (
+    ROLE_PILOT,
+    ROLE_REFERENCE,
+    ROLE_REFERENCE_PART,
+    ROLE_REGION_MAP,
+    ROLE_REGION_SECTION,
+    ROLE_RUN,
+)
 from portal_harness.metrics import WHOLE_IMAGE, rel_variance_floor
 from portal_harness.paths import ResultsLayout
 from portal_harness.references import PointReference
@@ -81,7 +88,10 @@ def record_plan(
     runs: list[PlannedRun],
     refs: dict[str, PointReference],
     pilots: dict[str, dict[str, str]],
+    sections: dict[str, str] | None = None,
 ) -> None:
+    """Records the experiment's renders in the index; `sections` are the
+    region-section renders' keys by reference point (figures.region_sections)."""
     rows: list[index.MembershipRow] = []
     # One set of reference rows per point, also where points share a reference (facets.py).
     for point in experiment.points():
@@ -96,6 +106,8 @@ def record_plan(
         rows += [(point_id, s, ROLE_PILOT, 0, key, None, axis) for s, key in pilots.get(ref_id, {}).items()]
         if ref.region_map_key is not None:
             rows.append((point_id, "light", ROLE_REGION_MAP, 0, ref.region_map_key, None, axis))
+        if sections and ref_id in sections:
+            rows.append((point_id, "light", ROLE_REGION_SECTION, 0, sections[ref_id], None, axis))
     rows += [
         (r.point.id, r.strategy, ROLE_RUN, r.replicate, r.key, refs[r.reference].key, r.point.axis_value) for r in runs
     ]
@@ -463,9 +475,35 @@ def failures_of(
     return out
 
 
+def section_failures(sections: dict[str, str], manifests: dict[str, dict[str, Any]]) -> list[str]:
+    """The region-section renders that did not finish (their figure panel is then empty)."""
+    out = []
+    for pid, key in sections.items():
+        m = manifests.get(key)
+        if m is None or m.get("status") != store.STATUS_DONE:
+            out.append(
+                f"region section {pid} [{key}]: {(m or {}).get('status', 'missing')}: "
+                f"{(m or {}).get('error') or ''} {_last_line((m or {}).get('stderr_tail'))}".rstrip()
+            )
+    return out
+
+
 def _last_line(text: str | None) -> str:
     lines = [line for line in (text or "").splitlines() if line.strip()]
     return f"(stderr: {lines[-1][:160]})" if lines else ""
+
+
+def region_sections(
+    experiment: Experiment, options: SweepOptions, conn: sqlite3.Connection, manifests: dict[str, dict[str, Any]]
+) -> dict[str, str]:
+    """Per reference point, the key of its render of figures.region_sections
+    (none without the key): the figures read its region AOV, and nothing
+    else uses it, so a failed one is only listed with the failures."""
+    if experiment.region_sections is None:
+        return {}
+    specs = {p.id: experiment.region_section_spec(p) for p in experiment.reference_points()}
+    manifests.update(execute_specs(list(specs.values()), options, conn, desc="region sections"))
+    return {pid: spec.key(options.renderer_version) for pid, spec in specs.items()}
 
 
 def region_maps(
@@ -551,6 +589,7 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
     manifests: dict[str, dict[str, Any]] = {}
     try:
         maps = region_maps(experiment, options, conn, manifests)
+        sections = region_sections(experiment, options, conn, manifests)
         chosen = choose_reference_strategies(experiment, options, conn, manifests, maps)
         pilot_keys = {pid: c.pilot_keys for pid, c in chosen.items()}
         refs = {
@@ -561,13 +600,13 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         }
         for pid, ref in refs.items():
             ref.region_map_key, ref.fractions = maps[pid]
-        record_plan(conn, experiment, runs, refs, pilot_keys)
+        record_plan(conn, experiment, runs, refs, pilot_keys, sections)
         part_specs = [part.spec for ref in refs.values() for part in ref.parts]
         manifests.update(execute_specs(part_specs, options, conn, desc="references"))
         biased = build_references(experiment, refs, options, conn, manifests)
         if biased:
             return _stop_biased(
-                experiment, biased, "no run was measured against them", conn, runs, refs, pilot_keys, out
+                experiment, biased, "no run was measured against them", conn, runs, refs, pilot_keys, out, sections
             )
         manifests.update(execute_specs([r.spec for r in runs], options, conn, desc="runs"))
         problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
@@ -582,14 +621,14 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
             biased = build_references(experiment, {pid: refs[pid] for pid in extended}, options, conn, manifests)
             if biased:
                 return _stop_biased(
-                    experiment, biased, "found after extending references", conn, runs, refs, pilot_keys, out
+                    experiment, biased, "found after extending references", conn, runs, refs, pilot_keys, out, sections
                 )
             problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
             checks = check_references(experiment, runs, refs, conn)
-        record_plan(conn, experiment, runs, refs, pilot_keys)
+        record_plan(conn, experiment, runs, refs, pilot_keys, sections)
         rows = summarize(experiment, runs, refs, conn, manifests)
         info = references_info(refs, checks, manifests)
-        failures = failures_of(runs, refs, manifests)
+        failures = failures_of(runs, refs, manifests) + section_failures(sections, manifests)
         write_summary(experiment, layout, rows, info, failures, problems)
     finally:
         conn.close()
@@ -624,9 +663,10 @@ def _stop_biased(
     refs: dict[str, PointReference],
     pilot_keys: dict[str, dict[str, str]],
     out: TextIO,
+    sections: dict[str, str],
 ) -> int:
     """Reports a failed bias test; the sweep stops with exit status 1."""
-    record_plan(conn, experiment, runs, refs, pilot_keys)
+    record_plan(conn, experiment, runs, refs, pilot_keys, sections)
     for line in biased:
         print(f"bias: {line}", file=out)
     print(

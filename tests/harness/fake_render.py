@@ -23,6 +23,9 @@ final.state (numpy), and `render --resume DIR --spp N` continues it; each
 pass draws from its own generator (seed, strategy, s_L, pass), so a resumed
 render equals an uninterrupted one.
 
+The final event carries the shadow-ray counters of the contract
+(`counters`: fixed shares per strategy, so that a figure's bars are known).
+
 Environment knobs:
   FAKE_RENDER_REAL=path          the real renderer (required)
   FAKE_RENDER_LOG=path           append one line per render (strategy seed out)
@@ -61,6 +64,10 @@ COST = {
     "antishadow_exact": 0.016,
 }
 DEFAULT_SIGMA, DEFAULT_COST = 1.0, 0.01
+# The final event's counters (see `counters`): per strategy, the share of next-event samples
+# whose direction misses the light, and of shadow rays that are blocked.
+MISSED = {"light_area": 0.0, "light": 0.0, "portal": 0.5, "projection": 0.25, "antishadow": 0.1}
+BLOCKED = {"light_area": 0.9, "light": 0.9, "portal": 0.2, "projection": 0.1, "antishadow": 0.05}
 COLOUR = np.array([1.0, 0.8, 0.6])
 
 
@@ -78,6 +85,20 @@ def region_fractions(channels: list[str], width: int, height: int) -> dict[str, 
     cls = np.where(np.arange(width)[None, :] < width // 2, 1, 3) * np.ones((height, 1), dtype=int)
     cls[:2, :] = 5
     return {name: (cls == i).astype(np.float32) for i, name in enumerate(channels)}
+
+
+def counters(strategy: str, passes: int, width: int, height: int) -> dict[str, int]:
+    """The final event's shadow-ray counters: one next-event sample per pixel
+    and pass, a tenth of them with nothing to deliver (no ray)."""
+    samples = passes * width * height
+    missed = round(samples * MISSED.get(strategy, 0.0))
+    shadow_rays = samples - missed - samples // 10
+    return {
+        "shadow_rays": shadow_rays,
+        "shadow_blocked": round(shadow_rays * BLOCKED.get(strategy, 0.0)),
+        "light_samples": samples,
+        "light_missed": missed,
+    }
 
 
 def real_renderer() -> str:
@@ -287,6 +308,7 @@ def main(argv: list[str]) -> int:
             "rays": 2 * passes * width * height,
             "nonfinite": 0,
             "interrupted": stop["now"],
+            **counters(strategy, passes, width, height),
         }
     )
     return 3 if stop["now"] else 0
