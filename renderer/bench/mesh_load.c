@@ -15,7 +15,6 @@
    set size (getrusage ru_maxrss) after the first
    config_load and at the end. Prints one JSON object on stdout. */
 #include <inttypes.h>
-#include <limits.h>
 #include <stdint.h>
 #include <sys/resource.h>
 
@@ -36,30 +35,6 @@ static double peak_rss_mb(void)
     struct rusage ru;
     if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
     return (double)ru.ru_maxrss / 1024.0; /* kilobytes on Linux */
-}
-
-/* The faces scene_create stitches: every shape's quads, then its triangles. */
-static struct watertight_face *faces_of(const struct config *cfg, int *n_out)
-{
-    size_t n = 0;
-    for (int i = 0; i < cfg->n_shapes; ++i) n += (size_t)cfg->shapes[i].n_quads + (size_t)cfg->shapes[i].n_triangles;
-    if (n > (size_t)INT_MAX) return NULL;
-    struct watertight_face *f = malloc(sizeof *f * (n > 0 ? n : 1));
-    if (!f) return NULL;
-    int k = 0;
-    for (int i = 0; i < cfg->n_shapes; ++i) {
-        const struct shape_desc *sh = &cfg->shapes[i];
-        for (int q = 0; q < sh->n_quads; ++q, ++k) {
-            f[k].n = 4;
-            for (int v = 0; v < 4; ++v) f[k].v[v] = sh->vertices[sh->quads[q][v]];
-        }
-        for (int t = 0; t < sh->n_triangles; ++t, ++k) {
-            f[k].n = 3;
-            for (int v = 0; v < 3; ++v) f[k].v[v] = sh->vertices[sh->triangles[t][v]];
-        }
-    }
-    *n_out = k;
-    return f;
 }
 
 static uint64_t fnv1a64(uint64_t h, const void *data, size_t n)
@@ -112,9 +87,9 @@ int main(int argc, char **argv)
         load.wall[r] = timing_now_s() - w0, load.cpu[r] = process_cpu_s() - c0;
         if (r == 0) rss_load = peak_rss_mb();
 
-        struct watertight_face *faces = faces_of(&cfg, &n_faces);
-        if (!faces) {
-            fprintf(stderr, "%s: out of memory for the faces\n", path);
+        struct watertight_face *faces;
+        if (!scene_collect_faces(&cfg, &faces, &n_faces, &err)) {
+            fprintf(stderr, "%s: %s\n", path, err.message);
             return 1;
         }
         struct watertight w;

@@ -73,10 +73,9 @@ static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, con
     return true;
 }
 
-/* The faces of every shape, in shape order, each shape's quads then its
-   triangles: what watertight_stitch sees. Lights are not among them: the
-   strategies sample their polygons, which must stay as they are. */
-static bool collect_faces(const struct config *cfg, struct watertight_face **out, int *n_out, struct error *err)
+/* Lights are not among the faces: the strategies sample their polygons,
+   which must stay as they are. */
+bool scene_collect_faces(const struct config *cfg, struct watertight_face **out, int *n_out, struct error *err)
 {
     size_t n = 0;
     for (int i = 0; i < cfg->n_shapes; ++i) n += (size_t)cfg->shapes[i].n_quads + (size_t)cfg->shapes[i].n_triangles;
@@ -100,7 +99,7 @@ static bool collect_faces(const struct config *cfg, struct watertight_face **out
     return true;
 }
 
-/* Attaches one shape, its faces being w's faces face0.. (collect_faces'
+/* Attaches one shape, its faces being w's faces face0.. (scene_collect_faces'
    order): the quads that gained no vertex stay one quad geometry (quads
    trace ~25% faster than two triangles), the triangles that stay and the
    fans of the faces that changed are one triangle geometry, with the fans'
@@ -264,7 +263,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     struct watertight_face *faces = NULL;
     int n_faces = 0;
     struct watertight w;
-    if (!collect_faces(cfg, &faces, &n_faces, err)) goto fail;
+    if (!scene_collect_faces(cfg, &faces, &n_faces, err)) goto fail;
     bool stitched = watertight_stitch(faces, n_faces, &w, err);
     free(faces);
     if (!stitched) goto fail;

@@ -76,6 +76,13 @@ struct hit {
     int light;      /* -1 when a surface was hit */
 };
 
+struct watertight_face; /* watertight.h */
+
+/* The faces of every shape of cfg, in shape order, each shape's quads then
+   its triangles: what scene_create gives watertight_stitch (the mesh-load
+   bench times the stitching alone with it). *out is the caller's to free. */
+bool scene_collect_faces(const struct config *cfg, struct watertight_face **out, int *n_out, struct error *err);
+
 /* Builds Embree geometry for every shape and light; precomputes portals. */
 bool scene_create(const struct config *cfg, struct scene *out, struct error *err);
 void scene_destroy(struct scene *s);

@@ -158,6 +158,22 @@ static void test_inside_shade(void)
     }
 }
 
+/* One cell of the midpoint rules below: L_e cos cos / r^2 dA from point y
+   of light li (cell area da) to p (normal n, rays leaving from origin),
+   with ray-traced visibility. */
+static double cell_contribution(const struct scene *sc, const struct light *li, struct vec3 origin, struct vec3 p,
+                                struct vec3 n, struct vec3 y, double da)
+{
+    struct vec3 d = vec3_sub(y, p);
+    double r2 = vec3_length2(d);
+    struct vec3 w = vec3_scale(d, 1.0 / sqrt(r2));
+    double cos_p = vec3_dot(w, n);
+    double le = light_emitted(li, vec3_neg(w)).r;
+    if (cos_p <= 0.0 || le == 0.0) return 0.0;
+    if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w)))) return 0.0;
+    return le * cos_p * fabs(vec3_dot(w, li->target.normal)) / r2 * da;
+}
+
 /* Midpoint rule over each light (rectangles: g x g cells), with ray-traced
    visibility from the floor point: sum of L_e cos cos / r^2 dA. */
 static double brute_force(const struct scene *sc, struct vec3 p, double albedo, int g)
@@ -174,15 +190,7 @@ static double brute_force(const struct scene *sc, struct vec3 p, double albedo, 
                 const struct sphrect_frame *f = &li->target.frame;
                 struct vec3 y = vec3_add(f->corner, vec3_add(vec3_scale(f->x, f->ex_len * (i + 0.5) / g),
                                                              vec3_scale(f->y, f->ey_len * (j + 0.5) / g)));
-                struct vec3 d = vec3_sub(y, p);
-                double r2 = vec3_length2(d);
-                struct vec3 w = vec3_scale(d, 1.0 / sqrt(r2));
-                double cos_p = vec3_dot(w, n);
-                double le = light_emitted(li, vec3_neg(w)).r;
-                if (cos_p <= 0.0 || le == 0.0) continue;
-                if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w))))
-                    continue;
-                sum += le * cos_p * fabs(vec3_dot(w, li->target.normal)) / r2 * da;
+                sum += cell_contribution(sc, li, origin, p, n, y, da);
             }
     }
     return albedo / M_PI * sum;
@@ -260,15 +268,7 @@ static double brute_force_triangles(const struct scene *sc, struct vec3 p, struc
                 for (int up = 0; up < (i + j < g - 1 ? 2 : 1); ++up) {
                     double a = (3.0 * i + 1.0 + up) / (3.0 * g), b = (3.0 * j + 1.0 + up) / (3.0 * g);
                     struct vec3 y = vec3_add(v[0], vec3_add(vec3_scale(e1, a), vec3_scale(e2, b)));
-                    struct vec3 d = vec3_sub(y, p);
-                    double r2 = vec3_length2(d);
-                    struct vec3 w = vec3_scale(d, 1.0 / sqrt(r2));
-                    double cos_p = vec3_dot(w, n);
-                    double le = light_emitted(li, vec3_neg(w)).r;
-                    if (cos_p <= 0.0 || le == 0.0) continue;
-                    if (test_segment_occluded(sc, origin, scene_offset_origin(sc, y, li->target.normal, vec3_neg(w))))
-                        continue;
-                    sum += le * cos_p * fabs(vec3_dot(w, li->target.normal)) / r2 * da;
+                    sum += cell_contribution(sc, li, origin, p, n, y, da);
                 }
     }
     return albedo / M_PI * sum;
