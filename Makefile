@@ -201,7 +201,7 @@ fuzz:
 # then the lampshade with an 80-triangle sphere as a mesh light
 # (tests/configs/good/mesh_light_sphere.yaml) with each of
 # CROSSCHECK_MESH_LIGHT_STRATEGIES; each scene against one set of Mitsuba
-# renders. Every run is made; the target fails if any disagrees. About 11
+# renders. Every run is made; the target fails if any disagrees. About 8
 # minutes on 2 busy cores. tools/crosscheck/README.md.
 CROSSCHECK_STRATEGIES ?= light portal antishadow antishadow_exact
 CROSSCHECK_MESH_LIGHT_STRATEGIES ?= light portal antishadow_exact

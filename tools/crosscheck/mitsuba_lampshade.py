@@ -2,11 +2,11 @@
 """Independent-renderer cross-check: our renderer against Mitsuba 3.
 
 Renders the lampshade scene (configs/scenes/lampshade.yaml, or --scene, e.g.
-lampshade_mesh.yaml with a mesh from a PLY file, or a scene with a mesh
-light) with our renderer, rebuilds
-the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE config
-our renderer wrote (OUT/ours/config.yaml), renders it K times with
-independent seeds, and compares the two images block by block:
+lampshade_mesh.yaml with a mesh from a PLY file, or
+tests/configs/good/mesh_light_sphere.yaml with a mesh light) with our
+renderer, rebuilds the same scene for Mitsuba 3 (variant scalar_rgb) from
+the EFFECTIVE config our renderer wrote (OUT/ours/config.yaml), renders it
+K times with independent seeds, and compares the two images block by block:
 
     z = (ours_block - mitsuba_block) / sqrt(var_ours_block + var_mitsuba_block)
 
