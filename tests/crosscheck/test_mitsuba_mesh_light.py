@@ -280,3 +280,31 @@ def test_5_small_sphere_scene_agrees_with_mitsuba(tmp_path: Path) -> None:
     # would leave it black).
     for r, e in zip(s["mean_ratio_ours_over_mitsuba"], s["mean_ratio_sigma"], strict=True):
         assert abs(r - 1.0) < 5 * e
+
+
+@needs_mitsuba
+def test_6_vertex_normals_in_the_file_do_not_turn_the_emitting_side(tmp_path: Path) -> None:
+    # Ours ignores an OBJ's `vn` (the winding decides). Mitsuba emits on the
+    # side of its shading normal, which without face_normals would follow
+    # the file's `vn` (measured: a triangle wound towards +z with vn = -z
+    # then emits towards -z only). The converter's face_normals keeps it on
+    # the winding's side.
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 -1\nf 1//1 2//1 3//1\n")
+    cfg = {
+        "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y": 45},
+        "film": {"width": 4, "height": 4},
+        "materials": {},
+        "shapes": [],
+        "lights": [{"name": "panel", "mesh": {"file": str(obj)}, "radiance": [1.0, 2.0, 3.0], "two_sided": False}],
+    }
+    # Recentred to the bounding box's centre (0.5, 0.5, 0): the triangle's
+    # point (0.2, 0.2) is at (-0.3, -0.3).
+    rays: list[tuple[Vec, Vec]] = [((-0.3, -0.3, 1.0), (0.0, 0.0, -1.0)), ((-0.3, -0.3, -1.0), (0.0, 0.0, 1.0))]
+    out = probe(tmp_path, cfg, rays)
+    front, back = out["probes"]
+    assert front["t"] == pytest.approx(1.0, abs=1e-6) and back["t"] == pytest.approx(1.0, abs=1e-6)
+    assert front["le"] == pytest.approx([1.0, 2.0, 3.0], rel=1e-6)
+    assert back["le"] == [0.0, 0.0, 0.0]
+    assert front["n"] == pytest.approx([0.0, 0.0, 1.0], abs=1e-6)
+    assert out["lights"]["light_00_panel"]["entry"]["face_normals"] is True
