@@ -202,10 +202,14 @@ fuzz:
 
 # Independent-renderer check against Mitsuba 3 (own venv): the lampshade with
 # light sampling, then the lampshade with a third-party mesh from a binary PLY
-# (configs/scenes/lampshade_mesh.yaml) with each of CROSSCHECK_STRATEGIES
-# against one set of Mitsuba renders. Every run is made; the target fails if
-# any disagrees. tools/crosscheck/README.md.
+# (configs/scenes/lampshade_mesh.yaml) with each of CROSSCHECK_STRATEGIES,
+# then the lampshade with an 80-triangle sphere as a mesh light
+# (tests/configs/good/mesh_light_sphere.yaml) with each of
+# CROSSCHECK_MESH_LIGHT_STRATEGIES; each scene against one set of Mitsuba
+# renders. Every run is made; the target fails if any disagrees. About 8
+# minutes on 2 busy cores. tools/crosscheck/README.md.
 CROSSCHECK_STRATEGIES ?= light portal antishadow antishadow_exact
+CROSSCHECK_MESH_LIGHT_STRATEGIES ?= light portal antishadow_exact
 CROSSCHECK_OUT := results/tmp/crosscheck
 crosscheck: $(BUILD)/render
 	@test -x .venv-xcheck/bin/python || python3 -m venv .venv-xcheck
@@ -217,6 +221,12 @@ crosscheck: $(BUILD)/render
 	    --scene configs/scenes/lampshade_mesh.yaml --strategy $$s \
 	    --mitsuba-cache $(CROSSCHECK_OUT)/lampshade_mesh/mitsuba.npz \
 	    --out $(CROSSCHECK_OUT)/lampshade_mesh/direct_$$s || rc=1; \
+	done; \
+	for s in $(CROSSCHECK_MESH_LIGHT_STRATEGIES); do \
+	  .venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py --renderer $(BUILD)/render \
+	    --scene tests/configs/good/mesh_light_sphere.yaml --strategy $$s \
+	    --mitsuba-cache $(CROSSCHECK_OUT)/mesh_light_sphere/mitsuba.npz \
+	    --out $(CROSSCHECK_OUT)/mesh_light_sphere/direct_$$s || rc=1; \
 	done; exit $$rc
 
 clean:

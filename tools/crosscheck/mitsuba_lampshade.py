@@ -2,10 +2,11 @@
 """Independent-renderer cross-check: our renderer against Mitsuba 3.
 
 Renders the lampshade scene (configs/scenes/lampshade.yaml, or --scene, e.g.
-lampshade_mesh.yaml with a mesh from a PLY file) with our renderer, rebuilds
-the same scene for Mitsuba 3 (variant scalar_rgb) from the EFFECTIVE config
-our renderer wrote (OUT/ours/config.yaml), renders it K times with
-independent seeds, and compares the two images block by block:
+lampshade_mesh.yaml with a mesh from a PLY file, or
+tests/configs/good/mesh_light_sphere.yaml with a mesh light) with our
+renderer, rebuilds the same scene for Mitsuba 3 (variant scalar_rgb) from
+the EFFECTIVE config our renderer wrote (OUT/ours/config.yaml), renders it
+K times with independent seeds, and compares the two images block by block:
 
     z = (ours_block - mitsuba_block) / sqrt(var_ours_block + var_mitsuba_block)
 
@@ -14,7 +15,7 @@ variance layer (variance of the pixel mean); var_mitsuba from the spread of the
 K independent Mitsuba renders. The run fails (exit 1) when max |z| exceeds the
 two-sided Bonferroni bound for an overall false-alarm rate --alpha over all
 block-channel tests.
-Each mesh read from a file is also reported on its own (the blocks it
+Each mesh shape read from a file is also reported on its own (the blocks it
 covers, and the ratio ours/Mitsuba over the pixels that see it).
 
 Mitsuba lives in its own venv (.venv-xcheck at the repository root); when the
@@ -445,10 +446,11 @@ def build_scene_dict(
         black = {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb([0, 0, 0])}}
         emitter = {"type": "area", "radiance": _rgb(light["radiance"])}
         if "mesh" in light:
-            # A mesh light (UNTESTED against our renderer, which does not have
-            # them yet; see README): every triangle emits on the side its
-            # winding faces, as Mitsuba's area emitter on the same file does
-            # (file_mesh_shape keeps the side under mirroring transforms).
+            # A mesh light: every triangle emits on the side its winding
+            # faces, as Mitsuba's area emitter on the same file does with
+            # face normals (file_mesh_shape keeps the side under mirroring
+            # transforms). Checked per triangle and end to end in
+            # tests/crosscheck/test_mitsuba_mesh_light.py.
             entry = file_mesh_shape(light["mesh"], off, f"light {light['name']!r}")
             entry["to_world"] = mi.ScalarTransform4f(entry["to_world"])
             scene[f"light_{i:02d}_{light['name']}"] = {**entry, "bsdf": black, "emitter": emitter}
