@@ -180,13 +180,19 @@ lint-py: $(VENV_STAMP)
 
 test: lint-c test-c test-c-san test-py lint-py
 
-# The experiments of make figures, each at its small default (FULL=1: the
-# paper-quality file NAME_full.yaml).
-FIGURE_EXPERIMENTS := lampshade_ratio little_lamp
+# The experiments `make figures` runs, in order: the ratio sweep, its
+# variants (both samplers: after it, as they share its references; path
+# tracing), the third-party Little Lamp, then the scenes of several lamps
+# (the weights share multi_lamp's direct reference). NAME.yaml is the small
+# default, NAME_full.yaml the paper-quality version (FULL=1).
+FIGURE_EXPERIMENTS := lampshade_ratio lampshade_ratio_samplers lampshade_ratio_path little_lamp multi_lamp \
+                      multi_lamp_weights
 figures: $(BUILD)/render $(VENV_STAMP)
 	@set -e; for e in $(FIGURE_EXPERIMENTS); do \
-	  $(VENV)/bin/portal-harness sweep configs/experiments/$$e$(if $(FULL),_full,).yaml; \
-	  $(VENV)/bin/portal-harness figures configs/experiments/$$e$(if $(FULL),_full,).yaml; \
+	  f=configs/experiments/$$e$(if $(FULL),_full,).yaml; \
+	  echo "figures: $$f" >&2; \
+	  $(VENV)/bin/portal-harness sweep $$f; \
+	  $(VENV)/bin/portal-harness figures $$f; \
 	done
 
 bench: $(BUILD)/render $(BENCH_BINS)
