@@ -230,7 +230,6 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
                 ++s->n_portals;
             }
             l->n_portals = s->n_portals - l->first_portal;
-            e->n_portals = l->n_portals;
             ++s->n_lights;
         }
     }

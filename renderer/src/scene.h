@@ -28,12 +28,12 @@ struct portal {
 /* A light as the config names it: one polygon light, or a mesh light whose
    every triangle is a light of its own (lights first_light.. first_light +
    n_lights - 1, in the mesh's order). Each of its lights holds its own copy
-   of each of the emitter's n_portals portals, in the same order, with the
-   antishadow of that light and that portal; a portal therefore has the
-   index lights[l].first_portal + k in every light l of the emitter. */
+   of each of the emitter's portals (as many as lights[first_light].n_portals),
+   in the same order, with the antishadow of that light and that portal; a
+   portal therefore has the index lights[l].first_portal + k in every light
+   l of the emitter. */
 struct emitter {
     int first_light, n_lights;
-    int n_portals;   /* per light */
     double power;    /* sum of its lights' */
     void *rtc_scene; /* a mesh light's triangles alone (RTCScene), NULL for a polygon light */
 };

@@ -207,7 +207,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
 
     int n = 0;
     for (int i = 0; i < scene->n_emitters; ++i) {
-        int np = strategy_kind_uses_portals(s->kind) ? scene->emitters[i].n_portals : 0;
+        int np = strategy_kind_uses_portals(s->kind) ? scene->lights[scene->emitters[i].first_light].n_portals : 0;
         n += np > 0 ? np : 1;
     }
     s->pairs = malloc(sizeof *s->pairs * (size_t)n);

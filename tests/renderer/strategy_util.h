@@ -53,7 +53,7 @@ static inline int ts_add_light(struct test_scene *ts, struct polygon poly, struc
     ts->lights[i].first_portal = ts->scene.n_portals;
     int e = ts->scene.n_emitters++;
     ts->lights[i].emitter = e;
-    ts->emitters[e] = (struct emitter){ i, 1, 0, ts->lights[i].power, NULL };
+    ts->emitters[e] = (struct emitter){ i, 1, ts->lights[i].power, NULL };
     return i;
 }
 
@@ -68,7 +68,6 @@ static inline void ts_add_portal(struct test_scene *ts, int light, struct polygo
     bool ok = antishadow_build(&ts->lights[light].target.polygon, &pt->target.polygon, &pt->antishadow, &err);
     CHECK_MSG(ok, "antishadow_build: %s", err.message);
     ts->lights[light].n_portals++;
-    ts->emitters[ts->lights[light].emitter].n_portals++;
 }
 
 /* Adds a mesh light: each of the n triangles becomes a light of one new
@@ -78,17 +77,14 @@ static inline int ts_add_mesh_light(struct test_scene *ts, const struct polygon 
                                     bool two_sided, const struct polygon *portals, int n_portals)
 {
     int e = ts->scene.n_emitters++;
-    ts->emitters[e] = (struct emitter){ ts->scene.n_lights, n, n_portals, 0.0, NULL };
+    ts->emitters[e] = (struct emitter){ ts->scene.n_lights, n, 0.0, NULL };
     for (int i = 0; i < n; ++i) {
         int l = ts->scene.n_lights++;
         CHECK(light_init(&ts->lights[l], &tris[i], radiance, two_sided));
         ts->lights[l].first_portal = ts->scene.n_portals;
         ts->lights[l].emitter = e;
         ts->emitters[e].power += ts->lights[l].power;
-        for (int k = 0; k < n_portals; ++k) {
-            ts_add_portal(ts, l, portals[k]);
-            ts->emitters[e].n_portals--; /* ts_add_portal counts per light; the emitter's count is per light too */
-        }
+        for (int k = 0; k < n_portals; ++k) ts_add_portal(ts, l, portals[k]);
     }
     return e;
 }
