@@ -184,19 +184,60 @@ static bool check_finite(const struct aiScene *s, struct error *err)
     return true;
 }
 
+/* The geometry statements of an OBJ file; every other line reaches assimp
+   blanked (spaces, its newline kept, so line numbers hold). The renderer
+   reads no materials, and assimp 5.2.5 writes through a null pointer on
+   an MTL statement such as map_emissive once an mtllib it could not open
+   has been named (found by make fuzz). */
+static bool obj_keyword_kept(const char *line, size_t n)
+{
+    static const char *const kept[] = { "v", "vt", "vn", "vp", "f", "l", "p", "o", "g", "s" };
+    while (n > 0 && (*line == ' ' || *line == '\t')) ++line, --n;
+    size_t k = 0;
+    while (k < n && line[k] != ' ' && line[k] != '\t' && line[k] != '\r') ++k;
+    if (k == 0 || line[0] == '#') return true; /* blank or comment: harmless as it is */
+    for (size_t i = 0; i < sizeof kept / sizeof kept[0]; ++i)
+        if (strlen(kept[i]) == k && memcmp(kept[i], line, k) == 0) return true;
+    return false;
+}
+
+/* A copy of an OBJ text with its non-geometry lines blanked (obj_keyword_kept). */
+static char *obj_geometry_only(const unsigned char *data, size_t size)
+{
+    char *copy = malloc(size);
+    if (!copy) return NULL;
+    memcpy(copy, data, size);
+    for (size_t start = 0; start < size;) {
+        const char *nl = memchr(copy + start, '\n', size - start);
+        size_t end = nl ? (size_t)(nl - copy) : size;
+        if (!obj_keyword_kept(copy + start, end - start)) memset(copy + start, ' ', end - start);
+        start = end + 1;
+    }
+    return copy;
+}
+
 bool mesh_file_parse(const void *data, size_t size, enum mesh_format format, struct mesh_data *out, struct error *err)
 {
     memset(out, 0, sizeof *out);
     if (!precheck(data, size, format, err)) return false;
+    char *geometry = NULL;
+    if (format == MESH_FORMAT_OBJ) {
+        if (!(geometry = obj_geometry_only(data, size))) return error_set(err, "out of memory for %zu bytes", size);
+        data = geometry;
+    }
     /* Triangulate in the import, nothing else: the index checks and the
        join are collect's (no aiApplyPostProcessing, see vertex_table). No
        normals or smoothing: the renderer uses geometric normals. */
     const struct aiScene *s =
         aiImportFileFromMemory(data, (unsigned)size, aiProcess_Triangulate, format == MESH_FORMAT_OBJ ? "obj" : "ply");
-    if (!s) return error_set(err, "assimp: %s", aiGetErrorString());
+    if (!s) {
+        free(geometry);
+        return error_set(err, "assimp: %s", aiGetErrorString());
+    }
     bool ok =
         (s->mNumMeshes > 0 || error_set(err, "no triangles (expected faces: OBJ f lines, or a PLY face element)")) &&
         check_finite(s, err) && collect(s, out, err);
     aiReleaseImport(s);
+    free(geometry);
     return ok;
 }
