@@ -5,6 +5,8 @@ cylinders tessellated into OBJ files; area emitters as polygon lights
 
 from __future__ import annotations
 
+import os
+
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,7 +95,9 @@ class ShapeImporter:
             raise self.report.error(e.line, f'{e.describe()}: missing <string name="filename">')
         path = self.base / fn.attrs.get("value", "")
         if not path.is_file():
-            msg = f"mesh file {fn.attrs.get('value', '')} not found ({path})"
+            # Relative to the working directory, as the XML's own path was given:
+            # the message (kept in scene.yaml's header) says the same on every machine.
+            msg = f"mesh file {fn.attrs.get('value', '')} not found ({os.path.relpath(path)})"
             if not self.skip_missing:
                 raise self.report.error(fn.line, f"{msg} (--skip-missing skips such shapes)")
             self.report.warn(fn.line, f"{e.describe()}: {msg}: shape skipped (--skip-missing)")
