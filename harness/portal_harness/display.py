@@ -4,8 +4,11 @@ are always shown with their reference's exposure, never their own."""
 
 from __future__ import annotations
 
+import io
+
 import colour
 import numpy as np
+from PIL import Image
 
 _SRGB = colour.RGB_COLOURSPACES["sRGB"]
 # Rec.709/sRGB luminance weights: the Y row of the RGB -> XYZ matrix.
@@ -29,3 +32,18 @@ def to_display(rgb: np.ndarray, exposure: float) -> np.ndarray:
     """Linear radiance -> sRGB-encoded values in [0, 1], shape (H, W, 3)."""
     linear = np.clip(np.asarray(rgb, dtype=np.float64) * exposure, 0.0, 1.0)
     return np.clip(np.asarray(colour.cctf_encoding(linear, function="sRGB")), 0.0, 1.0)
+
+
+def to_srgb8(rgb: np.ndarray, exposure: float) -> np.ndarray:
+    """`to_display` quantised to 8 bits, rounding to nearest: the pixels of
+    every PNG the harness writes (service, report, viewer), so that a viewer
+    that redoes the transform in the browser can be checked against them."""
+    out: np.ndarray = np.floor(to_display(rgb, exposure) * 255.0 + 0.5).astype(np.uint8)
+    return out
+
+
+def to_png(rgb: np.ndarray, exposure: float) -> bytes:
+    """A tone-mapped image as PNG bytes (8-bit sRGB, no alpha)."""
+    buffer = io.BytesIO()
+    Image.fromarray(to_srgb8(rgb, exposure)).save(buffer, format="PNG")
+    return buffer.getvalue()
