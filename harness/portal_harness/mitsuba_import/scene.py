@@ -50,7 +50,9 @@ def convert(
             raise report.error(ref.line, f'<ref id="{ref.attrs.get("id", "")}">: no element has this id')
         return target
 
-    base = xml_path.resolve().parent
+    # absolute(), not resolve(): a symlinked folder stays as the user named it,
+    # so messages that name files relative to the working directory keep it.
+    base = xml_path.absolute().parent
     colours = Colours(report, base, lookup)
     bsdfs = Bsdfs(report, colours, lookup, smooth_alpha)
     out = Output()
