@@ -135,6 +135,10 @@ def main(argv: list[str] | None = None) -> int:
         "drjit": dr.__version__,
         "variant": mi.variant(),
         "threads": dr.thread_count(),
+        # The process's threads after the passes (Python's, Dr.Jit's pool,
+        # LLVM's): with "threads" and the passes' CPU / wall time, what
+        # says Mitsuba ran on the threads it was given.
+        "os_threads": len(os.listdir("/proc/self/task")) if Path("/proc/self/task").is_dir() else None,
         "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH"),
         "drjit_cache_dir": os.environ.get("DRJIT_CACHE_DIR"),
         "integrator": integ,

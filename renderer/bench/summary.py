@@ -672,6 +672,17 @@ def mitsuba(d: dict[str, Any]) -> list[str]:
         for name, c in res["cost"].items()
     ]
     integs = info.get("integrators", {})
+    cores = [c for r in t.values() for c in (r["ours_cores"], r["mitsuba_steady_cores"])]
+    busy = (
+        [
+            f"**Busy machine**: the renders got {f(min(cores), '.2f')}-{f(max(cores), '.2f')} of their 2 cores, "
+            "so the wall-clock rates and ratios above are mostly the other work's; the ratio per CPU-second is "
+            "the better estimate of the undisturbed ratio (it assumes both scale alike to 2 threads).",
+            "",
+        ]
+        if cores and min(cores) < 1.5
+        else []
+    )
     return [
         f"Lampshade 256x256, 2 threads each, {p['rounds']} rounds alternating who goes first, medians (range "
         f"over rounds). Ours: `render` with `light`, {_spp(p['ours']['spp'])}, samples/s from its final JSON line "
@@ -711,6 +722,7 @@ def mitsuba(d: dict[str, Any]) -> list[str]:
         "'Cores used' = CPU time / wall time of the passes: below 2 the machine ran other work as well. The "
         "ratios pair runs of the same round, made seconds apart, so load shared by both cancels.",
         "",
+        *busy,
     ]
 
 
