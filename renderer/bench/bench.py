@@ -292,8 +292,11 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
         table[key] = row
     bl.write_result(ctx, "throughput", {**params, "raw_limit_per_run": limits}, {"table": table, "runs": runs})
-    # The wasted-ray table of section 9 at the default scene (s_L = 0.6).
+    # The wasted-ray table of section 9 at the default scene (s_L = 0.6); the
+    # sweep's rows, which section_efficiency adds, stay when it is not rerun.
     wasted_rows = {key: wasted(rs[0]) for key, rs in runs.items() if key.startswith("direct/")}
+    prev_path = bl.RESULTS / "wasted_rays.json"
+    kept = json.loads(prev_path.read_text())["results"] if prev_path.exists() else {}
     bl.write_result(
         ctx,
         "wasted_rays",
@@ -303,7 +306,10 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
             "integrator": "direct",
             "definition": "(shadow_blocked + light_missed) / (shadow_rays + light_missed)",
         },
-        {"lampshade_default": wasted_rows},
+        {
+            "lampshade_default": wasted_rows,
+            **{k: v for k, v in kept.items() if k in ("sweep", "sweep_note")},
+        },
     )
     return table
 
