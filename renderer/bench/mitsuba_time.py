@@ -74,6 +74,31 @@ def kernel_stats(history: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def thread_cpu_ticks() -> dict[str, int]:
+    """CPU time (user + system, clock ticks) of each of this process's
+    threads, from /proc (empty elsewhere)."""
+    ticks: dict[str, int] = {}
+    task = Path("/proc/self/task")
+    if not task.is_dir():
+        return ticks
+    for t in os.listdir(task):
+        try:
+            fields = (task / t / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended meanwhile
+            continue
+        ticks[t] = int(fields[11]) + int(fields[12])
+    return ticks
+
+
+def busy_threads(before: dict[str, int], after: dict[str, int]) -> int:
+    """Threads that did at least a tenth of the work between the two
+    readings: how many threads the passes really ran on (Dr.Jit's pool of
+    size N is N - 1 workers plus the thread that waits for the kernels)."""
+    used = [after[t] - before.get(t, 0) for t in after]
+    total = sum(used)
+    return sum(1 for u in used if total > 0 and u >= 0.1 * total)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     # The JSON result owns stdout: whatever Mitsuba or Dr.Jit print goes to stderr.
@@ -118,7 +143,10 @@ def main(argv: list[str] | None = None) -> int:
     w, h = (int(x) for x in scene.sensors()[0].film().size())
 
     passes = []
+    ticks: dict[str, int] = {}
     for k in range(args.passes):
+        if k == 1:
+            ticks = thread_cpu_ticks()
         dr.kernel_history_clear()
         c0, t0 = time.process_time(), time.perf_counter()
         img = mi.render(scene, seed=args.seed * 1000 + k, spp=args.spp)
@@ -130,15 +158,18 @@ def main(argv: list[str] | None = None) -> int:
         passes.append(
             {"spp": args.spp, "wall_s": wall, "cpu_s": cpu, "mean": mean, **kernel_stats(dr.kernel_history())}
         )
+    # Threads that ran the steady passes (None without /proc).
+    busy = busy_threads(ticks, thread_cpu_ticks()) if ticks else None
     out = {
         "mitsuba": mi.__version__,
         "drjit": dr.__version__,
         "variant": mi.variant(),
         "threads": dr.thread_count(),
-        # The process's threads after the passes (Python's, Dr.Jit's pool,
-        # LLVM's): with "threads" and the passes' CPU / wall time, what
-        # says Mitsuba ran on the threads it was given.
+        # The process's threads after the passes, and those that did at
+        # least a tenth of the steady passes' work: what says Mitsuba ran
+        # on the threads it was given.
         "os_threads": len(os.listdir("/proc/self/task")) if Path("/proc/self/task").is_dir() else None,
+        "busy_threads": busy,
         "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH"),
         "drjit_cache_dir": os.environ.get("DRJIT_CACHE_DIR"),
         "integrator": integ,

@@ -672,6 +672,9 @@ def mitsuba(d: dict[str, Any]) -> list[str]:
         for name, c in res["cost"].items()
     ]
     integs = info.get("integrators", {})
+    busy_seen = sorted(
+        {str(m.get("busy_threads")) for runs in res["runs"]["mitsuba"].values() for m in runs if "busy_threads" in m}
+    )
     cores = [c for r in t.values() for c in (r["ours_cores"], r["mitsuba_steady_cores"])]
     busy = (
         [
@@ -687,7 +690,9 @@ def mitsuba(d: dict[str, Any]) -> list[str]:
         f"Lampshade 256x256, 2 threads each, {p['rounds']} rounds alternating who goes first, medians (range "
         f"over rounds). Ours: `render` with `light`, {_spp(p['ours']['spp'])}, samples/s from its final JSON line "
         f"(render time). Mitsuba {info.get('mitsuba')} (Dr.Jit {info.get('drjit')}, {info.get('variant')}, "
-        f"{info.get('threads')} threads, LLVM {info.get('libllvm')}): {p['mitsuba']['passes']} passes of "
+        f"{info.get('threads')} threads"
+        + (f", threads that ran the passes: {'/'.join(busy_seen)}" if busy_seen else "")
+        + f", LLVM {info.get('libllvm')}): {p['mitsuba']['passes']} passes of "
         f"{_spp(p['mitsuba']['spp_per_pass'])} per round, each mi.render evaluated and synchronised; the first "
         "pass compiles its kernels into an empty cache (in brackets: Dr.Jit's codegen + LLVM time of it), "
         "steady = the later passes. Integrators: "
