@@ -210,7 +210,7 @@ $(LIBLLVM):
 	@test -f $@ || { echo "bench: libllvm19 did not install $@" >&2; exit 1; }
 
 bench: $(BUILD)/render $(BENCH_BINS) $(XCHECK_BENCH_STAMP) $(LIBLLVM)
-	@DRJIT_LIBLLVM_PATH=$(LIBLLVM) renderer/bench/run.sh $(BUILD)
+	@DRJIT_LIBLLVM_PATH="$${DRJIT_LIBLLVM_PATH:-$(LIBLLVM)}" renderer/bench/run.sh $(BUILD)
 
 # Same-run A/B throughput against another build: make bench-ab BASE=old/render
 bench-ab: $(BUILD)/render
