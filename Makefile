@@ -195,8 +195,22 @@ figures: $(BUILD)/render $(VENV_STAMP)
 	  $(VENV)/bin/portal-harness figures $$f; \
 	done
 
-bench: $(BUILD)/render $(BENCH_BINS)
-	@renderer/bench/run.sh $(BUILD)
+# Mitsuba 3 for the bench's `mitsuba` section (renderer/bench/mitsuba_time.py):
+# its own venv, the one make crosscheck uses, and LLVM 19 for its llvm_ad_rgb
+# variant (Debian 12's LLVM 14 and 15 abort inside Dr.Jit).
+XCHECK_BENCH_STAMP := .venv-xcheck/.bench-installed
+LIBLLVM := /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1
+$(XCHECK_BENCH_STAMP):
+	@test -x .venv-xcheck/bin/python || python3 -m venv .venv-xcheck
+	@.venv-xcheck/bin/pip install -q mitsuba pytest -e harness
+	@touch $@
+$(LIBLLVM):
+	@echo "installing libllvm19 with apt-get (Mitsuba's llvm_ad_rgb variant)" >&2
+	@apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
+	@test -f $@ || { echo "bench: libllvm19 did not install $@" >&2; exit 1; }
+
+bench: $(BUILD)/render $(BENCH_BINS) $(XCHECK_BENCH_STAMP) $(LIBLLVM)
+	@DRJIT_LIBLLVM_PATH="$${DRJIT_LIBLLVM_PATH:-$(LIBLLVM)}" renderer/bench/run.sh $(BUILD)
 
 # Same-run A/B throughput against another build: make bench-ab BASE=old/render
 bench-ab: $(BUILD)/render

@@ -3,7 +3,8 @@
 One function per section; each writes results/bench/<name>.json, and
 summary.py turns them into results/bench/summary.md. Sections:
 
-  raw_embree      raw Embree limit on the lampshade (C, raw_embree.c)
+  raw_embree      raw Embree limit on the lampshade (C, raw_embree.c):
+                  single rays, streams and packets of 4, 8 and 16
   micro           classification / projection / strategy cost per call vs a
                   shadow ray (C, micro.c)
   throughput      renderer rays/s and samples/s per strategy and integrator,
@@ -53,6 +54,8 @@ S_P = 0.3
 SWEEP_STRATEGIES = ("light", "portal", "projection", "antishadow", "antishadow_exact")
 WEIGHTS = ("area", "distance", "irradiance")
 REF_SEED = 1000003
+# Embree 3's packet widths (rtcIntersect4/8/16, rtcOccluded4/8/16).
+PACKET_WIDTHS = (4, 8, 16)
 # Image rows of the lampshade below the shade (floor, walls, box): everything
 # lit except the band (rows ~95-105) where the camera looks up through the
 # opening into the shade. Points in there lie on the light's side of the
@@ -106,8 +109,18 @@ def section_raw_embree(ctx: Context) -> dict[str, Any]:
             "rays_per_cpu_s_1t": nr["median_rays_per_cpu_s"],
             "per_thread_rays_per_s_1t": nr["median_rays_per_s"],
         }
+    # The best API per kind: "% of raw" must be against the fastest way to
+    # trace the same rays, single, stream or packet.
+    best_api: dict[str, str] = {}
+    for kind in ("camera", "bounce", "shadow", "mix"):
+        apis = {a: table[f"{kind}/{a}"] for a in ("embree", "stream", *(f"packet{w}" for w in PACKET_WIDTHS))}
+        best_api[kind] = max(apis, key=lambda a: apis[a]["rays_per_cpu_s_1t"])
+        table[f"{kind}/best"] = dict(apis[best_api[kind]])
     ctx.machine["embree_version"] = raw["embree_version"]
-    bl.write_result(ctx, "raw_embree", params, {"table": table, "raw": raw})
+    native = {f"ray{w}": raw.get(f"native_ray{w}") for w in PACKET_WIDTHS}
+    bl.write_result(
+        ctx, "raw_embree", params, {"table": table, "best_api": best_api, "native_packets": native, "raw": raw}
+    )
     return table
 
 
@@ -115,7 +128,8 @@ def raw_limit_now(ctx: Context) -> dict[str, float]:
     """Rays per CPU second of one thread for the renderer's ray mix (lampshade),
     measured now, for a ratio taken right next to the renders it is compared
     with (the machine's speed drifts by tens of percent within seconds to
-    minutes). 'best' is the faster of single rays and streams."""
+    minutes). 'packet' is the fastest packet width (4, 8, 16); 'best' the
+    fastest of single rays, streams and packets."""
     raw = bl.run_json(
         [
             str(ctx.bins["raw_embree"]),
@@ -132,7 +146,13 @@ def raw_limit_now(ctx: Context) -> dict[str, float]:
         ]
     )
     cells = {c["api"]: c["median_rays_per_cpu_s"] for c in raw["cells"] if c["kind"] == "mix" and c["threads"] == 1}
-    return {"single": cells["embree"], "stream": cells["stream"], "best": max(cells["embree"], cells["stream"])}
+    packet = max(cells.get(f"packet{w}", 0.0) for w in PACKET_WIDTHS)
+    return {
+        "single": cells["embree"],
+        "stream": cells["stream"],
+        "packet": packet,
+        "best": max(cells["embree"], cells["stream"], packet),
+    }
 
 
 # ---- 10. micro-benchmark --------------------------------------------------------
@@ -209,7 +229,8 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         "threads": 1,
         "order": "round-robin over (integrator, strategy) per round; seed = round",
         "raw_limit": "raw_embree --mix-only measured before and after each (integrator, strategy) "
-        "render; a run's ratio uses the mean of the two",
+        "render; a run's ratio uses the mean of the two; 'best' is the fastest of single rays, streams "
+        "and packets of 4, 8, 16",
         "best_of": "the fastest run's rate / the largest raw limit measured next to the key's runs",
         "cpu_rates": "per CPU second of the render threads in passes (render_cpu_s in the renderer's final JSON line)",
     }
@@ -230,7 +251,7 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
                 a = bl.run_render(ctx, LAMPSHADE, out / f"{integ}_{s}", "--spp", str(spp[integ]), *common).summary()
                 after = raw_limit_now(ctx)
                 limits.setdefault(f"{integ}/{s}", []).append(
-                    {k: 0.5 * (before[k] + after[k]) for k in ("single", "stream", "best")}
+                    {k: 0.5 * (before[k] + after[k]) for k in ("single", "stream", "packet", "best")}
                 )
                 adjacent.setdefault(f"{integ}/{s}", []).extend([before, after])
                 before = after
@@ -271,8 +292,11 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
         row.update({k: v for k, v in wasted(rs[0]).items() if k.endswith("fraction")})
         table[key] = row
     bl.write_result(ctx, "throughput", {**params, "raw_limit_per_run": limits}, {"table": table, "runs": runs})
-    # The wasted-ray table of section 9 at the default scene (s_L = 0.6).
+    # The wasted-ray table of section 9 at the default scene (s_L = 0.6); the
+    # sweep's rows, which section_efficiency adds, stay when it is not rerun.
     wasted_rows = {key: wasted(rs[0]) for key, rs in runs.items() if key.startswith("direct/")}
+    prev_path = bl.RESULTS / "wasted_rays.json"
+    kept = json.loads(prev_path.read_text())["results"] if prev_path.exists() else {}
     bl.write_result(
         ctx,
         "wasted_rays",
@@ -282,7 +306,10 @@ def section_throughput(ctx: Context) -> dict[str, Any]:
             "integrator": "direct",
             "definition": "(shadow_blocked + light_missed) / (shadow_rays + light_missed)",
         },
-        {"lampshade_default": wasted_rows},
+        {
+            "lampshade_default": wasted_rows,
+            **{k: v for k, v in kept.items() if k in ("sweep", "sweep_note")},
+        },
     )
     return table
 
@@ -948,6 +975,231 @@ def section_mesh_lights(ctx: Context) -> dict[str, Any]:
     return table
 
 
+# ---- 14. against Mitsuba 3 ------------------------------------------------------
+
+MITSUBA_VARIANT = "llvm_ad_rgb"
+# Dr.Jit's LLVM backend aborts with Debian 12's LLVM 14 and 15 ("Cannot
+# select fminimum"); libllvm19 (apt) works (../shared/toolchain.md).
+LIBLLVM_CANDIDATES = ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1", "/usr/lib/x86_64-linux-gnu/libLLVM-19.so")
+COST_SCENES = {
+    "lampshade": LAMPSHADE,
+    "multi_lamp": MULTI_LAMP,
+    "little_lamp": bl.ROOT / "configs" / "scenes" / "little_lamp.yaml",
+}
+MITSUBA_TARGET_RATIO = 1.0
+COST_TARGET = 1.15
+
+
+def mitsuba_env() -> tuple[Path, dict[str, str]]:
+    """Mitsuba's python (.venv-xcheck, or BENCH_MITSUBA_PYTHON) and the
+    environment that gives Dr.Jit a working LLVM (DRJIT_LIBLLVM_PATH, or
+    Debian's libllvm19)."""
+    python = Path(os.environ.get("BENCH_MITSUBA_PYTHON", str(bl.ROOT / ".venv-xcheck" / "bin" / "python")))
+    if not python.exists():
+        raise RuntimeError(f"{python} not found: make bench creates .venv-xcheck with Mitsuba (pip install mitsuba)")
+    env = dict(os.environ)
+    if "DRJIT_LIBLLVM_PATH" not in env:
+        found = [c for c in LIBLLVM_CANDIDATES if Path(c).exists()]
+        if not found:
+            raise RuntimeError(
+                f"no LLVM 19 for Dr.Jit ({', '.join(LIBLLVM_CANDIDATES)}): apt-get install libllvm19 "
+                "(make bench does), or set DRJIT_LIBLLVM_PATH"
+            )
+        env["DRJIT_LIBLLVM_PATH"] = found[0]
+    return python, env
+
+
+def mitsuba_time(
+    python: Path, env: dict[str, str], config: Path, integrator: str, spp: int, passes: int, seed: int, folder: Path
+) -> dict[str, Any]:
+    """One mitsuba_time.py process: `passes` passes of `spp`, the first one
+    compiling its kernels into an empty cache (a new user's first render)."""
+    cache = folder / f"drjit_cache_{integrator}_{seed}"
+    if cache.exists():
+        shutil.rmtree(cache)
+    cache.mkdir(parents=True)
+    cmd = [
+        str(python),
+        str(bl.BENCH_DIR / "mitsuba_time.py"),
+        str(config),
+        "--integrator",
+        integrator,
+        "--spp",
+        str(spp),
+        "--passes",
+        str(passes),
+        "--seed",
+        str(seed),
+        "--threads",
+        "2",
+        "--variant",
+        MITSUBA_VARIANT,
+        "--mesh-dir",
+        str(folder / "meshes"),
+    ]
+    p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, env={**env, "DRJIT_CACHE_DIR": str(cache)})
+    shutil.rmtree(cache, ignore_errors=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed with status {p.returncode} (its messages are above)")
+    result: dict[str, Any] = json.loads(p.stdout)
+    return result
+
+
+def mitsuba_rates(m: dict[str, Any]) -> dict[str, Any]:
+    """Samples/s of the first pass and of the steady state (the later
+    passes together), per wall second and per CPU second of the process."""
+    px = m["width"] * m["height"]
+    first, rest = m["passes"][0], m["passes"][1:]
+    samples = sum(px * p["spp"] for p in rest)
+    wall, cpu = sum(p["wall_s"] for p in rest), sum(p["cpu_s"] for p in rest)
+    return {
+        "first_samples_per_s": px * first["spp"] / first["wall_s"],
+        "first_wall_s": first["wall_s"],
+        "first_compile_s": first["backend_s"] + first["codegen_s"],
+        "steady_samples_per_s": samples / wall,
+        "steady_samples_per_cpu_s": samples / max(cpu, 1e-9),
+        "steady_cores": cpu / wall,
+        "steady_cache_hits": sum(p["cache_hits"] for p in rest),
+        "steady_kernels": sum(p["kernels"] for p in rest),
+    }
+
+
+def section_mitsuba(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    rounds = 2 if q else 5
+    ours_spp = {"direct": 16 if q else 64, "path": 8 if q else 32}
+    mits_spp = dict(ours_spp)
+    mits_passes = 3 if q else 4  # the first (compiling) one and the steady ones
+    cost_spp = {"lampshade": 16 if q else 64, "multi_lamp": 4 if q else 16, "little_lamp": 4 if q else 16}
+    max_depth = 8
+    python, env = mitsuba_env()
+    folder = TMP / "mitsuba"
+    folder.mkdir(parents=True, exist_ok=True)
+    # Mitsuba's scene is our effective config, as the cross-check converts it.
+    eff = folder / "lampshade.yaml"
+    p = subprocess.run(
+        [
+            str(ctx.render),
+            "--print-config",
+            str(LAMPSHADE),
+            "--set",
+            f"render.max_depth={max_depth}",
+            "--format",
+            "yaml",
+        ],
+        capture_output=True,
+        text=True,
+    )
+    if p.returncode != 0:
+        raise RuntimeError(f"render --print-config failed: {p.stderr.strip()}")
+    eff.write_text(p.stdout)
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "rounds": rounds,
+        "threads": 2,
+        "ours": {
+            "strategy": "light",
+            "spp": ours_spp,
+            "max_depth": max_depth,
+            "samples_per_s": "width x height x spp / time_s of the final JSON line (render time: passes only)",
+        },
+        "mitsuba": {
+            "variant": MITSUBA_VARIANT,
+            "spp_per_pass": mits_spp,
+            "passes": mits_passes,
+            "first_pass": "traces the integrator and compiles its kernels (fresh DRJIT_CACHE_DIR per process)",
+            "steady": "the passes after the first, together",
+            "integrators": "direct: 1 emitter + 1 BSDF sample, MIS (our `light`); path: max_depth ours + 1, "
+            "our rr_depth (tools/crosscheck/mitsuba_lampshade.py: mitsuba_integrator)",
+        },
+        "order": "per round and integrator, ours and Mitsuba one after the other, who goes first "
+        "alternating by round; seed = round",
+        "ratio": "ours samples/s / Mitsuba steady samples/s of the same round and integrator; median (range)",
+        "cost": {
+            "scenes": {k: str(v.relative_to(bl.ROOT)) for k, v in COST_SCENES.items()},
+            "spp": cost_spp,
+            "integrator": "direct",
+            "threads": 2,
+            "what": "antishadow_exact time per sample / light's, same scene and round (who goes first "
+            "alternating); CPU = render_cpu_s, wall = time_s",
+        },
+        "targets": {"light_vs_mitsuba": MITSUBA_TARGET_RATIO, "antishadow_exact_cost": COST_TARGET},
+    }
+    out = TMP / "runs" / "mitsuba"
+    bl.run_render(ctx, LAMPSHADE, out / "warmup", "--spp", "1", "--threads", "2")
+    ours_runs: dict[str, list[dict[str, Any]]] = {"direct": [], "path": []}
+    mits_runs: dict[str, list[dict[str, Any]]] = {"direct": [], "path": []}
+    cost_runs: dict[str, list[dict[str, Any]]] = {}
+    info: dict[str, Any] = {}
+    for r in range(rounds):
+        log(f"mitsuba: round {r + 1}/{rounds}")
+        for integ in ("direct", "path"):
+
+            def ours(integ: str = integ, r: int = r) -> None:
+                args = ["--threads", "2", "--strategy", "light", "--integrator", integ, "--seed", str(r + 1)]
+                args += ["--spp", str(ours_spp[integ]), "--set", f"render.max_depth={max_depth}"]
+                a = bl.run_render(ctx, LAMPSHADE, out / f"ours_{integ}", *args).summary()
+                ours_runs[integ].append({**a, "render": render_rates(a)})
+
+            def mitsuba(integ: str = integ, r: int = r) -> None:
+                m = mitsuba_time(python, env, eff, integ, mits_spp[integ], mits_passes, r + 1, folder)
+                info.update({k: m[k] for k in ("mitsuba", "drjit", "variant", "threads", "libllvm")})
+                info.setdefault("integrators", {})[integ] = m["integrator"]
+                mits_runs[integ].append({**m, "rates": mitsuba_rates(m)})
+
+            for step in (ours, mitsuba) if r % 2 == 0 else (mitsuba, ours):
+                step()
+        for name, scene in COST_SCENES.items():
+            for s in ("light", "antishadow_exact") if r % 2 == 0 else ("antishadow_exact", "light"):
+                args = ["--threads", "2", "--strategy", s, "--integrator", "direct", "--seed", str(r + 1)]
+                a = bl.run_render(ctx, scene, out / f"cost_{name}_{s}", "--spp", str(cost_spp[name]), *args).summary()
+                cost_runs.setdefault(f"{name}/{s}", []).append({**a, "render": render_rates(a)})
+    table: dict[str, Any] = {}
+    for integ in ("direct", "path"):
+        o, m = ours_runs[integ], mits_runs[integ]
+        rates = [x["rates"] for x in m]
+        table[integ] = {
+            "ours_samples_per_s": median([x["samples_per_s"] for x in o]),
+            "ours_samples_per_cpu_s": median([x["render"]["samples_per_cpu_s"] for x in o]),
+            "ours_cores": median([x["render_cpu_s"] / x["time_s"] for x in o]),
+            **{f"mitsuba_{k}": median([x[k] for x in rates]) for k in rates[0]},
+            "ratio": ratio_stats(
+                [a["samples_per_s"] / b["steady_samples_per_s"] for a, b in zip(o, rates, strict=True)]
+            ),
+            "ratio_cpu": ratio_stats(
+                [
+                    a["render"]["samples_per_cpu_s"] / b["steady_samples_per_cpu_s"]
+                    for a, b in zip(o, rates, strict=True)
+                ]
+            ),
+            "ratio_vs_first_pass": ratio_stats(
+                [a["samples_per_s"] / b["first_samples_per_s"] for a, b in zip(o, rates, strict=True)]
+            ),
+        }
+    cost: dict[str, Any] = {}
+    for name in COST_SCENES:
+        lt, ax = cost_runs[f"{name}/light"], cost_runs[f"{name}/antishadow_exact"]
+        cost[name] = {
+            "light_samples_per_s": median([x["samples_per_s"] for x in lt]),
+            "antishadow_exact_samples_per_s": median([x["samples_per_s"] for x in ax]),
+            "cost_cpu": ratio_stats(
+                [
+                    a["render"]["samples_per_cpu_s"] / b["render"]["samples_per_cpu_s"]
+                    for a, b in zip(lt, ax, strict=True)
+                ]
+            ),
+            "cost_wall": ratio_stats([a["samples_per_s"] / b["samples_per_s"] for a, b in zip(lt, ax, strict=True)]),
+        }
+    results = {
+        "mitsuba": info,
+        "table": table,
+        "cost": cost,
+        "runs": {"ours": ours_runs, "mitsuba": mits_runs, "cost": cost_runs},
+    }
+    bl.write_result(ctx, "mitsuba", params, results)
+    return results
+
+
 SECTIONS: dict[str, Callable[[Context], Any]] = {
     "raw_embree": section_raw_embree,
     "micro": section_micro,
@@ -960,6 +1212,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "portal_weights": section_portal_weights,
     "mesh_load": section_mesh_load,
     "mesh_lights": section_mesh_lights,
+    "mitsuba": section_mitsuba,
 }
 
 

@@ -17,8 +17,11 @@
    (rtcIntersect1 / rtcOccluded1 on prebuilt float rays: the floor of
    single-ray tracing) and "stream" (rtcIntersect1M / rtcOccluded1M over
    chunks of 1024 rays split by kind: what a wavefront renderer gets; the
-   renderer traces a film row's camera, shadow and BSDF rays as streams).
-   Each (kind, api, threads) cell runs for a fixed time, repeated
+   renderer traces a film row's camera, shadow and BSDF rays as streams),
+   and "packet4", "packet8", "packet16" (rtcIntersect4/8/16 and
+   rtcOccluded4/8/16 on the same chunks, each kind's rays W at a time in
+   their order, the SoA copy timed: what a renderer tracing a row's rays as
+   packets pays). Each (kind, api, threads) cell runs for a fixed time, repeated
    round-robin, and the median is reported as JSON on stdout. Last, the scene is rebuilt without RTC_SCENE_FLAG_ROBUST (which
    scene.c sets) and the mix is timed again, to show what the flag costs. */
 #include <embree3/rtcore.h>
@@ -36,8 +39,8 @@
 enum ray_kind { RAY_CAMERA, RAY_BOUNCE, RAY_SHADOW };
 enum batch_id { BATCH_CAMERA, BATCH_BOUNCE, BATCH_SHADOW, BATCH_MIX, BATCH_COUNT };
 static const char *const batch_names[BATCH_COUNT] = { "camera", "bounce", "shadow", "mix" };
-enum api_id { API_WRAPPER, API_EMBREE, API_STREAM, API_COUNT };
-static const char *const api_names[API_COUNT] = { "wrapper", "embree", "stream" };
+enum api_id { API_WRAPPER, API_EMBREE, API_STREAM, API_PACKET4, API_PACKET8, API_PACKET16, API_COUNT };
+static const char *const api_names[API_COUNT] = { "wrapper", "embree", "stream", "packet4", "packet8", "packet16" };
 
 struct ray_rec {
     struct vec3 o, d;
@@ -155,6 +158,42 @@ static void build_batches(const struct config *cfg, const struct scene *sc, int 
 
 #define CHUNK 1024
 
+/* trace_packetsW: rays idx[0..m) of a batch (all of one kind) as packets
+   of W lanes, in order; a last partial packet masks its empty lanes off
+   (valid 0; they repeat the packet's first ray so that they hold finite
+   values). Returns the hits (occluded rays count as hits). One definition
+   per width: Embree's packet types differ only in W. */
+#define DEFINE_TRACE_PACKETS(W)                                                                                        \
+    static uint64_t trace_packets##W(RTCScene rs, struct RTCIntersectContext *ctx, const struct RTCRayHit *rh,         \
+                                     const int *idx, int m, bool occlusion)                                            \
+    {                                                                                                                  \
+        uint64_t hits = 0;                                                                                             \
+        for (int p = 0; p < m; p += W) {                                                                               \
+            struct RTCRayHit##W x;                                                                                     \
+            RTC_ALIGN(64) int valid[W];                                                                                \
+            for (int l = 0; l < W; ++l) {                                                                              \
+                valid[l] = p + l < m ? -1 : 0;                                                                         \
+                const struct RTCRay *r = &rh[idx[p + l < m ? p + l : p]].ray;                                          \
+                x.ray.org_x[l] = r->org_x, x.ray.org_y[l] = r->org_y, x.ray.org_z[l] = r->org_z;                       \
+                x.ray.dir_x[l] = r->dir_x, x.ray.dir_y[l] = r->dir_y, x.ray.dir_z[l] = r->dir_z;                       \
+                x.ray.tnear[l] = r->tnear, x.ray.tfar[l] = r->tfar, x.ray.time[l] = 0.0f;                              \
+                x.ray.mask[l] = ~0u, x.ray.id[l] = 0u, x.ray.flags[l] = 0u;                                            \
+                x.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID, x.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;               \
+            }                                                                                                          \
+            if (occlusion) {                                                                                           \
+                rtcOccluded##W(valid, rs, ctx, &x.ray);                                                                \
+                for (int l = 0; l < W; ++l) hits += valid[l] && x.ray.tfar[l] < 0.0f;                                  \
+            } else {                                                                                                   \
+                rtcIntersect##W(valid, rs, ctx, &x);                                                                   \
+                for (int l = 0; l < W; ++l) hits += valid[l] && x.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;            \
+            }                                                                                                          \
+        }                                                                                                              \
+        return hits;                                                                                                   \
+    }
+DEFINE_TRACE_PACKETS(4)
+DEFINE_TRACE_PACKETS(8)
+DEFINE_TRACE_PACKETS(16)
+
 /* Traces rays [i0, i1) of a batch; returns the number of hits (occluded rays
    count as hits), so the work cannot be optimised away. */
 static uint64_t trace_range(const struct scene *sc, const struct batch *b, int api, int i0, int i1)
@@ -192,6 +231,23 @@ static uint64_t trace_range(const struct scene *sc, const struct batch *b, int a
                 rtcIntersect1M(rs, &ctx, x, (unsigned)m, sizeof x[0]);
                 for (int k = 0; k < m; ++k) hits += x[k].hit.geomID != RTC_INVALID_GEOMETRY_ID;
             }
+        }
+    } else if (api == API_PACKET4 || api == API_PACKET8 || api == API_PACKET16) {
+        /* The chunk's rays of each kind as packets, as the streams take them. */
+        int idx[CHUNK];
+        RTCScene rs = sc->rtc_scene;
+        for (int kind = RAY_CAMERA; kind <= RAY_SHADOW; ++kind) {
+            int m = 0;
+            for (int i = i0; i < i1; ++i)
+                if (b->rays[i].kind == kind) idx[m++] = i;
+            if (m == 0) continue;
+            struct RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            if (kind == RAY_CAMERA) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+            bool occ = kind == RAY_SHADOW;
+            if (api == API_PACKET4) hits += trace_packets4(rs, &ctx, b->rh, idx, m, occ);
+            else if (api == API_PACKET8) hits += trace_packets8(rs, &ctx, b->rh, idx, m, occ);
+            else hits += trace_packets16(rs, &ctx, b->rh, idx, m, occ);
         }
     } else {
         RTCScene rs = sc->rtc_scene;
@@ -284,7 +340,7 @@ static void usage(const char *argv0)
             "          [--mix-only]\n"
             "Times incoherent camera, bounce and shadow rays of CONFIG's scene with 1..T threads;\n"
             "prints one JSON object on stdout, progress on stderr. --mix-only: only the mixed batch,\n"
-            "single rays and streams (a quick yardstick next to a render).\n",
+            "single rays, streams and packets (a quick yardstick next to a render).\n",
             argv0);
 }
 
@@ -335,12 +391,31 @@ int main(int argc, char **argv)
     fprintf(stderr, "raw_embree: %dx%d x %d spp: %d camera, %d bounce, %d shadow rays (%d mixed)\n", cfg.width,
             cfg.height, spp, b[BATCH_CAMERA].n, b[BATCH_BOUNCE].n, b[BATCH_SHADOW].n, b[BATCH_MIX].n);
 
-    /* --mix-only: the mix batch with rtcIntersect1/rtcOccluded1 and streams,
-       nothing else (a quick yardstick to take right next to a render). */
+    /* --mix-only: the mix batch with rtcIntersect1/rtcOccluded1, streams and
+       packets, nothing else (a quick yardstick to take right next to a render). */
     int k0 = mix_only ? BATCH_MIX : 0, a0 = mix_only ? API_EMBREE : 0;
-    double hit_fraction[BATCH_COUNT];
+    /* Every API must find the same hits on the same rays (a packet lane
+       that traced garbage would be fast and wrong): the hit fraction of
+       each, in the chunks the timing uses. */
+    double hit_fraction[BATCH_COUNT][API_COUNT];
     for (int k = k0; k < BATCH_COUNT; ++k)
-        hit_fraction[k] = b[k].n ? (double)trace_range(&sc, &b[k], API_EMBREE, 0, b[k].n) / b[k].n : 0.0;
+        for (int a = 0; a < API_COUNT; ++a) {
+            uint64_t hits = 0;
+            for (int i = 0; i < b[k].n; i += CHUNK)
+                hits += trace_range(&sc, &b[k], a, i, i + CHUNK < b[k].n ? i + CHUNK : b[k].n);
+            hit_fraction[k][a] = b[k].n ? (double)hits / b[k].n : 0.0;
+        }
+    for (int k = k0; k < BATCH_COUNT; ++k)
+        for (int a = 0; a < API_COUNT; ++a)
+            if (fabs(hit_fraction[k][a] - hit_fraction[k][API_EMBREE]) > 1e-3)
+                fprintf(stderr, "raw_embree: warning: %s/%s hits %.6f of the rays, rtcIntersect1/rtcOccluded1 %.6f\n",
+                        batch_names[k], api_names[a], hit_fraction[k][a], hit_fraction[k][API_EMBREE]);
+    /* Which packet widths this Embree build traces natively on this CPU
+       (the others it emulates with narrower ones). */
+    int native[3] = { (int)rtcGetDeviceProperty(sc.device, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED),
+                      (int)rtcGetDeviceProperty(sc.device, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED),
+                      (int)rtcGetDeviceProperty(sc.device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) };
+    int streams = (int)rtcGetDeviceProperty(sc.device, RTC_DEVICE_PROPERTY_RAY_STREAM_SUPPORTED);
 
     /* Warm-up: caches, page faults of the batches, CPU clocks. */
     for (int k = k0; k < BATCH_COUNT; ++k)
@@ -374,12 +449,18 @@ int main(int argc, char **argv)
            "\"seconds_per_cell\":%g,\"reps\":%d,\"api_note\":\"wrapper = scene_intersect/scene_occluded "
            "(renderer wrappers over rtcIntersect1/rtcOccluded1); embree = rtcIntersect1/rtcOccluded1 on "
            "prebuilt float rays; stream = rtcIntersect1M/rtcOccluded1M on the same rays, each chunk of %d "
-           "split by kind\",\"batches\":{",
+           "split by kind; packetW = rtcIntersectW/rtcOccludedW, W rays of a kind at a time in the same "
+           "chunks, the copy into SoA timed\",\"native_ray4\":%s,\"native_ray8\":%s,\"native_ray16\":%s,"
+           "\"ray_stream_supported\":%s,\"batches\":{",
            (int)(ver / 10000), (int)(ver / 100 % 100), (int)(ver % 100), path, cfg.width, cfg.height, spp, seconds,
-           reps, CHUNK);
-    for (int k = k0; k < BATCH_COUNT; ++k)
-        printf("%s\"%s\":{\"rays\":%d,\"hit_fraction\":%.6f}", k > k0 ? "," : "", batch_names[k], b[k].n,
-               hit_fraction[k]);
+           reps, CHUNK, native[0] ? "true" : "false", native[1] ? "true" : "false", native[2] ? "true" : "false",
+           streams ? "true" : "false");
+    for (int k = k0; k < BATCH_COUNT; ++k) {
+        printf("%s\"%s\":{\"rays\":%d,\"hit_fraction\":%.6f,\"hit_fraction_by_api\":{", k > k0 ? "," : "",
+               batch_names[k], b[k].n, hit_fraction[k][API_EMBREE]);
+        for (int a = 0; a < API_COUNT; ++a) printf("%s\"%s\":%.6f", a ? "," : "", api_names[a], hit_fraction[k][a]);
+        printf("}}");
+    }
     printf("},\"cells\":[");
     int first = 1;
     for (int k = k0; k < BATCH_COUNT; ++k)

@@ -10,6 +10,9 @@
 #   BENCH_FRESH_REFS=1     re-render the cached efficiency references
 #   BENCH_PYTHON=path      Python with numpy and the openexr bindings
 #                          (default: .venv/bin/python of the repository)
+#   BENCH_MITSUBA_PYTHON=path  Python with Mitsuba 3 for the `mitsuba` section
+#                          (default: .venv-xcheck/bin/python; make bench
+#                          installs it, and libllvm19 for DRJIT_LIBLLVM_PATH)
 set -euo pipefail
 
 die() { echo "bench: $*" >&2; exit 1; }

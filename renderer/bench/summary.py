@@ -43,27 +43,36 @@ def verdict(ok: bool | None) -> str:
     return "n/a" if ok is None else ("PASS" if ok else "FAIL")
 
 
+RAW_APIS = ("wrapper", "embree", "stream", "packet4", "packet8", "packet16")
+
+
 def raw_embree(d: dict[str, Any]) -> list[str]:
     t = d["results"]["table"]
-    rows = []
+    best_api = d["results"].get("best_api", {})
+    rows_cpu, rows_2t = [], []
     for kind in ("camera", "bounce", "shadow", "mix"):
-        w, e, st = t[f"{kind}/wrapper"], t[f"{kind}/embree"], t.get(f"{kind}/stream", {})
-        rows.append(
+        cells = [t.get(f"{kind}/{a}", {}) for a in RAW_APIS]
+        e = t[f"{kind}/embree"]
+        best = t.get(f"{kind}/best")
+        rows_cpu.append(
             [
                 kind,
-                mega(w["per_thread_rays_per_s_1t"]),
-                mega(w["per_thread_rays_per_s_2t"]),
-                mega(e["per_thread_rays_per_s_1t"]),
-                mega(e["per_thread_rays_per_s_2t"]),
-                mega(st.get("per_thread_rays_per_s_1t")),
-                mega(st.get("per_thread_rays_per_s_2t")),
-                mega(w["rays_per_cpu_s_1t"]),
-                mega(e["rays_per_cpu_s_1t"]),
-                mega(st.get("rays_per_cpu_s_1t")),
-                f(st["rays_per_cpu_s_1t"] / e["rays_per_cpu_s_1t"], ".2f") if st else "n/a",
+                *(mega(c.get("rays_per_cpu_s_1t")) for c in cells),
+                f"{best_api.get(kind, '-')} {mega(best['rays_per_cpu_s_1t'])}" if best else "n/a",
+                f(best["rays_per_cpu_s_1t"] / e["rays_per_cpu_s_1t"], ".2f") if best else "n/a",
             ]
         )
-    b = d["results"]["raw"]["batches"]
+        rows_2t.append(
+            [
+                kind,
+                *(
+                    f"{mega(c.get('per_thread_rays_per_s_1t'))} / {mega(c.get('per_thread_rays_per_s_2t'))}"
+                    for c in cells
+                ),
+            ]
+        )
+    raw = d["results"]["raw"]
+    b = raw["batches"]
     nr = t.get("mix/embree_without_robust_flag")
     note = []
     if nr:
@@ -73,31 +82,31 @@ def raw_embree(d: dict[str, Any]) -> list[str]:
             f"{mega(nr['rays_per_cpu_s_1t'])} M rays/CPU-s ({pct(gain)} vs robust).",
             "",
         ]
+    native = [f"{w}" for w in (4, 8, 16) if raw.get(f"native_ray{w}")]
+    mismatch = [
+        f"{k}/{a}"
+        for k, v in b.items()
+        for a, x in (v.get("hit_fraction_by_api") or {}).items()
+        if abs(x - v["hit_fraction"]) > 1e-3
+    ]
     return [
-        f"Embree {d['results']['raw']['embree_version']}; batches: "
+        f"Embree {raw['embree_version']}; batches: "
         + ", ".join(f"{k} {v['rays']} rays ({pct(v['hit_fraction'])} hit)" for k, v in b.items())
-        + ".",
+        + f". Native packet widths on this CPU: {', '.join(native) or 'none reported'}; every API found the "
+        f"same hits: {'yes' if not mismatch else 'NO (' + ', '.join(mismatch) + ')'}.",
         "",
-        *table(
-            [
-                "kind",
-                "wrapper 1T M/s",
-                "wrapper 2T M/s/thread",
-                "embree 1T M/s",
-                "embree 2T M/s/thread",
-                "stream 1T M/s",
-                "stream 2T M/s/thread",
-                "wrapper M/CPU-s",
-                "embree M/CPU-s",
-                "stream M/CPU-s",
-                "stream / embree",
-            ],
-            rows,
-        ),
+        "M rays per CPU-second, one thread:",
         "",
+        *table([*("kind",), *RAW_APIS, "best", "best / embree"], rows_cpu),
+        "M rays/s per thread, wall clock, 1 thread / 2 threads:",
+        "",
+        *table(["kind", *RAW_APIS], rows_2t),
         "wrapper = the renderer's scene_intersect/scene_occluded; embree = rtcIntersect1/rtcOccluded1; "
         "stream = rtcIntersect1M/rtcOccluded1M over chunks of 1024 rays split by kind, camera rays flagged "
-        "coherent (the renderer traces each film row's camera rays this way).",
+        "coherent (the renderer traces each film row's camera rays this way); packetW = "
+        "rtcIntersectW/rtcOccludedW, W rays of one kind of the same chunks at a time, the copy into Embree's "
+        "SoA layout timed. 'best' is the fastest of embree, stream and packets: the raw limit that '% raw' "
+        "of section 2 divides by.",
         "",
         *note,
     ]
@@ -138,7 +147,8 @@ def throughput(d: dict[str, Any]) -> list[str]:
     out = [
         f"Lampshade (s_L = 0.6), {p.get('threads', 2)} thread(s), spp {p['spp']}, {p['reps']} round(s), medians. "
         f"'% raw' = renderer rays per {cpu} / raw Embree rays per CPU-second of the renderer's ray mix "
-        "(raw_embree mix batch, 1 thread), with the faster of single rays and streams, measured just before "
+        "(raw_embree mix batch, 1 thread), with the fastest of single rays, streams and packets of 4, 8 and 16 "
+        "(runs of older results: single rays and streams only), measured just before "
         "and just after each render (their mean); '% raw single' uses rtcIntersect1/rtcOccluded1 "
         f"alone. Raw limit next to the `direct/light` runs, M rays/CPU-s: {lim_txt}; their % raw: "
         f"{runs_txt or 'n/a'}. '% raw best-of' = the fastest run's rate / the largest raw limit measured "
@@ -617,6 +627,110 @@ def mesh_lights(d: dict[str, Any]) -> list[str]:
     ]
 
 
+def _range(r: dict[str, Any], spec: str = ".2f") -> str:
+    return f"{f(r['median'], spec)} ({f(r['min'], spec)}-{f(r['max'], spec)})"
+
+
+def _spp(by_key: dict[str, int]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in by_key.items()) + " spp"
+
+
+def mitsuba(d: dict[str, Any]) -> list[str]:
+    p, res = d["params"], d["results"]
+    t, info = res["table"], res["mitsuba"]
+    rows = [
+        [
+            integ,
+            mega(r["ours_samples_per_s"]),
+            mega(r["mitsuba_first_samples_per_s"]),
+            f"{f(r['mitsuba_first_wall_s'], '.2f')} ({f(r['mitsuba_first_compile_s'], '.2f')})",
+            mega(r["mitsuba_steady_samples_per_s"]),
+            _range(r["ratio"]),
+            _range(r["ratio_vs_first_pass"]),
+            f"{mega(r['ours_samples_per_cpu_s'])} / {mega(r['mitsuba_steady_samples_per_cpu_s'])}",
+            _range(r["ratio_cpu"]),
+            f"{f(r['ours_cores'], '.2f')} / {f(r['mitsuba_steady_cores'], '.2f')}",
+        ]
+        for integ, r in t.items()
+    ]
+    target = p["targets"]["light_vs_mitsuba"]
+    cost_target = p["targets"]["antishadow_exact_cost"]
+    verdicts = [
+        f"Target `light` >= {target:g}x Mitsuba {info.get('variant')} (steady state, samples/s), {integ}: "
+        f"{_range(r['ratio'])} -> {verdict(r['ratio']['median'] >= target)}"
+        for integ, r in t.items()
+    ]
+    cost_rows = [
+        [
+            name,
+            mega(c["light_samples_per_s"]),
+            mega(c["antishadow_exact_samples_per_s"]),
+            _range(c["cost_cpu"]),
+            _range(c["cost_wall"]),
+            verdict(c["cost_cpu"]["median"] <= cost_target),
+        ]
+        for name, c in res["cost"].items()
+    ]
+    integs = info.get("integrators", {})
+    busy_seen = sorted(
+        {str(m.get("busy_threads")) for runs in res["runs"]["mitsuba"].values() for m in runs if "busy_threads" in m}
+    )
+    cores = [c for r in t.values() for c in (r["ours_cores"], r["mitsuba_steady_cores"])]
+    busy = (
+        [
+            f"**Busy machine**: the renders got {f(min(cores), '.2f')}-{f(max(cores), '.2f')} of their 2 cores, "
+            "so the wall-clock rates and ratios above are mostly the other work's; the ratio per CPU-second is "
+            "the better estimate of the undisturbed ratio (it assumes both scale alike to 2 threads).",
+            "",
+        ]
+        if cores and min(cores) < 1.5
+        else []
+    )
+    return [
+        f"Lampshade 256x256, 2 threads each, {p['rounds']} rounds alternating who goes first, medians (range "
+        f"over rounds). Ours: `render` with `light`, {_spp(p['ours']['spp'])}, samples/s from its final JSON line "
+        f"(render time). Mitsuba {info.get('mitsuba')} (Dr.Jit {info.get('drjit')}, {info.get('variant')}, "
+        f"{info.get('threads')} threads"
+        + (f", threads that ran the passes: {'/'.join(busy_seen)}" if busy_seen else "")
+        + f", LLVM {info.get('libllvm')}): {p['mitsuba']['passes']} passes of "
+        f"{_spp(p['mitsuba']['spp_per_pass'])} per round, each mi.render evaluated and synchronised; the first "
+        "pass compiles its kernels into an empty cache (in brackets: Dr.Jit's codegen + LLVM time of it), "
+        "steady = the later passes. Integrators: "
+        + "; ".join(f"{k} {json.dumps(v)}" for k, v in integs.items())
+        + " (ours: max_depth 8 bounces, the same Russian roulette).",
+        "",
+        *table(
+            [
+                "integrator",
+                "ours M samples/s",
+                "Mitsuba first pass M samples/s",
+                "first pass s (compile s)",
+                "Mitsuba steady M samples/s",
+                "ratio ours/Mitsuba steady",
+                "ratio ours/Mitsuba first pass",
+                "M samples/CPU-s ours / Mitsuba",
+                "ratio per CPU-s",
+                "cores used ours / Mitsuba",
+            ],
+            rows,
+        ),
+        *(v + "." for v in verdicts),
+        "",
+        f"`antishadow_exact` cost per sample relative to `light`, direct, 2 threads, {_spp(p['cost']['spp'])}, same "
+        f"rounds (CPU = render threads' CPU time per sample; wall = render time per sample). Target <= "
+        f"{cost_target:g}x (CPU):",
+        "",
+        *table(
+            ["scene", "light M samples/s", "ax_exact M samples/s", "cost CPU", "cost wall", f"<= {cost_target:g}x"],
+            cost_rows,
+        ),
+        "'Cores used' = CPU time / wall time of the passes: below 2 the machine ran other work as well. The "
+        "ratios pair runs of the same round, made seconds apart, so load shared by both cancels.",
+        "",
+        *busy,
+    ]
+
+
 SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
     ("raw_embree", "1. Raw Embree limit (lampshade)", raw_embree),
     ("throughput", "2, 5. Renderer throughput and strategy cost", throughput),
@@ -630,6 +744,7 @@ SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
     ("portal_weights", "11. Portal weight heuristics (multi_lamp, antishadow_exact)", portal_weights),
     ("mesh_load", "12. Loading a 1M-triangle PLY (mesh_load.c)", mesh_load),
     ("mesh_lights", "13. Mesh lights: cost per sample (Little Lamp, 16 vs 1,000 triangles)", mesh_lights),
+    ("mitsuba", "14. Against Mitsuba 3 (llvm_ad_rgb), and antishadow_exact's cost per sample", mitsuba),
 ]
 
 
