@@ -231,6 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=None, help="concurrent renders of a sweep (default: cores // threads)")
     p.add_argument("--parallel", type=int, default=1, help="sweeps run at once (default 1)")
     p.add_argument("--max-body", type=int, default=256 * 1024, metavar="BYTES", help="request body limit")
+    p.add_argument("--no-figures", action="store_true", help="no figures (nor viewer bundle) after each sweep")
 
     sub.add_parser(
         "reindex",
@@ -577,6 +578,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         jobs=args.jobs,
         parallel=args.parallel,
         max_body_bytes=args.max_body,
+        figures=not args.no_figures,
     )
     return serve(settings)
 

@@ -154,6 +154,8 @@ class Dispatcher:
         ]
         if self.settings.scheduler:
             command += ["--scheduler", self.settings.scheduler]
+        if not self.settings.figures:
+            command.append("--no-figures")
         if self.settings.jobs:
             command += ["--jobs", str(self.settings.jobs)]
         # Running before the worker exists: the worker records its end only over `running`.

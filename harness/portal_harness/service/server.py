@@ -29,6 +29,7 @@ def settings_from(
     jobs: int | None = None,
     parallel: int = 1,
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
+    figures: bool = True,
 ) -> ServiceSettings:
     """ServiceSettings, checked: the roots exist, the renderer answers, and
     a service off loopback has a token. ConfigError otherwise."""
@@ -57,6 +58,7 @@ def settings_from(
         jobs=jobs,
         parallel=parallel,
         max_body_bytes=max_body_bytes,
+        figures=figures,
     )
 
 

@@ -24,6 +24,7 @@ class ServiceSettings:
     parallel: int = 1  # sweeps run at once
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES
     poll_s: float = 0.25  # how often the dispatcher and the event streams look
+    figures: bool = True  # draw the figures (and the viewer's bundle) after each sweep
 
     @property
     def spool(self) -> Path:

@@ -55,7 +55,9 @@ def write_viewer_bundle(layout: ResultsLayout, experiment: Experiment) -> Path:
     return out
 
 
-def run(experiment_id: str, results: Path, renderer: str, scheduler: str | None, jobs: int | None) -> int:
+def run(
+    experiment_id: str, results: Path, renderer: str, scheduler: str | None, jobs: int | None, figures: bool = True
+) -> int:
     layout = ResultsLayout(results)
     queue = q.Queue(layout.index_path)
     row = queue.get(experiment_id)
@@ -73,20 +75,7 @@ def run(experiment_id: str, results: Path, renderer: str, scheduler: str | None,
     )
     status = sweep(experiment, options, out=sys.stdout)
     sys.stdout.flush()
-    problems = []
-    try:
-        from portal_harness.figures import make_all
-
-        for path in make_all(experiment, layout):
-            print(f"figure: {path}")
-    except Exception as e:  # figures of a partial sweep may fail; the sweep's status stands
-        problems.append(f"figures: {type(e).__name__}: {e}")
-    try:
-        print(f"viewer: {write_viewer_bundle(layout, experiment)}")
-    except ImportError:
-        print("viewer: the viewer module is not installed: no bundle")
-    except Exception as e:
-        problems.append(f"viewer bundle: {type(e).__name__}: {e}")
+    problems = _figures(layout, experiment) if figures else []
     for p in problems:
         print(p, file=sys.stderr)
     if status == 0:
@@ -94,6 +83,26 @@ def run(experiment_id: str, results: Path, renderer: str, scheduler: str | None,
     else:
         queue.finish(experiment_id, q.FAILED, _failure_reason(layout, experiment.name), only_if=q.RUNNING)
     return status
+
+
+def _figures(layout: ResultsLayout, experiment: Experiment) -> list[str]:
+    """The figures and the viewer's bundle; returns the problems (figures of
+    a partial sweep may fail: the sweep's status stands)."""
+    problems = []
+    try:
+        from portal_harness.figures import make_all
+
+        for path in make_all(experiment, layout):
+            print(f"figure: {path}")
+    except Exception as e:
+        problems.append(f"figures: {type(e).__name__}: {e}")
+    try:
+        print(f"viewer: {write_viewer_bundle(layout, experiment)}")
+    except ImportError:
+        print("viewer: the viewer module is not installed: no bundle")
+    except Exception as e:
+        problems.append(f"viewer bundle: {type(e).__name__}: {e}")
+    return problems
 
 
 def _failure_reason(layout: ResultsLayout, name: str) -> str:
@@ -118,10 +127,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--scheduler")
     p.add_argument("--jobs", type=int)
     p.add_argument("--parent", type=int, required=True)
+    p.add_argument("--no-figures", action="store_true", help="no figures, no viewer bundle after the sweep")
     args = p.parse_args(argv)
     _die_with(args.parent)
     try:
-        return run(args.id, args.results, args.renderer, args.scheduler, args.jobs)
+        return run(args.id, args.results, args.renderer, args.scheduler, args.jobs, not args.no_figures)
     except HarnessError as e:
         print(f"worker: {e}", file=sys.stderr)
         q.Queue(ResultsLayout(args.results).index_path).finish(args.id, q.FAILED, str(e), only_if=q.RUNNING)
