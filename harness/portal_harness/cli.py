@@ -232,6 +232,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--parallel", type=int, default=1, help="sweeps run at once (default 1)")
     p.add_argument("--max-body", type=int, default=256 * 1024, metavar="BYTES", help="request body limit")
     p.add_argument("--no-figures", action="store_true", help="no figures (nor viewer bundle) after each sweep")
+    p.add_argument(
+        "--nice", type=int, default=0, help="niceness added to the sweeps' processes: keeps the API responsive"
+    )
 
     sub.add_parser(
         "reindex",
@@ -579,6 +582,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         parallel=args.parallel,
         max_body_bytes=args.max_body,
         figures=not args.no_figures,
+        nice=args.nice,
     )
     return serve(settings)
 

@@ -154,6 +154,8 @@ class Dispatcher:
         ]
         if self.settings.scheduler:
             command += ["--scheduler", self.settings.scheduler]
+        if self.settings.nice:
+            command += ["--nice", str(self.settings.nice)]
         if not self.settings.figures:
             command.append("--no-figures")
         if self.settings.jobs:

@@ -86,7 +86,8 @@ async def stream(views: Views, experiment_id: str, poll_s: float) -> AsyncIterat
     quiet_since = time.monotonic()
     yield "retry: 2000\n\n"
     while True:
-        view = await anyio.to_thread.run_sync(views.get, experiment_id)
+        # A recent view is shared by every stream of the experiment: no thread, no I/O.
+        view = views.peek(experiment_id) or await anyio.to_thread.run_sync(views.get, experiment_id)
         if view is None:
             yield format_event("status", {"id": experiment_id, "status": "deleted"})
             yield format_event("end", {"id": experiment_id})

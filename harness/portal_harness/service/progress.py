@@ -137,24 +137,48 @@ class Views:
         self.queue = queue
         self.ttl_s = ttl_s
         self._manifests = _ManifestCache()
-        self._cache: dict[str, tuple[float, dict[str, Any]]] = {}
+        self._cache: dict[str, tuple[float, dict[str, Any]]] = {}  # by id: (when its build started, view)
+        self._building: dict[str, threading.Lock] = {}
         self._lock = threading.Lock()
 
-    def get(self, experiment_id: str, fresh: bool = False) -> dict[str, Any] | None:
-        now = time.monotonic()
+    def peek(self, experiment_id: str) -> dict[str, Any] | None:
+        """The cached view if it is recent enough, without any I/O (for the event loop)."""
         with self._lock:
             cached = self._cache.get(experiment_id)
-        if cached is not None and not fresh and now - cached[0] < self.ttl_s:
+        if cached is not None and time.monotonic() - cached[0] < self._ttl(cached[1]):
             return cached[1]
-        row = self.queue.get(experiment_id)
-        if row is None:
-            with self._lock:
-                self._cache.pop(experiment_id, None)
-            return None
-        view = self._build(row)
+        return None
+
+    def _ttl(self, view: dict[str, Any]) -> float:
+        # A finished experiment's renders change only if another sweep redoes one.
+        return self.ttl_s * (8 if view["status"] in q.FINISHED else 1)
+
+    def get(self, experiment_id: str, fresh: bool = False) -> dict[str, Any] | None:
+        """The view, rebuilt when older than the TTL (or `fresh`); concurrent
+        callers wait for one rebuild instead of each doing their own."""
+        if not fresh:
+            found = self.peek(experiment_id)
+            if found is not None:
+                return found
         with self._lock:
-            self._cache[experiment_id] = (time.monotonic(), view)
-        return view
+            building = self._building.setdefault(experiment_id, threading.Lock())
+            asked = time.monotonic()
+        with building:
+            with self._lock:
+                cached = self._cache.get(experiment_id)
+            # Built by another caller while this one waited (after it asked, if it asked for a fresh one).
+            if cached is not None and (cached[0] >= asked or (not fresh and self.peek(experiment_id) is not None)):
+                return cached[1]
+            row = self.queue.get(experiment_id)
+            if row is None:
+                with self._lock:
+                    self._cache.pop(experiment_id, None)
+                return None
+            started = time.monotonic()
+            view = self._build(row)
+            with self._lock:
+                self._cache[experiment_id] = (started, view)
+            return view
 
     def summary(self, row: dict[str, Any]) -> dict[str, Any]:
         """The short form of the list: no runs."""

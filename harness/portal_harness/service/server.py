@@ -30,6 +30,7 @@ def settings_from(
     parallel: int = 1,
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
     figures: bool = True,
+    nice: int = 0,
 ) -> ServiceSettings:
     """ServiceSettings, checked: the roots exist, the renderer answers, and
     a service off loopback has a token. ConfigError otherwise."""
@@ -59,6 +60,7 @@ def settings_from(
         parallel=parallel,
         max_body_bytes=max_body_bytes,
         figures=figures,
+        nice=nice,
     )
 
 

@@ -25,6 +25,7 @@ class ServiceSettings:
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES
     poll_s: float = 0.25  # how often the dispatcher and the event streams look
     figures: bool = True  # draw the figures (and the viewer's bundle) after each sweep
+    nice: int = 0  # niceness of the sweeps' processes (workers, renders), over the API's
 
     @property
     def spool(self) -> Path:

@@ -128,8 +128,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--jobs", type=int)
     p.add_argument("--parent", type=int, required=True)
     p.add_argument("--no-figures", action="store_true", help="no figures, no viewer bundle after the sweep")
+    p.add_argument("--nice", type=int, default=0, help="raise this process's niceness (its renders inherit it)")
     args = p.parse_args(argv)
     _die_with(args.parent)
+    if args.nice:
+        os.nice(args.nice)
     try:
         return run(args.id, args.results, args.renderer, args.scheduler, args.jobs, not args.no_figures)
     except HarnessError as e:
