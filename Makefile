@@ -157,7 +157,18 @@ $(VENV_STAMP): harness/pyproject.toml
 	@touch $@
 venv: $(VENV_STAMP)
 
-test-py: $(VENV_STAMP) $(BUILD)/render
+# A real browser for the page tests (Debian's chromium and its WebDriver;
+# browsers fetched by other tools cannot be downloaded here).
+CHROMIUM_STAMP := renderer/build/.chromium-installed
+$(CHROMIUM_STAMP):
+	@mkdir -p $(@D)
+	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+	  echo "installing chromium chromium-driver with apt-get" >&2; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	fi
+	@touch $@
+
+test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
 	  $(VENV)/bin/python -m pytest -q tests/harness; fi
 
