@@ -12,7 +12,7 @@ import importlib
 import os
 import shutil
 import threading
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,7 @@ from portal_harness.renderer import renderer_version
 from portal_harness.service import events, images, submission
 from portal_harness.service import queue as q
 from portal_harness.service.dispatcher import Dispatcher
+from portal_harness.service.guard import Guard
 from portal_harness.service.progress import Views
 from portal_harness.service.security import token_matches
 from portal_harness.service.settings import ServiceSettings
@@ -93,18 +94,7 @@ def create_app(settings: ServiceSettings) -> FastAPI:
     async def refused(_: Request, e: submission.SubmissionError) -> JSONResponse:
         return JSONResponse(e.to_json(), status_code=422)
 
-    @app.middleware("http")
-    async def guard(request: Request, call_next: Callable[[Request], Awaitable[Response]]) -> Response:
-        length = request.headers.get("content-length")
-        if length is not None and (not length.isdigit() or int(length) > settings.max_body_bytes):
-            return JSONResponse(
-                {"message": f"request body over the limit of {settings.max_body_bytes} bytes"}, status_code=413
-            )
-        if settings.every_request_needs_token and not token_matches(
-            settings.token, request.headers.get("authorization"), request.query_params.get("token")
-        ):
-            return _unauthorized()
-        return await call_next(request)
+    app.add_middleware(Guard, settings=settings)
 
     def require_token(request: Request) -> None:
         if not token_matches(settings.token, request.headers.get("authorization")):
@@ -330,11 +320,3 @@ def create_app(settings: ServiceSettings) -> FastAPI:
         )
 
     return app
-
-
-def _unauthorized() -> JSONResponse:
-    return JSONResponse(
-        {"message": "this service needs Authorization: Bearer TOKEN for every request"},
-        status_code=401,
-        headers={"WWW-Authenticate": "Bearer"},
-    )
