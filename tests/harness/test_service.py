@@ -203,8 +203,11 @@ def test_04_writes_need_the_token(make_client: Callable[..., TestClient]) -> Non
     basic = {"Authorization": f"Basic {TOKEN}", **YAML}
     assert client.post("/api/experiments", content=experiment_text(), headers=basic).status_code == 401
     assert client.delete("/api/experiments/x").status_code == 401
-    # Reads are open on loopback.
+    # Reads are open on loopback; an unknown id is 404 everywhere.
     assert client.get("/api/experiments").status_code == 200
+    for path in ("", "/events", "/summary.csv", "/figures", "/log", "/viewer/index.html"):
+        assert client.get(f"/api/experiments/nope{path}").status_code == 404, path
+    assert client.delete("/api/experiments/nope", headers=AUTH).status_code == 404
     assert client.get("/").status_code == 200
 
 
