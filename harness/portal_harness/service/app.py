@@ -43,6 +43,8 @@ LOG_TAIL_BYTES = 16384
 
 
 class ApiError(Exception):
+    """An error answered as JSON `{message, ...}` with its HTTP status."""
+
     def __init__(self, status: int, message: str, **extra: Any) -> None:
         self.status = status
         self.body = {"message": message, **extra}

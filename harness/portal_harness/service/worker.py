@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import ctypes
+import json
 import os
 import signal
 import sys
@@ -107,8 +108,6 @@ def _figures(layout: ResultsLayout, experiment: Experiment) -> list[str]:
 
 def _failure_reason(layout: ResultsLayout, name: str) -> str:
     """The sweep's own account: its failures and problems from summary.json, else a pointer to the log."""
-    import json
-
     try:
         data = json.loads(layout.summary_json(name).read_text())
     except (OSError, ValueError):
