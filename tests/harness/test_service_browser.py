@@ -130,3 +130,24 @@ def _wait(condition: object, what: str, timeout_s: float = 30) -> None:
             pass
         time.sleep(0.05)
     raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_02_the_api_documentation_renders_offline(tmp_path: Path, real_renderer: Path, browser: object) -> None:
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.remote.webdriver import WebDriver
+
+    assert isinstance(browser, WebDriver)
+    root = tmp_path / "root"
+    root.mkdir()
+    service = Service(tmp_path / "results", root, real_renderer, free_port())
+    service.start()
+    try:
+        browser.get(f"http://127.0.0.1:{service.port}/docs")
+        # Swagger UI (served from the wheel) reads the OpenAPI 3.1 schema and lists the operations.
+        _wait(lambda: len(browser.find_elements(By.CSS_SELECTOR, ".opblock")) >= 5, "the documented operations")
+        text = browser.find_element(By.TAG_NAME, "body").text
+        assert "/api/experiments/{experiment_id}/events" in text and "Unable to render" not in text
+        resources = browser.execute_script("return performance.getEntriesByType('resource').map(e => e.name)")
+        assert resources and all(str(r).startswith(f"http://127.0.0.1:{service.port}/") for r in resources)
+    finally:
+        service.stop()
