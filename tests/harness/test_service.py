@@ -216,8 +216,17 @@ def test_05_off_loopback_every_request_needs_the_token(make_client: Callable[...
     for path in ("/api/experiments", "/", "/docs", "/openapi.json", "/static/app.js"):
         assert client.get(path).status_code == 401, path
     assert client.get("/api/experiments", headers={"Authorization": f"Bearer {TOKEN}"}).status_code == 200
-    assert client.get(f"/api/experiments?token={TOKEN}").status_code == 200
     assert client.get("/api/experiments?token=nope").status_code == 401
+    # A page opened with ?token= sets a cookie that authorises reads, never writes.
+    page = client.get(f"/?token={TOKEN}")
+    assert page.status_code == 200 and "HttpOnly" in page.headers["set-cookie"]
+    assert client.get("/api/experiments").status_code == 200
+    assert client.post("/api/experiments", content=experiment_text(), headers=YAML).status_code == 401
+    assert client.delete("/api/experiments/x").status_code == 401
+    client.cookies.clear()
+    assert client.get("/api/experiments").status_code == 401
+    client.cookies.set("portal_harness_token", "nope")
+    assert client.get("/api/experiments").status_code == 401
 
 
 def refusal(client: TestClient, text: str) -> dict[str, Any]:
