@@ -333,3 +333,24 @@ def test_10_the_viewer_route_answers_503_until_the_viewer_is_installed(make_clie
         assert r.status_code in (200, 404, 409)
     client.delete(f"/api/experiments/{experiment_id}", headers=AUTH)
     assert os.path.isdir(client.app.state.settings.layout.root)  # type: ignore[attr-defined]
+
+
+def test_11_the_worker_checks_the_roots_again_when_the_sweep_starts(
+    make_client: Callable[..., TestClient], root: Path, tmp_path: Path, fake_scene: Path, fake_renderer: Path
+) -> None:
+    from portal_harness.errors import HarnessError
+    from portal_harness.service import queue as q
+    from portal_harness.service import worker
+
+    client = make_client(parallel=0)  # nothing starts: the test plays the worker
+    experiment_id = submit(client, experiment_text())
+    # After validation the scene becomes a link to a file outside the roots.
+    outside = tmp_path / "elsewhere.yaml"
+    outside.write_bytes(fake_scene.read_bytes())
+    (root / "scenes" / "tiny.yaml").unlink()
+    (root / "scenes" / "tiny.yaml").symlink_to(outside)
+    results = tmp_path / "results"
+    q.Queue(results / "index.sqlite").mark_running(experiment_id, None)
+    with pytest.raises(HarnessError, match="outside the --root folders"):
+        worker.run(experiment_id, results, str(fake_renderer), None, None, False, (root.resolve(),))
+    assert not (results / "runs").exists()

@@ -152,6 +152,8 @@ class Dispatcher:
             "--parent",
             str(os.getpid()),
         ]
+        for root in self.settings.roots:
+            command += ["--root", str(root)]
         if self.settings.scheduler:
             command += ["--scheduler", self.settings.scheduler]
         if self.settings.nice:

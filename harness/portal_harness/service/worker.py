@@ -29,6 +29,7 @@ from portal_harness.errors import HarnessError
 from portal_harness.paths import ResultsLayout
 from portal_harness.renderer import renderer_version
 from portal_harness.service import queue as q
+from portal_harness.service.submission import SubmissionError, check_files
 from portal_harness.sweep import SweepOptions, sweep
 
 LOG_NAME = "sweep.log"
@@ -57,7 +58,13 @@ def write_viewer_bundle(layout: ResultsLayout, experiment: Experiment) -> Path:
 
 
 def run(
-    experiment_id: str, results: Path, renderer: str, scheduler: str | None, jobs: int | None, figures: bool = True
+    experiment_id: str,
+    results: Path,
+    renderer: str,
+    scheduler: str | None,
+    jobs: int | None,
+    figures: bool = True,
+    roots: tuple[Path, ...] = (),
 ) -> int:
     layout = ResultsLayout(results)
     queue = q.Queue(layout.index_path)
@@ -66,6 +73,12 @@ def run(
         print(f"no experiment {experiment_id} in the queue", file=sys.stderr)
         return 2
     experiment = load_experiment(Path(row["file"]), renderer, relative_to=Path(row["base"]))
+    if roots:
+        # Again, as the sweep starts: a file may have become a link out of the roots since it was submitted.
+        try:
+            check_files(experiment, renderer, roots)
+        except SubmissionError as e:
+            raise HarnessError(f"{e.file}: {e.key}: {e.message}") from None
     options = SweepOptions(
         layout=layout,
         renderer=renderer,
@@ -128,12 +141,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--parent", type=int, required=True)
     p.add_argument("--no-figures", action="store_true", help="no figures, no viewer bundle after the sweep")
     p.add_argument("--nice", type=int, default=0, help="raise this process's niceness (its renders inherit it)")
+    p.add_argument("--root", dest="roots", action="append", type=Path, default=[], help="the service's --root folders")
     args = p.parse_args(argv)
     _die_with(args.parent)
     if args.nice:
         os.nice(args.nice)
     try:
-        return run(args.id, args.results, args.renderer, args.scheduler, args.jobs, not args.no_figures)
+        return run(
+            args.id, args.results, args.renderer, args.scheduler, args.jobs, not args.no_figures, tuple(args.roots)
+        )
     except HarnessError as e:
         print(f"worker: {e}", file=sys.stderr)
         q.Queue(ResultsLayout(args.results).index_path).finish(args.id, q.FAILED, str(e), only_if=q.RUNNING)
