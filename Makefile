@@ -157,7 +157,18 @@ $(VENV_STAMP): harness/pyproject.toml
 	@touch $@
 venv: $(VENV_STAMP)
 
-test-py: $(VENV_STAMP) $(BUILD)/render
+# A real browser for the page tests (Debian's chromium and its WebDriver;
+# browsers fetched by other tools cannot be downloaded here).
+CHROMIUM_STAMP := renderer/build/.chromium-installed
+$(CHROMIUM_STAMP):
+	@mkdir -p $(@D)
+	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+	  echo "installing chromium chromium-driver with apt-get" >&2; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	fi
+	@touch $@
+
+test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
 	  $(VENV)/bin/python -m pytest -q tests/harness; fi
 
@@ -166,7 +177,8 @@ test-py: $(VENV_STAMP) $(BUILD)/render
 # mypy --strict cover the same files; mitsuba is not installed in this venv
 # (tools/crosscheck runs in .venv-xcheck), so mypy takes its imports as missing.
 # A Python file that git tracks outside these folders fails the target.
-PY_LINT := harness tests/harness tests/crosscheck tools/closed_form tools/crosscheck tools/little_lamp tools/sobol renderer/bench tests/configs/meshes
+PY_LINT := harness tests/harness tests/crosscheck tools/closed_form tools/crosscheck tools/little_lamp tools/sobol renderer/bench tests/configs/meshes \
+           tools/service_load
 PY_MYPY := harness/portal_harness $(filter-out harness,$(PY_LINT))
 SPACE := $(eval) $(eval)
 lint-py: $(VENV_STAMP)

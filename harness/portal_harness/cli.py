@@ -204,6 +204,38 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
 
+    p = sub.add_parser(
+        "serve",
+        parents=[common],
+        help="the experiment service: HTTP API, queue and web page",
+        description="A long-running HTTP service over the results store: submit experiments (their YAML), "
+        "follow their sweeps live, fetch images, summaries and figures; a web page at / and the API's "
+        "documentation at /docs. Writes need a bearer token (--token-file or $PORTAL_HARNESS_TOKEN; without "
+        "either, on loopback, one is made in RESULTS/service/token). See README.md, 'The service'.",
+    )
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8750)
+    p.add_argument(
+        "--root",
+        dest="roots",
+        action="append",
+        type=Path,
+        default=[],
+        metavar="DIR",
+        help="a folder submitted experiments may name files in (repeatable; default: <repo>/configs)",
+    )
+    p.add_argument("--token-file", type=Path, help="file whose first line is the bearer token")
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run renders on this Dask scheduler instead of the local pool"
+    )
+    p.add_argument("--jobs", type=int, default=None, help="concurrent renders of a sweep (default: cores // threads)")
+    p.add_argument("--parallel", type=int, default=1, help="sweeps run at once (default 1)")
+    p.add_argument("--max-body", type=int, default=256 * 1024, metavar="BYTES", help="request body limit")
+    p.add_argument("--no-figures", action="store_true", help="no figures (nor viewer bundle) after each sweep")
+    p.add_argument(
+        "--nice", type=int, default=0, help="niceness added to the sweeps' processes: keeps the API responsive"
+    )
+
     sub.add_parser(
         "reindex",
         parents=[common],
@@ -533,6 +565,28 @@ def cmd_import_mitsuba(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_serve(args: argparse.Namespace) -> int:
+    from portal_harness.paths import find_repo_root
+    from portal_harness.service.server import serve, settings_from
+
+    renderer, _ = _renderer(args)
+    settings = settings_from(
+        results=args.results or default_results(),
+        renderer=Path(renderer),
+        roots=args.roots or [find_repo_root() / "configs"],
+        host=args.host,
+        port=args.port,
+        token_file=args.token_file,
+        scheduler=args.scheduler,
+        jobs=args.jobs,
+        parallel=args.parallel,
+        max_body_bytes=args.max_body,
+        figures=not args.no_figures,
+        nice=args.nice,
+    )
+    return serve(settings)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {
@@ -545,6 +599,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "query": cmd_query,
         "reindex": cmd_reindex,
         "import-mitsuba": cmd_import_mitsuba,
+        "serve": cmd_serve,
     }
     try:
         return int(handlers[args.command](args))

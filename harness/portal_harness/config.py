@@ -349,11 +349,14 @@ def _numeric(effective: contract.EffectiveConfig, key: str) -> float | None:
     return float(value)
 
 
-def load_experiment(path: Path | str, renderer: str) -> Experiment:
+def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = None) -> Experiment:
     """Reads and validates an experiment against the renderer at `renderer`
     (its strategies and integrators, and its effective config of the scene
-    at every point); raises ConfigError on the first problem."""
+    at every point); raises ConfigError on the first problem. Relative paths
+    in it are relative to `relative_to` (default: the file's folder; the service
+    stores submitted files apart from the root folder their paths name)."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
+    folder = relative_to if relative_to is not None else p.parent
     data, lines = read_yaml_lines(p, "experiment file")
     r = Reader(str(path), lines)
     root = r.mapping(
@@ -381,7 +384,7 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     if "/" in name or name.startswith("."):
         raise r.fail("name", f"expected a plain name usable as a file name, got {name!r}")
 
-    scene = (p.parent / r.string(root["scene"], "scene")).resolve()
+    scene = (folder / r.string(root["scene"], "scene")).resolve()
     if not scene.is_file():
         raise r.fail("scene", f"scene file {scene} not found")
     names = contract.describe(renderer)
@@ -507,7 +510,7 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
             spp=r.integer(g["spp"], "regress.spp", minimum=1),
             seeds=seeds,
             z_max=r.number(g.get("z_max", 4.0), "regress.z_max", positive=True),
-            baseline=(p.parent / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
+            baseline=(folder / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
         )
 
     points = _points(r, renderer, scene, tuple(sweep), fixed_overrides, axis, facet_keys)
@@ -518,7 +521,7 @@ def load_experiment(path: Path | str, renderer: str) -> Experiment:
     fig = r.mapping(root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric", "region_sections"})
     equal_time = fig.get("equal_time_s")
     sections = (
-        _region_sections(r, p, renderer, fig["region_sections"], fixed_overrides, points)
+        _region_sections(r, folder, renderer, fig["region_sections"], fixed_overrides, points)
         if "region_sections" in fig
         else None
     )
@@ -553,13 +556,13 @@ REGION_SECTION_KEYS = {"scene", "spp", "label"}
 
 
 def _region_sections(
-    r: Reader, path: Path, renderer: str, node: Any, fixed: Overrides, points: tuple[Point, ...]
+    r: Reader, folder: Path, renderer: str, node: Any, fixed: Overrides, points: tuple[Point, ...]
 ) -> RegionSections:
     """figures.region_sections: {scene, spp, label}; the scene must exist and the
     renderer must accept it with every point's overrides (it is rendered
     at each reference point, like the region map)."""
     m = r.mapping(node, "figures.region_sections", REGION_SECTION_KEYS, {"scene"})
-    scene = (path.parent / r.string(m["scene"], "figures.region_sections.scene")).resolve()
+    scene = (folder / r.string(m["scene"], "figures.region_sections.scene")).resolve()
     if not scene.is_file():
         raise r.fail("figures.region_sections.scene", f"scene file {scene} not found")
     spp = r.integer(m.get("spp", REGION_MAP_SPP), "figures.region_sections.spp", minimum=1)
