@@ -1,0 +1,456 @@
+// The comparison viewer: the reference and each strategy of a point side by
+// side or one at a time (number keys), synchronised zoom and pan down to
+// single pixels, exposure in stops, relative-error maps, the insets, the
+// relMSE per region and the experiment's charts.
+//
+// Keys: 1 reference, 2.. strategies (single view); g side by side; e error
+// map; i insets; + / - exposure by half a stop, 0 resets it; f fit.
+"use strict";
+window.Portal = window.Portal || {};
+
+(function (P) {
+  var S = {
+    base: null,
+    bundle: null,
+    point: 0,
+    current: 0, // index into the point's images
+    layout: "grid",
+    stops: 0,
+    errorMode: false,
+    errorMax: 1,
+    insets: true,
+    region: "", // highlighted region, "" for none
+    chartRegion: "lit",
+    measure: "efficiency_vs_light",
+    view: null,
+    loaded: {}, // image number -> {width, height, rgb}
+    toned: {}, // image number -> {exposure, pixels}
+    errors: {}, // image number -> {values, max, pixels}
+    mask: null,
+    draws: 0,
+  };
+  var $ = function (id) {
+    return document.getElementById(id);
+  };
+
+  function point() {
+    return S.bundle.points[S.point];
+  }
+
+  function exposure() {
+    return (point().exposure || 1) * Math.pow(2, S.stops);
+  }
+
+  function shownEntries() {
+    var images = point().images;
+    return S.layout === "single" ? [images[S.current]] : images;
+  }
+
+  function message(text) {
+    $("message").textContent = text || "";
+  }
+
+  function tonedPixels(number) {
+    var e = exposure();
+    var cached = S.toned[number];
+    if (cached && cached.exposure === e) return cached.pixels;
+    var img = S.loaded[number];
+    var pixels = P.toSrgb8(img.rgb, e, new Uint8ClampedArray(img.width * img.height * 4));
+    S.toned[number] = { exposure: e, pixels: pixels };
+    return pixels;
+  }
+
+  function referenceNumber() {
+    return point().images[0].image;
+  }
+
+  function errorPixels(number) {
+    var cached = S.errors[number];
+    if (!cached) {
+      var ref = S.loaded[referenceNumber()];
+      var values = P.relativeError(S.loaded[number].rgb, ref.rgb, S.bundle.luminance_weights, S.bundle.error_epsilon);
+      cached = S.errors[number] = { values: values, max: null, pixels: new Uint8ClampedArray(values.length * 4) };
+    }
+    if (cached.max !== S.errorMax) {
+      P.falseColour(cached.values, S.errorMax, S.bundle.error_colormap.colours, cached.pixels);
+      cached.max = S.errorMax;
+    }
+    return cached.pixels;
+  }
+
+  function panelPixels(entry, i) {
+    if (entry.image === null || !S.loaded[entry.image]) return null;
+    var isReference = S.layout === "single" ? S.current === 0 : i === 0;
+    return S.errorMode && !isReference ? errorPixels(entry.image) : tonedPixels(entry.image);
+  }
+
+  function caption(entry, index) {
+    var text = index + 1 + "  " + entry.label;
+    if (entry.image === null) return text + " (" + entry.status + ")";
+    var parts = [];
+    if (typeof entry.time_s === "number") parts.push(P.format(entry.time_s) + " s");
+    if (typeof entry.spp === "number") parts.push(entry.spp + " spp");
+    if (entry.rel_mse && typeof entry.rel_mse.image === "number") parts.push("relMSE " + P.format(entry.rel_mse.image));
+    return text + (parts.length ? " (" + parts.join(", ") + ")" : "");
+  }
+
+  // Canvas size of a panel, in canvas pixels (one per CSS pixel: the page
+  // asks for exact pixels, so it does not scale with devicePixelRatio).
+  function panelSize(count) {
+    var avail = Math.max($("images").clientWidth, 320);
+    var w = S.bundle.width;
+    var h = S.bundle.height;
+    var across = Math.min(count, 3);
+    // Panels have a 2 px border each side and 10 px between them (viewer.css).
+    var width = Math.floor((avail - 10 * (across - 1)) / across) - 4;
+    width = count === 1 ? Math.min(width, 1024) : Math.max(Math.min(width, 520), 220);
+    var height = Math.min(Math.round((width * h) / w), count === 1 ? 760 : 520);
+    return { width: width, height: height };
+  }
+
+  function buildPanels() {
+    var container = $("images");
+    container.textContent = "";
+    container.className = S.layout;
+    var entries = shownEntries();
+    var size = panelSize(entries.length);
+    entries.forEach(function (entry, i) {
+      var index = S.layout === "single" ? S.current : i;
+      var panel = document.createElement("div");
+      panel.className = "panel" + (index === S.current ? " current" : "");
+      panel.dataset.index = index;
+      panel.dataset.name = entry.name;
+      var title = document.createElement("div");
+      title.className = "caption";
+      title.textContent = caption(entry, index);
+      var canvas = document.createElement("canvas");
+      canvas.width = size.width;
+      canvas.height = size.height;
+      canvas.style.width = size.width + "px";
+      canvas.style.height = size.height + "px";
+      panel.appendChild(title);
+      panel.appendChild(canvas);
+      container.appendChild(panel);
+      attachMouse(canvas);
+    });
+    // Until the user zooms, every layout shows the whole image as large as it fits.
+    if (!S.view.zoomed) S.view.fit(size.width, size.height);
+  }
+
+  function draw() {
+    var entries = shownEntries();
+    var canvases = $("images").querySelectorAll("canvas");
+    entries.forEach(function (entry, i) {
+      var ctx = canvases[i].getContext("2d");
+      P.drawPanel(ctx, S.view, panelPixels(entry, i), S.mask, S.insets ? S.bundle.insets : null);
+    });
+    $("colourbar").style.display = S.errorMode ? "" : "none";
+    S.draws += 1;
+    document.body.dataset.draws = S.draws;
+    document.body.dataset.scale = S.view.scale;
+  }
+
+  function drawColourbar() {
+    var canvas = $("colourbar-canvas");
+    var ctx = canvas.getContext("2d");
+    var colours = S.bundle.error_colormap.colours;
+    for (var x = 0; x < canvas.width; x++) {
+      var c = colours[Math.round((x / (canvas.width - 1)) * (colours.length - 1))];
+      ctx.fillStyle = "rgb(" + c[0] + "," + c[1] + "," + c[2] + ")";
+      ctx.fillRect(x, 0, 1, canvas.height);
+    }
+    $("colourbar-max").textContent = "\u2265 " + P.format(S.errorMax);
+    $("colourbar-mid").textContent = P.format(S.errorMax / 2);
+  }
+
+  function setMask() {
+    var region = point().regions.filter((r) => r.name === S.region)[0];
+    S.mask = region ? P.decodeMask(region.mask, S.bundle.width * S.bundle.height) : null;
+  }
+
+  function updateTable() {
+    P.metricsTable($("metrics"), S.bundle, point(), point().images[S.current].name, S.region);
+  }
+
+  function updateCharts() {
+    P.errorChart($("chart-error"), S.bundle, point().id, S.chartRegion);
+    P.efficiencyChart($("chart-efficiency"), S.bundle, S.chartRegion, S.measure, point().id);
+  }
+
+  function loadPoint() {
+    var p = point();
+    if (p.missing) {
+      message(p.title + ": " + p.missing);
+      $("images").textContent = "";
+      return Promise.resolve();
+    }
+    document.body.dataset.loading = "1";
+    var numbers = p.images.filter((e) => e.image !== null).map((e) => e.image);
+    return Promise.all(
+      numbers.map(function (n) {
+        return P.loadImage(S.base, n).then(function (img) {
+          S.loaded[n] = img;
+        });
+      }),
+    ).then(function () {
+      document.body.dataset.loading = "0";
+    });
+  }
+
+  function fillSelect(select, options, value) {
+    select.textContent = "";
+    options.forEach(function (o) {
+      var opt = document.createElement("option");
+      opt.value = o[0];
+      opt.textContent = o[1];
+      select.appendChild(opt);
+    });
+    select.value = value;
+  }
+
+  function refreshRegionChoices() {
+    var regions = point().regions.map((r) => [r.name, r.title + " (" + r.pixels + " px)"]);
+    if (!regions.some((r) => r[0] === S.region)) S.region = "";
+    fillSelect($("region"), [["", "none"]].concat(regions), S.region);
+    var names = Object.keys(S.bundle.curves[point().id] || {});
+    if (names.indexOf(S.chartRegion) < 0) S.chartRegion = names.indexOf("lit") >= 0 ? "lit" : names[0] || "image";
+    fillSelect(
+      $("chart-region"),
+      point().regions.map((r) => [r.name, r.title]),
+      S.chartRegion,
+    );
+  }
+
+  function selectPoint(i) {
+    S.point = i;
+    S.current = Math.min(S.current, point().images.length - 1);
+    S.toned = {};
+    S.errors = {};
+    $("point").value = String(i);
+    refreshRegionChoices();
+    setMask();
+    message("");
+    return loadPoint().then(function () {
+      if (point().missing) return;
+      buildPanels();
+      draw();
+      updateTable();
+      updateCharts();
+    });
+  }
+
+  function render() {
+    buildPanels();
+    draw();
+    updateTable();
+  }
+
+  function setStops(stops) {
+    S.stops = Math.min(Math.max(Math.round(stops * 4) / 4, -12), 12);
+    $("exposure").value = String(S.stops);
+    $("exposure-value").textContent = (S.stops >= 0 ? "+" : "") + S.stops + " stops";
+    draw();
+  }
+
+  function canvasPoint(canvas, e) {
+    var rect = canvas.getBoundingClientRect();
+    return {
+      x: ((e.clientX - rect.left) * canvas.width) / rect.width,
+      y: ((e.clientY - rect.top) * canvas.height) / rect.height,
+    };
+  }
+
+  function showPixel(canvas, e) {
+    var at = canvasPoint(canvas, e);
+    var px = S.view.toImage(at.x, at.y, canvas.width, canvas.height);
+    var info = $("pixel-info");
+    if (px.x < 0 || px.y < 0 || px.x >= S.bundle.width || px.y >= S.bundle.height) {
+      info.textContent = "";
+      return;
+    }
+    var i = px.y * S.bundle.width + px.x;
+    var lines = ["pixel (" + px.x + ", " + px.y + ")"];
+    point().images.forEach(function (entry, k) {
+      var img = entry.image === null ? null : S.loaded[entry.image];
+      if (!img) return;
+      var rgb = [img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]];
+      var line = k + 1 + " " + entry.label + ": " + rgb.map((v) => P.format(v, 4)).join("  ");
+      if (k > 0) line += "   rel. error " + P.format(errorValue(entry.image, i));
+      lines.push(line);
+    });
+    info.textContent = lines.join("\n");
+    info.dataset.x = px.x;
+    info.dataset.y = px.y;
+  }
+
+  function errorValue(number, i) {
+    if (!S.errors[number]) errorPixels(number);
+    return S.errors[number].values[i];
+  }
+
+  var drag = null; // the last mouse position of a pan in progress
+  window.addEventListener("mouseup", function () {
+    drag = null;
+  });
+
+  function attachMouse(canvas) {
+    canvas.addEventListener(
+      "wheel",
+      function (e) {
+        e.preventDefault();
+        var at = canvasPoint(canvas, e);
+        if (S.view.zoomAt(e.deltaY < 0 ? 1 : -1, at.x, at.y, canvas.width, canvas.height)) {
+          S.view.zoomed = true;
+          draw();
+        }
+        showPixel(canvas, e);
+      },
+      { passive: false },
+    );
+    canvas.addEventListener("mousedown", function (e) {
+      drag = { x: e.clientX, y: e.clientY };
+      e.preventDefault();
+    });
+    canvas.addEventListener("mousemove", function (e) {
+      if (drag) {
+        var scale = canvas.width / canvas.getBoundingClientRect().width;
+        S.view.pan((e.clientX - drag.x) * scale, (e.clientY - drag.y) * scale);
+        S.view.zoomed = true;
+        drag = { x: e.clientX, y: e.clientY };
+        draw();
+      }
+      showPixel(canvas, e);
+    });
+  }
+
+  function setLayout(layout) {
+    S.layout = layout;
+    $("layout").value = layout;
+    render();
+  }
+
+  function onKey(e) {
+    if (e.target && (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") && e.target.type !== "range" && e.target.type !== "checkbox") return;
+    if (e.ctrlKey || e.metaKey || e.altKey) return;
+    var k = e.key;
+    if (k >= "1" && k <= "9") {
+      var i = Number(k) - 1;
+      if (i < point().images.length) {
+        S.current = i;
+        setLayout("single");
+      }
+    } else if (k === "g") setLayout(S.layout === "grid" ? "single" : "grid");
+    else if (k === "e") {
+      S.errorMode = !S.errorMode;
+      $("error-mode").checked = S.errorMode;
+      draw();
+    } else if (k === "i") {
+      S.insets = !S.insets;
+      $("insets").checked = S.insets;
+      draw();
+    } else if (k === "+" || k === "=") setStops(S.stops + 0.5);
+    else if (k === "-" || k === "_") setStops(S.stops - 0.5);
+    else if (k === "0") setStops(0);
+    else if (k === "f") {
+      S.view.zoomed = false;
+      render();
+    } else return;
+    e.preventDefault();
+  }
+
+  function wireControls() {
+    var b = S.bundle;
+    fillSelect(
+      $("point"),
+      b.points.map((p, i) => [String(i), p.title]),
+      "0",
+    );
+    $("point").addEventListener("change", (e) => selectPoint(Number(e.target.value)));
+    $("layout").addEventListener("change", (e) => setLayout(e.target.value));
+    $("exposure").addEventListener("input", (e) => setStops(Number(e.target.value)));
+    $("error-mode").addEventListener("change", function (e) {
+      S.errorMode = e.target.checked;
+      draw();
+    });
+    $("error-max").addEventListener("change", function (e) {
+      S.errorMax = Number(e.target.value);
+      drawColourbar();
+      draw();
+    });
+    $("insets").addEventListener("change", function (e) {
+      S.insets = e.target.checked;
+      draw();
+    });
+    $("region").addEventListener("change", function (e) {
+      S.region = e.target.value;
+      setMask();
+      draw();
+      updateTable();
+    });
+    $("chart-region").addEventListener("change", function (e) {
+      S.chartRegion = e.target.value;
+      updateCharts();
+    });
+    $("measure").addEventListener("change", function (e) {
+      S.measure = e.target.value;
+      updateCharts();
+    });
+    $("fit").addEventListener("click", function () {
+      S.view.zoomed = false;
+      render();
+    });
+    document.addEventListener("keydown", onKey);
+    window.addEventListener("resize", render);
+  }
+
+  // What the tests (and a curious user, from the console) can ask.
+  P.viewer = {
+    state: function () {
+      var canvas = $("images").querySelector("canvas");
+      var o = canvas ? S.view.origin(canvas.width, canvas.height) : null;
+      return {
+        point: S.point,
+        current: S.current,
+        layout: S.layout,
+        stops: S.stops,
+        exposure: exposure(),
+        errorMode: S.errorMode,
+        insets: S.insets,
+        scale: S.view.scale,
+        tx: o && o.tx,
+        ty: o && o.ty,
+        shown: shownEntries().map((e) => e.image),
+        draws: S.draws,
+      };
+    },
+    selectPoint: selectPoint,
+  };
+
+  function start() {
+    try {
+      S.base = P.bundleUrl();
+    } catch (err) {
+      message(err.message);
+      return;
+    }
+    P.loadBundle(S.base)
+      .then(function (bundle) {
+        S.bundle = bundle;
+        document.title = bundle.experiment + ": portal-lights viewer";
+        $("title").textContent = bundle.experiment;
+        S.view = new P.View(bundle.width, bundle.height);
+        wireControls();
+        drawColourbar();
+        return selectPoint(0);
+      })
+      .then(function () {
+        document.body.dataset.ready = "1";
+      })
+      .catch(function (err) {
+        message(String(err.message || err));
+        document.body.dataset.ready = "error";
+      });
+  }
+
+  document.addEventListener("DOMContentLoaded", start);
+})(window.Portal);
