@@ -53,7 +53,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
+.PHONY: all deps venv browser test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -157,7 +157,21 @@ $(VENV_STAMP): harness/pyproject.toml
 	@touch $@
 venv: $(VENV_STAMP)
 
-test-py: $(VENV_STAMP) $(BUILD)/render
+# A real browser for the viewer's tests (tests/harness/browser.py): Debian's
+# chromium and its driver, never a browser downloaded by a tool. The lock
+# timeout lets two makes that install packages at once wait for each other.
+CHROMIUM_STAMP := renderer/build/.chromium-installed
+$(CHROMIUM_STAMP):
+	@mkdir -p $(@D)
+	@if [ ! -x /usr/bin/chromium ] || [ ! -x /usr/bin/chromedriver ]; then \
+	  echo "installing chromium chromium-driver with apt-get" >&2; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
+	    chromium chromium-driver >/dev/null; \
+	fi
+	@touch $@
+browser: $(CHROMIUM_STAMP)
+
+test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
 	  $(VENV)/bin/python -m pytest -q tests/harness; fi
 

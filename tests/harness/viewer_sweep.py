@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pytest
 import yaml
 
 REPO = Path(__file__).resolve().parent.parent.parent
@@ -66,3 +67,14 @@ def sweep_tiny(folder: Path, renderer: Path) -> Swept:
     if status != 0:
         raise RuntimeError(f"the viewer tests' sweep failed with status {status}")
     return Swept(experiment, results, renderer)
+
+
+_SWEPT: dict[Path, Swept] = {}
+
+
+def swept_once(tmp_path_factory: pytest.TempPathFactory, renderer: Path) -> Swept:
+    """sweep_tiny, once per test session and renderer: the viewer's test
+    modules only read it (reports go to their own folders)."""
+    if renderer not in _SWEPT:
+        _SWEPT[renderer] = sweep_tiny(tmp_path_factory.mktemp("viewer-sweep"), renderer)
+    return _SWEPT[renderer]

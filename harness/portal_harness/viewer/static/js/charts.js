@@ -47,6 +47,10 @@ window.Portal = window.Portal || {};
 
   // Ticks of a log axis: the decades, with 2 and 5 between them when the
   // range spans less than two decades.
+  function tickLabel(v) {
+    return v >= 1e-3 && v < 1e5 ? String(Number(v.toPrecision(3))) : v.toExponential(0).replace("+", "");
+  }
+
   function logTicks(lo, hi) {
     var ticks = [];
     var steps = Math.log10(hi / lo) < 2 ? [1, 2, 5] : [1];
@@ -101,13 +105,13 @@ window.Portal = window.Portal || {};
       var tx = x(typeof t === "number" ? t : t[0]);
       el("line", { x1: tx, x2: tx, y1: M.top, y2: H - M.bottom }, grid);
       var label = el("text", { x: tx, y: H - M.bottom + 14, "text-anchor": "middle" }, grid);
-      label.textContent = typeof t === "number" ? P.format(t, 2) : t[1];
+      label.textContent = typeof t === "number" ? tickLabel(t) : t[1];
     });
     logTicks(spec.yRange[0], spec.yRange[1]).forEach(function (t) {
       var ty = y(t);
       el("line", { x1: M.left, x2: W - M.right, y1: ty, y2: ty }, grid);
       var label = el("text", { x: M.left - 4, y: ty + 4, "text-anchor": "end" }, grid);
-      label.textContent = P.format(t, 2);
+      label.textContent = tickLabel(t);
     });
     el("rect", { x: M.left, y: M.top, width: W - M.left - M.right, height: H - M.top - M.bottom, class: "frame" }, svg);
     var xl = el("text", { x: (M.left + W - M.right) / 2, y: H - 8, "text-anchor": "middle", class: "label" }, svg);

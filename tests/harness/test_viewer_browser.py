@@ -1,0 +1,222 @@
+"""The report's viewer in a real browser (headless chromium from Debian,
+driven by selenium), opened from disk as a reader of a supplemental would:
+the pixels shown are display.to_srgb8 of the runs' images, the number keys
+flip between them, zoom reaches single pixels, exposure and the error map
+change what is drawn, and the charts answer a hover with the summary's
+values. A screenshot is kept as an artefact (its path is printed)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from browser import Browser, chromium_fixture  # noqa: F401 (pytest finds it as `chromium`)
+from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
+from selenium.webdriver.common.by import By
+from viewer_sweep import swept_once
+
+from portal_harness import display
+from portal_harness.cli import main
+from portal_harness.viewer import bundle as vb
+
+PANEL = "#images canvas"
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory: pytest.TempPathFactory, fake_renderer: Path) -> Path:
+    swept = swept_once(tmp_path_factory, fake_renderer)
+    out = tmp_path_factory.mktemp("report-parent") / "report"
+    args = ["--results", str(swept.results), "--renderer", str(swept.renderer)]
+    assert main(["report", str(swept.experiment), "--out", str(out), *args]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def data(report: Path) -> dict[str, Any]:
+    return vb.read_bundle(report / "data")
+
+
+def _open(b: Browser, url: str) -> None:
+    b.driver.get(url)
+    assert b.wait_for("document.body.dataset.ready") == "1", b.driver.find_element(By.ID, "message").text
+
+
+def _state(b: Browser) -> dict[str, Any]:
+    state: dict[str, Any] = b.driver.execute_script("return Portal.viewer.state();")
+    return state
+
+
+def _keys(b: Browser, keys: str) -> None:
+    before = _state(b)["draws"]
+    ActionChains(b.driver).send_keys(keys).perform()
+    b.wait_for(f"Portal.viewer.state().draws >= {before + len(keys)}")
+
+
+def _image_on_screen(b: Browser, shape: tuple[int, int]) -> np.ndarray:
+    """The image pixels as drawn in the first panel: the screen pixel at the
+    centre of each image pixel's block (the view must show all of them)."""
+    s = _state(b)
+    scale, tx, ty = s["scale"], s["tx"], s["ty"]
+    canvas = b.canvas_pixels(PANEL)
+    h, w = shape
+    ys = ty + np.arange(h) * scale + int(scale // 2)
+    xs = tx + np.arange(w) * scale + int(scale // 2)
+    assert ys[0] >= 0 and xs[0] >= 0 and ys[-1] < canvas.shape[0] and xs[-1] < canvas.shape[1], s
+    return canvas[np.ix_(ys, xs)][..., :3]
+
+
+def _expected(report: Path, data: dict[str, Any], index: int, exposure: float) -> np.ndarray:
+    entry = data["points"][0]["images"][index]
+    return display.to_srgb8(vb.read_image(report / "data", entry["image"]).astype(np.float64), exposure)
+
+
+def _assert_close(shown: np.ndarray, expected: np.ndarray) -> None:
+    diff = np.abs(shown.astype(int) - expected.astype(int))
+    assert diff.max() <= 1, f"max difference {diff.max()} levels at {np.unravel_index(diff.argmax(), diff.shape)}"
+
+
+def test_01_report_opens_from_disk_side_by_side(chromium: Browser, report: Path, data: dict[str, Any]) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    captions = [e.text for e in chromium.driver.find_elements(By.CSS_SELECTOR, "#images .caption")]
+    assert [c.split()[1] for c in captions] == ["reference", "light", "portal"]
+    s = _state(chromium)
+    assert s["layout"] == "grid" and s["shown"] == [e["image"] for e in data["points"][0]["images"]]
+    assert s["exposure"] == pytest.approx(data["points"][0]["exposure"], rel=1e-12)
+    # the region table has a row per region and a column per strategy
+    rows = chromium.driver.find_elements(By.CSS_SELECTOR, "#metrics-table tr[data-region]")
+    assert [r.get_attribute("data-region") for r in rows] == [r["name"] for r in data["points"][0]["regions"]]
+    severe = [m for m in chromium.console() if "SEVERE" in m or "Error" in m]
+    assert not severe, severe
+
+
+def test_02_number_keys_flip_and_pixels_are_to_srgb8(chromium: Browser, report: Path, data: dict[str, Any]) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    _keys(chromium, "i")  # insets off: their frames would cover pixels
+    exposure = data["points"][0]["exposure"]
+    shown = []
+    for k in range(3):
+        _keys(chromium, str(k + 1))
+        s = _state(chromium)
+        assert s["layout"] == "single" and s["current"] == k
+        assert s["shown"] == [data["points"][0]["images"][k]["image"]]
+        image = _image_on_screen(chromium, (16, 16))
+        _assert_close(image, _expected(report, data, k, exposure))
+        shown.append(image)
+    assert not np.array_equal(shown[0], shown[1]) and not np.array_equal(shown[1], shown[2])
+
+
+def test_03_zoom_shows_single_pixels_and_their_values(chromium: Browser, report: Path, data: dict[str, Any]) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    _keys(chromium, "i1")
+    canvas = chromium.driver.find_element(By.CSS_SELECTOR, PANEL)
+    before = _state(chromium)["scale"]
+    for _ in range(3):
+        ActionChains(chromium.driver).scroll_from_origin(ScrollOrigin.from_element(canvas, 30, 20), 0, -120).perform()
+    chromium.wait_for(f"Portal.viewer.state().scale > {before}")
+    s = _state(chromium)
+    scale, tx, ty = s["scale"], s["tx"], s["ty"]
+    assert scale == int(scale) and scale > before
+    pixels = chromium.canvas_pixels(PANEL)[..., :3]
+    expected = _expected(report, data, 0, data["points"][0]["exposure"])
+    # every screen pixel shows the image pixel its block belongs to: blocks of scale x scale
+    hh, ww = pixels.shape[:2]
+    ix = (np.arange(ww) - tx) // scale
+    iy = (np.arange(hh) - ty) // scale
+    inside_x = (ix >= 0) & (ix < 16)
+    inside_y = (iy >= 0) & (iy < 16)
+    assert inside_x.sum() >= scale * 3 and inside_y.sum() >= scale * 3
+    want = expected[np.ix_(iy[inside_y], ix[inside_x])]
+    _assert_close(pixels[np.ix_(inside_y, inside_x)], want)
+    block = pixels[np.ix_(inside_y, inside_x)]
+    assert len(np.unique(block.reshape(-1, 3), axis=0)) == len(np.unique(want.reshape(-1, 3), axis=0))
+    # the value under the cursor: the pixel at the canvas centre
+    ActionChains(chromium.driver).move_to_element_with_offset(canvas, 0, 0).perform()
+    info = chromium.driver.find_element(By.ID, "pixel-info")
+    x, y = int(info.get_attribute("data-x") or -1), int(info.get_attribute("data-y") or -1)
+    rect = canvas.rect
+    assert (x, y) == ((int(rect["width"] / 2) - tx) // scale, (int(rect["height"] / 2) - ty) // scale)
+    ref = vb.read_image(report / "data", data["points"][0]["images"][0]["image"])
+    red = float(re.search(r"1 reference: (\S+)", info.text).group(1))  # type: ignore[union-attr]
+    assert red == pytest.approx(float(ref[y, x, 0]), rel=1e-3)
+
+
+def test_04_exposure_keys_and_slider(chromium: Browser, report: Path, data: dict[str, Any]) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    _keys(chromium, "i2++")
+    s = _state(chromium)
+    base = data["points"][0]["exposure"]
+    assert s["stops"] == 1 and s["exposure"] == pytest.approx(2 * base, rel=1e-12)
+    _assert_close(_image_on_screen(chromium, (16, 16)), _expected(report, data, 1, 2 * base))
+    _keys(chromium, "-")
+    assert chromium.driver.find_element(By.ID, "exposure").get_attribute("value") == "0.5"
+    _keys(chromium, "0")
+    _assert_close(_image_on_screen(chromium, (16, 16)), _expected(report, data, 1, base))
+
+
+def test_05_error_map_is_the_relative_error_in_false_colour(
+    chromium: Browser,
+    report: Path,
+    data: dict[str, Any],
+) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    _keys(chromium, "i2e")
+    assert _state(chromium)["errorMode"]
+    assert chromium.driver.find_element(By.ID, "colourbar").is_displayed()
+    images = data["points"][0]["images"]
+    x = vb.read_image(report / "data", images[1]["image"]).astype(np.float64)
+    r = vb.read_image(report / "data", images[0]["image"]).astype(np.float64)
+    error = display.luminance(np.abs(x - r)) / (np.maximum(display.luminance(r), 0) + 0.01)
+    colours = np.array(data["error_colormap"]["colours"])
+    index = np.rint(np.clip(error / 1.0, 0, 1) * (len(colours) - 1)).astype(int)
+    shown = _image_on_screen(chromium, (16, 16)).astype(int)
+    found = np.abs(shown[:, :, None, :] - colours[None, None, :, :]).sum(-1).argmin(-1)
+    assert np.abs(found - index).max() <= 1  # the same colour (a neighbour where rounding differs)
+    assert np.mean(found == index) > 0.95
+
+
+def test_06_charts_show_values_on_hover_and_a_screenshot(
+    chromium: Browser,
+    report: Path,
+    data: dict[str, Any],
+) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    driver = chromium.driver
+    markers = driver.find_elements(By.CSS_SELECTOR, "#chart-efficiency .marker[data-strategy=portal]")
+    assert len(markers) == len(data["points"])
+    marker = markers[-1]
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center'});", marker)
+    ActionChains(driver).move_to_element(marker).perform()
+    tip = driver.find_element(By.ID, "chart-tooltip")
+    chromium.wait_for("document.getElementById('chart-tooltip').style.display === 'block'")
+    row = next(
+        r
+        for r in data["summary"]
+        if r["point"] == marker.get_attribute("data-point") and r["strategy"] == "portal" and r["region"] == "lit"
+    )
+    value = float(re.search(r"efficiency relative to light = (\S+)", tip.text).group(1))  # type: ignore[union-attr]
+    assert value == pytest.approx(row["efficiency_vs_light"], rel=5e-3) and "portal" in tip.text
+    curve = driver.find_elements(By.CSS_SELECTOR, "#chart-error .marker[data-strategy=light]")
+    ActionChains(driver).move_to_element(curve[0]).perform()
+    chromium.wait_for("document.getElementById('chart-tooltip').textContent.indexOf('relMSE = ') > 0")
+    lit = data["curves"][data["points"][0]["id"]]["lit"]["strategies"]["light"]
+    shown = float(re.search(r"relMSE = (\S+)", tip.text).group(1))  # type: ignore[union-attr]
+    assert shown == pytest.approx(lit["v"][0], rel=5e-3)
+    driver.execute_script("window.scrollTo(0, 0);")
+    path = chromium.screenshot("viewer")
+    assert path.stat().st_size > 10000
+
+
+def test_07_bundle_from_the_query_string_and_refusals(chromium: Browser, report: Path) -> None:
+    elsewhere = report.parent / "elsewhere"
+    shutil.copytree(report / "data", elsewhere / "data")
+    _open(chromium, (report / "viewer.html").as_uri() + "?bundle=../elsewhere/data")
+    assert _state(chromium)["shown"]
+    for bad in ("https://example.com/data/", "//example.com/data/", "javascript:alert(1)"):
+        chromium.driver.get((report / "viewer.html").as_uri() + "?bundle=" + bad)
+        message = chromium.wait_for("document.getElementById('message').textContent")
+        assert "must be a path on this site" in message
