@@ -158,25 +158,31 @@ def test_04_exposure_keys_and_slider(chromium: Browser, report: Path, data: dict
     _assert_close(_image_on_screen(chromium, (16, 16)), _expected(report, data, 1, base))
 
 
-def test_05_error_map_is_the_relative_error_in_false_colour(
+def test_05_error_maps_are_the_relative_error_and_flip_in_false_colour(
     chromium: Browser,
     report: Path,
     data: dict[str, Any],
 ) -> None:
     _open(chromium, (report / "viewer.html").as_uri())
     _keys(chromium, "i2e")
-    assert _state(chromium)["errorMode"]
+    assert _state(chromium)["errorKind"] == "relative"
     assert chromium.driver.find_element(By.ID, "colourbar").is_displayed()
     images = data["points"][0]["images"]
     x = vb.read_image(report / "data", images[1]["image"]).astype(np.float64)
     r = vb.read_image(report / "data", images[0]["image"]).astype(np.float64)
-    error = display.luminance(np.abs(x - r)) / (np.maximum(display.luminance(r), 0) + 0.01)
+    relative = display.luminance(np.abs(x - r)) / (np.maximum(display.luminance(r), 0) + 0.01)
+    flip = vb.read_image(report / "data", images[1]["flip_image"]).astype(np.float64)
     colours = np.array(data["error_colormap"]["colours"])
-    index = np.rint(np.clip(error / 1.0, 0, 1) * (len(colours) - 1)).astype(int)
-    shown = _image_on_screen(chromium, (16, 16)).astype(int)
-    found = np.abs(shown[:, :, None, :] - colours[None, None, :, :]).sum(-1).argmin(-1)
-    assert np.abs(found - index).max() <= 1  # the same colour (a neighbour where rounding differs)
-    assert np.mean(found == index) > 0.95
+    for error, kind in ((relative, "relative"), (flip, "flip")):
+        # both on a linear scale from 0 to 1 (the default maximum of the relative error)
+        index = np.rint(np.clip(error, 0, 1) * (len(colours) - 1)).astype(int)
+        shown = _image_on_screen(chromium, (16, 16)).astype(int)
+        found = np.abs(shown[:, :, None, :] - colours[None, None, :, :]).sum(-1).argmin(-1)
+        assert np.abs(found - index).max() <= 1, kind  # the same colour (a neighbour where rounding differs)
+        assert np.mean(found == index) > 0.95, kind
+        _keys(chromium, "e")
+    assert _state(chromium)["errorKind"] == ""
+    assert "FLIP: " in chromium.driver.find_element(By.ID, "metrics-table").text
 
 
 def test_06_charts_show_values_on_hover_and_a_screenshot(

@@ -22,7 +22,9 @@ from portal_harness import display, exr, figures, index
 from portal_harness.cli import main
 from portal_harness.config import Experiment, load_experiment
 from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.regions import NamedRegion
 from portal_harness.viewer import bundle as vb
+from portal_harness.viewer import flip
 from portal_harness.viewer.report import MARKER, STATIC
 
 
@@ -88,14 +90,39 @@ def test_01_images_are_the_exr_values_and_the_figures_choice(
                 rows = index.metrics_of(conn, cell.key, cell.reference_key)
                 mine = {m["region"]: m["rel_mse"] for m in rows if m["image"] == chosen.image.name}
                 assert e["rel_mse"] == mine and len(mine) == len(entry["regions"])
-            numbers += [e["image"] for e in images]
-        assert sorted(numbers) == list(range(len(numbers)))  # every image once
+            numbers += [e["image"] for e in images] + [e["flip_image"] for e in images[1:]]
+        assert sorted(numbers) == list(range(len(numbers)))  # every image and FLIP map once
         assert sorted(p.name for p in (written / "img").iterdir()) == sorted(f"{n}.js" for n in numbers)
     finally:
         conn.close()
 
 
-def test_02_regions_are_the_summary_regions_with_their_masks(
+def test_02_flip_maps_and_their_means_per_region(written: Path, rng: np.random.Generator) -> None:
+    data = vb.read_bundle(written)
+    assert data["flip"] == {"dynamic_range": "LDR", "ppd": flip.PPD}
+    for point in data["points"]:
+        masks = {r["name"]: _mask(r["mask"]) for r in point["regions"]}
+        for e in point["images"][1:]:
+            error = vb.read_image(written, e["flip_image"])
+            assert error.shape == (16, 16) and error.min() >= 0 and error.max() <= 1
+            assert e["flip"] == pytest.approx({name: float(error[m].mean()) for name, m in masks.items()}, rel=1e-6)
+    # FLIP is zero for the reference itself and grows with the noise
+    reference = rng.uniform(0.05, 1.0, (16, 16, 3))
+    region = [NamedRegion("image", "image", np.ones((16, 16), dtype=bool))]
+    found = [
+        flip.flip_of(reference * (1 + sigma * rng.standard_normal(reference.shape)), reference, 1.0, region)
+        for sigma in (0.0, 0.05, 0.3)
+    ]
+    values = [f.by_region["image"] for f in found]
+    assert values[0] == 0 and 0 < values[1] < values[2]  # type: ignore[operator]
+
+
+def _mask(text: str) -> np.ndarray:
+    bits = np.unpackbits(np.frombuffer(base64.b64decode(text), dtype=np.uint8))
+    return bits[: 16 * 16].reshape(16, 16).astype(bool)
+
+
+def test_03_regions_are_the_summary_regions_with_their_masks(
     swept: Swept, experiment: Experiment, written: Path
 ) -> None:
     data = vb.read_bundle(written)
@@ -105,8 +132,7 @@ def test_02_regions_are_the_summary_regions_with_their_masks(
         rows = {r["region"]: r for r in summary if r["point"] == point["id"] and r["strategy"] == "light"}
         assert [r["name"] for r in point["regions"]] == list(rows)  # report order: image, lit, insets, classes
         for region in point["regions"]:
-            bits = np.unpackbits(np.frombuffer(base64.b64decode(region["mask"]), dtype=np.uint8))
-            mask = bits[: 16 * 16].reshape(16, 16).astype(bool)
+            mask = _mask(region["mask"])
             assert int(mask.sum()) == region["pixels"] == rows[region["name"]]["pixels"]
         insets = {r["name"]: r for r in point["regions"] if r["kind"] == "inset"}
         for rect in data["insets"]:
@@ -115,7 +141,7 @@ def test_02_regions_are_the_summary_regions_with_their_masks(
         assert [r["colour"] for r in data["insets"]] == list(figures.INSET_COLOURS[:2])
 
 
-def test_03_curves_are_the_mean_of_the_replicates(swept: Swept, experiment: Experiment, written: Path) -> None:
+def test_04_curves_are_the_mean_of_the_replicates(swept: Swept, experiment: Experiment, written: Path) -> None:
     data = vb.read_bundle(written)
     conn = sqlite3.connect(ResultsLayout(swept.results).index_path)
     conn.row_factory = sqlite3.Row
@@ -150,7 +176,7 @@ def test_03_curves_are_the_mean_of_the_replicates(swept: Swept, experiment: Expe
         conn.close()
 
 
-def test_04_bundle_is_strict_json_with_the_display_constants(written: Path) -> None:
+def test_05_bundle_is_strict_json_with_the_display_constants(written: Path) -> None:
     text = (written / vb.BUNDLE_SCRIPT).read_text()
     assert text.startswith(f"window.{vb.BUNDLE_GLOBAL} = ") and text.endswith(";\n")
     data = _strict(text[len(f"window.{vb.BUNDLE_GLOBAL} = ") : -2])
@@ -163,7 +189,7 @@ def test_04_bundle_is_strict_json_with_the_display_constants(written: Path) -> N
         assert math.isfinite(point["exposure"]) and point["exposure"] > 0
 
 
-def test_05_report_is_a_self_contained_folder(swept: Swept, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_06_report_is_a_self_contained_folder(swept: Swept, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "report"
     assert _run(swept, "report", str(swept.experiment), "--out", str(out)) == 0
     assert capsys.readouterr().out.strip() == str(out / "viewer.html")
@@ -175,7 +201,7 @@ def test_05_report_is_a_self_contained_folder(swept: Swept, tmp_path: Path, caps
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]  # no temporary folder left
 
 
-def test_06_a_folder_that_is_not_a_report_is_refused(
+def test_07_a_folder_that_is_not_a_report_is_refused(
     swept: Swept, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "paper"
@@ -191,7 +217,7 @@ def test_06_a_folder_that_is_not_a_report_is_refused(
     assert "exists and is not a folder" in capsys.readouterr().err
 
 
-def test_07_an_earlier_report_is_replaced_whole(swept: Swept, tmp_path: Path) -> None:
+def test_08_an_earlier_report_is_replaced_whole(swept: Swept, tmp_path: Path) -> None:
     out = tmp_path / "report"
     assert _run(swept, "report", str(swept.experiment), "--out", str(out)) == 0
     (out / "data" / "img" / "99.js").write_text("stale")
@@ -203,7 +229,7 @@ def test_07_an_earlier_report_is_replaced_whole(swept: Swept, tmp_path: Path) ->
     assert _run(swept, "report", str(swept.experiment), "--out", str(empty)) == 0
 
 
-def test_08_an_unswept_experiment_writes_nothing(
+def test_09_an_unswept_experiment_writes_nothing(
     swept: Swept, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     other = swept.experiment.with_name("other.yaml")
@@ -219,7 +245,7 @@ def test_08_an_unswept_experiment_writes_nothing(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_09_the_page_loads_nothing_from_the_network() -> None:
+def test_10_the_page_loads_nothing_from_the_network() -> None:
     files = [p for p in STATIC.rglob("*") if p.is_file()]
     assert {p.suffix for p in files} == {".html", ".css", ".js"}
     for path in files:

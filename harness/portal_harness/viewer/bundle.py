@@ -40,7 +40,8 @@ from portal_harness.index import ROLE_REGION_MAP
 from portal_harness.metrics import REL_EPSILON, Region
 from portal_harness.paths import ResultsLayout, RunLayout
 from portal_harness.region_figures import read_fractions, region_renders
-from portal_harness.regions import regions_of
+from portal_harness.regions import NamedRegion, regions_of
+from portal_harness.viewer import flip
 
 FORMAT = 1
 BUNDLE_SCRIPT = "bundle.js"
@@ -60,13 +61,14 @@ def image_script(number: int) -> str:
 
 
 def encode_rgb(rgb: np.ndarray) -> str:
-    """Base64 of the (height, width, 3) image as little-endian float32."""
+    """Base64 of the (height, width[, channels]) image as little-endian float32."""
     return base64.b64encode(np.ascontiguousarray(rgb, dtype="<f4").tobytes()).decode("ascii")
 
 
-def decode_rgb(text: str, width: int, height: int) -> np.ndarray:
-    """The inverse of encode_rgb (the tests' reader)."""
-    return np.frombuffer(base64.b64decode(text), dtype="<f4").reshape(height, width, 3)
+def decode_rgb(text: str, width: int, height: int, channels: int = 3) -> np.ndarray:
+    """The inverse of encode_rgb (the tests' reader); (height, width) for one channel."""
+    values = np.frombuffer(base64.b64decode(text), dtype="<f4")
+    return values.reshape(height, width) if channels == 1 else values.reshape(height, width, channels)
 
 
 def encode_mask(mask: np.ndarray) -> str:
@@ -95,11 +97,13 @@ class _Images:
         self.folder.mkdir(parents=True, exist_ok=True)
         self.count = 0
 
-    def add(self, rgb: np.ndarray) -> int:
+    def add(self, values: np.ndarray) -> int:
+        """An RGB image (height, width, 3) or a map of one value per pixel (height, width)."""
         number = self.count
         self.count += 1
-        height, width = rgb.shape[:2]
-        payload = json.dumps({"width": width, "height": height, "rgb": encode_rgb(rgb)})
+        height, width = values.shape[:2]
+        channels = 1 if values.ndim == 2 else values.shape[2]
+        payload = json.dumps({"width": width, "height": height, "channels": channels, "rgb": encode_rgb(values)})
         (self.folder / f"{number}.js").write_text(f"{IMAGE_CALLBACK}({number}, {payload});\n")
         return number
 
@@ -125,10 +129,13 @@ def _point_images(
     conn: sqlite3.Connection,
     point: Point,
     reference: exr.Snapshot,
+    regions: list[NamedRegion],
+    exposure: float,
     images: _Images,
 ) -> list[dict[str, Any]]:
     """The reference, then each strategy's image at the point's equal time
-    (the inset figure's choice), with the image's relMSE per region."""
+    (the inset figure's choice), with the image's relMSE per region (the
+    index's) and its FLIP map and FLIP per region."""
     out: list[dict[str, Any]] = [
         {
             "name": REFERENCE,
@@ -157,6 +164,7 @@ def _point_images(
             except CorruptExrError as e:
                 entry["status"] = f"unreadable: {e.reason}"
             else:
+                flipped = flip.flip_of(snapshot.rgb, reference.rgb, exposure, regions)
                 entry.update(
                     {
                         "image": images.add(snapshot.rgb),
@@ -164,16 +172,15 @@ def _point_images(
                         "time_s": chosen.time_s,
                         "rel_mse": chosen.rel_mse,
                         "file": chosen.image.name,
+                        "flip": flipped.by_region,
+                        "flip_image": images.add(flipped.error),
                     }
                 )
         out.append(entry)
     return out
 
 
-def _point_regions(
-    experiment: Experiment, point: Point, reference: exr.Snapshot, fractions: np.ndarray | None
-) -> list[dict[str, Any]]:
-    """The point's regions as regions.py makes them for the sweep's metrics."""
+def _region_entries(regions: list[NamedRegion]) -> list[dict[str, Any]]:
     return [
         {
             "name": r.name,
@@ -182,7 +189,7 @@ def _point_regions(
             "pixels": r.pixels,
             "mask": encode_mask(r.mask),
         }
-        for r in regions_of(reference, experiment.insets, experiment.lit_threshold, fractions)
+        for r in regions
     ]
 
 
@@ -250,11 +257,14 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
                 entry["missing"] = f"reference unreadable: {e.reason}"
                 continue
             t_eq = figures.equal_time(experiment, conn, data, point)
-            entry["exposure"] = display.exposure_from_reference(reference.rgb)
-            entry["equal_time_s"] = t_eq if math.isfinite(t_eq) else None
-            entry["images"] = _point_images(experiment, data, conn, point, reference, images)
+            exposure = display.exposure_from_reference(reference.rgb)
+            # The point's regions as regions.py makes them for the sweep's metrics.
             fractions = read_fractions(maps.get((point.id, ROLE_REGION_MAP)))
-            entry["regions"] = _point_regions(experiment, point, reference, fractions)
+            regions = regions_of(reference, experiment.insets, experiment.lit_threshold, fractions)
+            entry["exposure"] = exposure
+            entry["equal_time_s"] = t_eq if math.isfinite(t_eq) else None
+            entry["images"] = _point_images(experiment, data, conn, point, reference, regions, exposure, images)
+            entry["regions"] = _region_entries(regions)
             curves[point.id] = _point_curves(experiment, data, conn, point, [r["name"] for r in entry["regions"]])
     finally:
         conn.close()
@@ -282,6 +292,7 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
             "class_colours": {c: class_style.class_colour(c, exr.REGION_CLASSES) for c in exr.REGION_CLASSES},
             "luminance_weights": display.luminance(np.eye(3)).tolist(),
             "error_epsilon": REL_EPSILON,
+            "flip": {"dynamic_range": flip.DYNAMIC_RANGE, "ppd": flip.PPD},
             "error_colormap": {"name": ERROR_COLORMAP, "colours": _colormap()},
             "points": points,
             "curves": curves,
@@ -321,4 +332,4 @@ def read_image(folder: Path, number: int) -> np.ndarray:
     if not text.startswith(prefix):
         raise ValueError(f"{folder / image_script(number)}: not image {number} of a viewer bundle")
     payload = json.loads(text[len(prefix) :].rstrip().rstrip(";").rstrip(")"))
-    return decode_rgb(payload["rgb"], payload["width"], payload["height"])
+    return decode_rgb(payload["rgb"], payload["width"], payload["height"], payload.get("channels", 3))

@@ -53,7 +53,12 @@ window.Portal = window.Portal || {};
 
   // Called by each img/N.js.
   window.PORTAL_IMAGE = function (number, payload) {
-    images[number] = { width: payload.width, height: payload.height, rgb: decodeFloat32(payload.rgb) };
+    images[number] = {
+      width: payload.width,
+      height: payload.height,
+      channels: payload.channels || 3,
+      rgb: decodeFloat32(payload.rgb), // the values of every channel, interleaved
+    };
   };
 
   P.loadImage = function (base, number) {

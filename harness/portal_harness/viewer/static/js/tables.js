@@ -70,6 +70,7 @@ window.Portal = window.Portal || {};
       strategies.forEach(function (e) {
         var row = summaryRow(bundle, point.id, e.name, region.name);
         var lines = [["shown", "image: " + P.format(e.rel_mse[region.name])]];
+        if (e.flip) lines.push(["flip", "FLIP: " + P.format(e.flip[region.name])]);
         if (row && row.rel_mse !== null) {
           lines.push(["final", "mean: " + withError(row.rel_mse, row.rel_mse_stderr) + " (" + row.replicates + ")"]);
           var bound = row.bound === "lower" ? "\u2265 " : "";
@@ -82,7 +83,8 @@ window.Portal = window.Portal || {};
     });
     var caption = document.createElement("caption");
     caption.textContent =
-      "relMSE per region. image: the image shown (reference noise included); mean: the final images over " +
+      "relMSE per region. image: the image shown (reference noise included); FLIP: its mean FLIP as shown at " +
+      "exposure 0; mean: the final images over " +
       "replicates, reference noise removed, \u00b1 one standard error; vs light: efficiency relative to light " +
       "sampling (\u2265: a lower bound)";
     table.appendChild(caption);

@@ -3,8 +3,8 @@
 // single pixels, exposure in stops, relative-error maps, the insets, the
 // relMSE per region and the experiment's charts.
 //
-// Keys: 1 reference, 2.. strategies (single view); g side by side; e error
-// map; i insets; + / - exposure by half a stop, 0 resets it; f fit.
+// Keys: 1 reference, 2.. strategies (single view); g side by side; e cycles
+// images, relative error and FLIP; i insets; + / - exposure by half a stop, 0 resets it; f fit.
 "use strict";
 window.Portal = window.Portal || {};
 
@@ -16,8 +16,8 @@ window.Portal = window.Portal || {};
     current: 0, // index into the point's images
     layout: "grid",
     stops: 0,
-    errorMode: false,
-    errorMax: 1,
+    errorKind: "", // "" images, "relative" or "flip": the strategies' error maps
+    errorMax: 1, // of the relative error; FLIP is in [0, 1]
     insets: true,
     region: "", // highlighted region, "" for none
     chartRegion: "lit",
@@ -25,7 +25,7 @@ window.Portal = window.Portal || {};
     view: null,
     loaded: {}, // image number -> {width, height, rgb}
     toned: {}, // image number -> {exposure, pixels}
-    errors: {}, // image number -> {values, max, pixels}
+    errors: {}, // kind + image number -> values, or {max, pixels}
     mask: null,
     draws: 0,
   };
@@ -64,16 +64,29 @@ window.Portal = window.Portal || {};
     return point().images[0].image;
   }
 
-  function errorPixels(number) {
-    var cached = S.errors[number];
-    if (!cached) {
+  function errorValues(entry, kind) {
+    if (kind === "flip") return entry.flip_image === null || entry.flip_image === undefined ? null : S.loaded[entry.flip_image].rgb;
+    var key = "relative" + entry.image;
+    if (!S.errors[key]) {
       var ref = S.loaded[referenceNumber()];
-      var values = P.relativeError(S.loaded[number].rgb, ref.rgb, S.bundle.luminance_weights, S.bundle.error_epsilon);
-      cached = S.errors[number] = { values: values, max: null, pixels: new Uint8ClampedArray(values.length * 4) };
+      S.errors[key] = P.relativeError(S.loaded[entry.image].rgb, ref.rgb, S.bundle.luminance_weights, S.bundle.error_epsilon);
     }
-    if (cached.max !== S.errorMax) {
-      P.falseColour(cached.values, S.errorMax, S.bundle.error_colormap.colours, cached.pixels);
-      cached.max = S.errorMax;
+    return S.errors[key];
+  }
+
+  function errorMax() {
+    return S.errorKind === "flip" ? 1 : S.errorMax;
+  }
+
+  function errorPixels(entry) {
+    var values = errorValues(entry, S.errorKind);
+    if (values === null) return null;
+    var key = "pixels-" + S.errorKind + entry.image;
+    var cached = S.errors[key];
+    if (!cached) cached = S.errors[key] = { max: null, pixels: new Uint8ClampedArray(values.length * 4) };
+    if (cached.max !== errorMax()) {
+      P.falseColour(values, errorMax(), S.bundle.error_colormap.colours, cached.pixels);
+      cached.max = errorMax();
     }
     return cached.pixels;
   }
@@ -81,7 +94,7 @@ window.Portal = window.Portal || {};
   function panelPixels(entry, i) {
     if (entry.image === null || !S.loaded[entry.image]) return null;
     var isReference = S.layout === "single" ? S.current === 0 : i === 0;
-    return S.errorMode && !isReference ? errorPixels(entry.image) : tonedPixels(entry.image);
+    return S.errorKind && !isReference ? errorPixels(entry) : tonedPixels(entry.image);
   }
 
   function caption(entry, index) {
@@ -144,7 +157,7 @@ window.Portal = window.Portal || {};
       var ctx = canvases[i].getContext("2d");
       P.drawPanel(ctx, S.view, panelPixels(entry, i), S.mask, S.insets ? S.bundle.insets : null);
     });
-    $("colourbar").style.display = S.errorMode ? "" : "none";
+    $("colourbar").style.display = S.errorKind ? "" : "none";
     S.draws += 1;
     document.body.dataset.draws = S.draws;
     document.body.dataset.scale = S.view.scale;
@@ -159,8 +172,12 @@ window.Portal = window.Portal || {};
       ctx.fillStyle = "rgb(" + c[0] + "," + c[1] + "," + c[2] + ")";
       ctx.fillRect(x, 0, 1, canvas.height);
     }
-    $("colourbar-max").textContent = "\u2265 " + P.format(S.errorMax);
-    $("colourbar-mid").textContent = P.format(S.errorMax / 2);
+    var flip = S.errorKind === "flip";
+    $("colourbar-label").textContent = flip
+      ? "FLIP (" + S.bundle.flip.dynamic_range + ", " + S.bundle.flip.ppd + " pixels per degree) of the images as shown at exposure 0:"
+      : "relative error |x \u2212 ref| / (ref + " + S.bundle.error_epsilon + "), luminance:";
+    $("colourbar-max").textContent = (flip ? "" : "\u2265 ") + P.format(errorMax());
+    $("colourbar-mid").textContent = P.format(errorMax() / 2);
   }
 
   function setMask() {
@@ -185,7 +202,11 @@ window.Portal = window.Portal || {};
       return Promise.resolve();
     }
     document.body.dataset.loading = "1";
-    var numbers = p.images.filter((e) => e.image !== null).map((e) => e.image);
+    var numbers = [];
+    p.images.forEach(function (e) {
+      if (e.image !== null) numbers.push(e.image);
+      if (e.flip_image !== undefined && e.flip_image !== null) numbers.push(e.flip_image);
+    });
     return Promise.all(
       numbers.map(function (n) {
         return P.loadImage(S.base, n).then(function (img) {
@@ -275,17 +296,16 @@ window.Portal = window.Portal || {};
       if (!img) return;
       var rgb = [img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]];
       var line = k + 1 + " " + entry.label + ": " + rgb.map((v) => P.format(v, 4)).join("  ");
-      if (k > 0) line += "   rel. error " + P.format(errorValue(entry.image, i));
+      if (k > 0) {
+        line += "   rel. error " + P.format(errorValues(entry, "relative")[i]);
+        var flip = errorValues(entry, "flip");
+        if (flip) line += "   FLIP " + P.format(flip[i]);
+      }
       lines.push(line);
     });
     info.textContent = lines.join("\n");
     info.dataset.x = px.x;
     info.dataset.y = px.y;
-  }
-
-  function errorValue(number, i) {
-    if (!S.errors[number]) errorPixels(number);
-    return S.errors[number].values[i];
   }
 
   var drag = null; // the last mouse position of a pan in progress
@@ -323,6 +343,13 @@ window.Portal = window.Portal || {};
     });
   }
 
+  function setErrorKind(kind) {
+    S.errorKind = kind;
+    $("error-kind").value = kind;
+    drawColourbar();
+    draw();
+  }
+
   function setLayout(layout) {
     S.layout = layout;
     $("layout").value = layout;
@@ -340,11 +367,8 @@ window.Portal = window.Portal || {};
         setLayout("single");
       }
     } else if (k === "g") setLayout(S.layout === "grid" ? "single" : "grid");
-    else if (k === "e") {
-      S.errorMode = !S.errorMode;
-      $("error-mode").checked = S.errorMode;
-      draw();
-    } else if (k === "i") {
+    else if (k === "e") setErrorKind({ "": "relative", relative: "flip", flip: "" }[S.errorKind]);
+    else if (k === "i") {
       S.insets = !S.insets;
       $("insets").checked = S.insets;
       draw();
@@ -368,10 +392,7 @@ window.Portal = window.Portal || {};
     $("point").addEventListener("change", (e) => selectPoint(Number(e.target.value)));
     $("layout").addEventListener("change", (e) => setLayout(e.target.value));
     $("exposure").addEventListener("input", (e) => setStops(Number(e.target.value)));
-    $("error-mode").addEventListener("change", function (e) {
-      S.errorMode = e.target.checked;
-      draw();
-    });
+    $("error-kind").addEventListener("change", (e) => setErrorKind(e.target.value));
     $("error-max").addEventListener("change", function (e) {
       S.errorMax = Number(e.target.value);
       drawColourbar();
@@ -414,7 +435,7 @@ window.Portal = window.Portal || {};
         layout: S.layout,
         stops: S.stops,
         exposure: exposure(),
-        errorMode: S.errorMode,
+        errorKind: S.errorKind,
         insets: S.insets,
         scale: S.view.scale,
         tx: o && o.tx,
