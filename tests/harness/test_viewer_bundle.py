@@ -10,6 +10,7 @@ import base64
 import json
 import math
 import re
+import shutil
 import sqlite3
 from pathlib import Path
 from typing import Any
@@ -245,7 +246,24 @@ def test_09_an_unswept_experiment_writes_nothing(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_10_the_page_loads_nothing_from_the_network() -> None:
+def test_10_failed_runs_are_shown_as_failed(swept: Swept, experiment: Experiment, tmp_path: Path) -> None:
+    # The index as a sweep leaves it when every portal run crashed (test_sweep.py makes real crashes).
+    results = tmp_path / "results"
+    shutil.copytree(swept.results, results)
+    conn = sqlite3.connect(results / "index.sqlite")
+    conn.execute("UPDATE runs SET status = 'failed' WHERE strategy = 'portal' AND kind != 'reference'")
+    conn.commit()
+    conn.close()
+    vb.write_bundle(ResultsLayout(results), experiment, tmp_path / "bundle")
+    data = vb.read_bundle(tmp_path / "bundle")
+    for point in data["points"]:
+        light, portal = point["images"][1:]
+        assert light["status"] == "done" and light["image"] is not None
+        assert portal["status"] == "failed" and portal["image"] is None and portal["rel_mse"] == {}
+        assert data["curves"][point["id"]]["lit"]["strategies"].keys() == {"light"}
+
+
+def test_11_the_page_loads_nothing_from_the_network() -> None:
     files = [p for p in STATIC.rglob("*") if p.is_file()]
     assert {p.suffix for p in files} == {".html", ".css", ".js"}
     for path in files:

@@ -21,7 +21,7 @@ class Swept:
     renderer: Path
 
 
-def write_experiment(folder: Path, name: str = "tiny") -> Path:
+def write_experiment(folder: Path, name: str = "tiny", replicates: int = 2) -> Path:
     tree = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
     tree["film"] = {"width": 16, "height": 16}
     tree["render"] = {
@@ -42,7 +42,7 @@ def write_experiment(folder: Path, name: str = "tiny") -> Path:
         "strategies": ["light", "portal"],
         "sweep": {"params.s_L": [0.15, 0.6]},
         "fixed": {"params.s_P": 0.3},
-        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "replicates": 2, "snapshots": {"every": 0.05}},
+        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "replicates": replicates, "snapshots": {"every": 0.05}},
         "reference": {"strategy": "light", "spp": 2000, "seed": 99},
         "insets": [
             {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
@@ -56,16 +56,17 @@ def write_experiment(folder: Path, name: str = "tiny") -> Path:
     return path
 
 
-def sweep_tiny(folder: Path, renderer: Path) -> Swept:
-    """Writes and sweeps the experiment under `folder`; fails if the sweep does."""
+def sweep_tiny(folder: Path, renderer: Path, replicates: int = 2, status: int = 0) -> Swept:
+    """Writes and sweeps the experiment under `folder`; fails unless the
+    sweep exits with `status`."""
     from portal_harness.cli import main
 
-    experiment = write_experiment(folder)
+    experiment = write_experiment(folder, replicates=replicates)
     results = folder / "results"
     args = ["--results", str(results), "--renderer", str(renderer)]
-    status = main(["sweep", str(experiment), "--no-progress", *args])
-    if status != 0:
-        raise RuntimeError(f"the viewer tests' sweep failed with status {status}")
+    found = main(["sweep", str(experiment), "--no-progress", *args])
+    if found != status:
+        raise RuntimeError(f"the viewer tests' sweep exited with status {found}, not {status}")
     return Swept(experiment, results, renderer)
 
 

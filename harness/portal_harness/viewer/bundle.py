@@ -288,6 +288,8 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
                 for s in experiment.strategies
             ],
             "facet_keys": list(experiment.facets),
+            # Without an axis, the efficiency figure colours each facet combination.
+            "facet_colours": list(figures.FACET_COLOURS),
             "insets": _inset_entries(experiment.insets),
             "class_colours": {c: class_style.class_colour(c, exr.REGION_CLASSES) for c in exr.REGION_CLASSES},
             "luminance_weights": display.luminance(np.eye(3)).tolist(),

@@ -130,7 +130,11 @@ window.Portal = window.Portal || {};
       var swatch = document.createElement("span");
       swatch.className = "swatch";
       swatch.style.background = e.colour;
-      if (e.dash) swatch.style.background = "repeating-linear-gradient(90deg," + e.colour + " 0 5px, transparent 5px 8px)";
+      if (e.dash) {
+        var on = Number(e.dash.split(" ")[0]);
+        swatch.style.background =
+          "repeating-linear-gradient(90deg," + e.colour + " 0 " + on + "px, transparent " + on + "px " + (on + 3) + "px)";
+      }
       item.appendChild(swatch);
       item.appendChild(document.createTextNode(e.label));
       div.appendChild(item);
@@ -301,12 +305,16 @@ window.Portal = window.Portal || {};
             f.svg,
           );
         }
+        // With an axis the colour is the strategy's and facets are dashes; without
+        // one, strategies are along x and the colour is the facet combination's
+        // (as in the efficiency figure).
+        var colour = byAxis ? s.colour : bundle.facet_colours[gi % bundle.facet_colours.length];
         mine.forEach(function (r) {
           var x = f.x(xOf(r));
           var v = r[measure];
           var se = r[m.se];
           if (positive(se)) {
-            el("line", { x1: x, x2: x, y1: f.y(v + se), y2: f.y(Math.max(v - se, v * 0.1)), stroke: s.colour, class: "bar" }, f.svg);
+            el("line", { x1: x, x2: x, y1: f.y(v + se), y2: f.y(Math.max(v - se, v * 0.1)), stroke: colour, class: "bar" }, f.svg);
           }
           var bound = r[m.bound] || "";
           var y = f.y(v);
@@ -314,7 +322,7 @@ window.Portal = window.Portal || {};
           var size = current ? 6 : 4;
           var marker =
             bound === ""
-              ? el("circle", { cx: x, cy: y, r: size, fill: s.colour }, f.svg)
+              ? el("circle", { cx: x, cy: y, r: size, fill: colour }, f.svg)
               : el(
                   "path",
                   {
@@ -323,7 +331,7 @@ window.Portal = window.Portal || {};
                         ? "M" + x + "," + (y - size) + "l" + size + "," + 1.7 * size + "h" + -2 * size + "z"
                         : "M" + x + "," + (y + size) + "l" + size + "," + -1.7 * size + "h" + -2 * size + "z",
                     fill: "white",
-                    stroke: s.colour,
+                    stroke: colour,
                   },
                   f.svg,
                 );
@@ -339,8 +347,12 @@ window.Portal = window.Portal || {};
         });
       });
     });
-    var entries = bundle.strategies.map((s) => ({ colour: s.colour, label: s.label }));
-    if (groups.length > 1) groups.forEach((g, gi) => entries.push({ colour: "#444", label: g, dash: gi > 0 }));
+    var entries = byAxis
+      ? bundle.strategies.map((s) => ({ colour: s.colour, label: s.label }))
+      : groups.map((g, gi) => ({ colour: bundle.facet_colours[gi % bundle.facet_colours.length], label: g || "all" }));
+    if (byAxis && groups.length > 1) {
+      groups.forEach((g, gi) => entries.push({ colour: "#444", label: g, dash: DASHES[gi % DASHES.length] }));
+    }
     legend(container, entries);
   };
 })(window.Portal);

@@ -113,7 +113,8 @@ window.Portal = window.Portal || {};
     var avail = Math.max($("images").clientWidth, 320);
     var w = S.bundle.width;
     var h = S.bundle.height;
-    var across = Math.min(count, 3);
+    // At most four across, in rows as even as they can be (6: 3 + 3, 7: 4 + 3).
+    var across = Math.ceil(count / Math.ceil(count / 4));
     // Panels have a 2 px border each side and 10 px between them (viewer.css).
     var width = Math.floor((avail - 10 * (across - 1)) / across) - 4;
     width = count === 1 ? Math.min(width, 1024) : Math.max(Math.min(width, 520), 220);
