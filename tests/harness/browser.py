@@ -30,15 +30,18 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.remote.webdriver import WebDriver
 from selenium.webdriver.support.ui import WebDriverWait
 
+REPO = Path(__file__).resolve().parent.parent.parent
 CHROMIUM = Path(os.environ.get("PORTAL_CHROMIUM", "/usr/bin/chromium"))
 CHROMEDRIVER = Path(os.environ.get("PORTAL_CHROMEDRIVER", "/usr/bin/chromedriver"))
+# Screenshots outlive the test session here (results/tmp/ is not tracked).
+ARTEFACTS = Path(os.environ.get("PORTAL_TEST_ARTEFACTS", REPO / "results" / "tmp" / "browser"))
 WINDOW = (1500, 1100)
 
 
 @dataclass
 class Browser:
     driver: WebDriver
-    artefacts: Path  # where screenshots go
+    artefacts: Path  # where screenshots go (ARTEFACTS for the fixture)
 
     def wait_for(self, script: str, timeout_s: float = 20.0) -> Any:
         """Waits until `script` (a JS expression) is truthy; returns its value.
@@ -103,9 +106,9 @@ def start(artefacts: Path) -> Browser:
 
 
 @pytest.fixture(scope="module", name="chromium")
-def chromium_fixture(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Browser]:
-    """One headless chromium per test module; screenshots under pytest's tmp."""
-    browser = start(tmp_path_factory.mktemp("browser-artefacts"))
+def chromium_fixture() -> Iterator[Browser]:
+    """One headless chromium per test module; screenshots in ARTEFACTS."""
+    browser = start(ARTEFACTS)
     try:
         yield browser
     finally:

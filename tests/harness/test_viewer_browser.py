@@ -7,6 +7,7 @@ values. A screenshot is kept as an artefact (its path is printed)."""
 
 from __future__ import annotations
 
+import base64
 import re
 import shutil
 from pathlib import Path
@@ -18,6 +19,7 @@ from browser import Browser, chromium_fixture  # noqa: F401 (pytest finds it as 
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
 from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
 from viewer_sweep import swept_once
 
 from portal_harness import display
@@ -212,6 +214,7 @@ def test_06_charts_show_values_on_hover_and_a_screenshot(
     lit = data["curves"][data["points"][0]["id"]]["lit"]["strategies"]["light"]
     shown = float(re.search(r"relMSE = (\S+)", tip.text).group(1))  # type: ignore[union-attr]
     assert shown == pytest.approx(lit["v"][0], rel=5e-3)
+    assert chromium.screenshot("viewer_charts").stat().st_size > 10000  # the tooltip shown
     driver.execute_script("window.scrollTo(0, 0);")
     path = chromium.screenshot("viewer")
     assert path.stat().st_size > 10000
@@ -226,3 +229,39 @@ def test_07_bundle_from_the_query_string_and_refusals(chromium: Browser, report:
         chromium.driver.get((report / "viewer.html").as_uri() + "?bundle=" + bad)
         message = chromium.wait_for("document.getElementById('message').textContent")
         assert "must be a path on this site" in message
+
+
+def test_08_a_region_is_highlighted_and_classes_are_tinted(
+    chromium: Browser,
+    report: Path,
+    data: dict[str, Any],
+) -> None:
+    _open(chromium, (report / "viewer.html").as_uri())
+    _keys(chromium, "i1")
+    point = data["points"][0]
+    expected = _expected(report, data, 0, point["exposure"]).astype(float)
+    region = next(r for r in point["regions"] if r["name"] == "lit")
+    mask = np.unpackbits(np.frombuffer(base64.b64decode(region["mask"]), dtype=np.uint8))[:256].reshape(16, 16)
+    before = _state(chromium)["draws"]
+    Select(chromium.driver.find_element(By.ID, "region")).select_by_value("lit")
+    chromium.wait_for(f"Portal.viewer.state().draws > {before}")
+    shown = _image_on_screen(chromium, (16, 16)).astype(float)
+    # outside the region at 30% (viewer DIM), inside untouched
+    want = np.where(mask[..., None] == 1, expected, np.rint(expected * 0.3))
+    assert np.abs(shown - want).max() <= 1 and (mask == 0).any() and (mask == 1).any()
+    assert (
+        chromium.driver.find_element(By.CSS_SELECTOR, "#metrics-table tr.highlighted").get_attribute("data-region")
+        == "lit"
+    )
+    before = _state(chromium)["draws"]
+    Select(chromium.driver.find_element(By.ID, "region")).select_by_value("*classes")
+    chromium.wait_for(f"Portal.viewer.state().draws > {before}")
+    tinted = _image_on_screen(chromium, (16, 16)).astype(float)
+    classes = [r for r in point["regions"] if r["kind"] == "class"]
+    assert classes and "anti-umbra" in chromium.driver.find_element(By.ID, "class-legend").text
+    for r in classes:
+        m = np.unpackbits(np.frombuffer(base64.b64decode(r["mask"]), dtype=np.uint8))[:256].reshape(16, 16) == 1
+        colour = np.array([int(data["class_colours"][r["name"]][i : i + 2], 16) for i in (1, 3, 5)], dtype=float)
+        # blended towards the class colour with alpha 150/255
+        blend = expected[m] * (1 - 150 / 255) + colour * 150 / 255
+        assert np.abs(tinted[m] - blend).max() <= 1.5, r["name"]

@@ -65,9 +65,13 @@ window.Portal = window.Portal || {};
   var BACKGROUND = [40, 40, 40];
   var DIM = 0.3; // brightness kept outside the highlighted region
 
-  // pixels: RGBA bytes of the image (width x height); mask: 0/1 per image
-  // pixel or null; insets: rectangles of the bundle or null.
-  P.drawPanel = function (ctx, view, pixels, mask, insets) {
+  // pixels: RGBA bytes of the image (width x height); overlay: null, or
+  // {mask: 0/1 per image pixel} (pixels outside are dimmed), or {tint: RGBA
+  // per image pixel} (blended by its alpha / 255); insets: the bundle's
+  // rectangles or null.
+  P.drawPanel = function (ctx, view, pixels, overlay, insets) {
+    var mask = overlay && overlay.mask ? overlay.mask : null;
+    var tint = overlay && overlay.tint ? overlay.tint : null;
     var W = ctx.canvas.width;
     var H = ctx.canvas.height;
     var out = ctx.createImageData(W, H);
@@ -93,6 +97,12 @@ window.Portal = window.Portal || {};
           d[k] = pixels[p] * f;
           d[k + 1] = pixels[p + 1] * f;
           d[k + 2] = pixels[p + 2] * f;
+          if (tint !== null && tint[p + 3]) {
+            var a = tint[p + 3] / 255;
+            d[k] = d[k] * (1 - a) + tint[p] * a;
+            d[k + 1] = d[k + 1] * (1 - a) + tint[p + 1] * a;
+            d[k + 2] = d[k + 2] * (1 - a) + tint[p + 2] * a;
+          }
         }
         d[k + 3] = 255;
       }

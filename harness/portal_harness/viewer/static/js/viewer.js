@@ -26,7 +26,7 @@ window.Portal = window.Portal || {};
     loaded: {}, // image number -> {width, height, rgb}
     toned: {}, // image number -> {exposure, pixels}
     errors: {}, // kind + image number -> values, or {max, pixels}
-    mask: null,
+    overlay: null, // the highlighted region (drawPanel's overlay)
     draws: 0,
   };
   var $ = function (id) {
@@ -156,7 +156,7 @@ window.Portal = window.Portal || {};
     var canvases = $("images").querySelectorAll("canvas");
     entries.forEach(function (entry, i) {
       var ctx = canvases[i].getContext("2d");
-      P.drawPanel(ctx, S.view, panelPixels(entry, i), S.mask, S.insets ? S.bundle.insets : null);
+      P.drawPanel(ctx, S.view, panelPixels(entry, i), S.overlay, S.insets ? S.bundle.insets : null);
     });
     $("colourbar").style.display = S.errorKind ? "" : "none";
     S.draws += 1;
@@ -181,9 +181,55 @@ window.Portal = window.Portal || {};
     $("colourbar-mid").textContent = P.format(errorMax() / 2);
   }
 
+  var CLASSES = "*classes";
+  var CLASS_ALPHA = 150;
+
+  function hexColour(text) {
+    var v = parseInt(text.slice(1), 16);
+    return [(v >> 16) & 255, (v >> 8) & 255, v & 255];
+  }
+
+  function classLegend() {
+    var div = $("class-legend");
+    div.textContent = "";
+    point()
+      .regions.filter((r) => r.kind === "class")
+      .forEach(function (r) {
+        var item = document.createElement("span");
+        var swatch = document.createElement("span");
+        swatch.className = "swatch";
+        swatch.style.background = S.bundle.class_colours[r.name] || "#000000";
+        item.appendChild(swatch);
+        item.appendChild(document.createTextNode(r.title + " (" + r.pixels + " px)"));
+        div.appendChild(item);
+      });
+    var note = document.createElement("span");
+    note.textContent = "pixels of no class (under 95% of their samples in one) are not tinted";
+    div.appendChild(note);
+  }
+
   function setMask() {
     var region = point().regions.filter((r) => r.name === S.region)[0];
-    S.mask = region ? P.decodeMask(region.mask, S.bundle.width * S.bundle.height) : null;
+    var count = S.bundle.width * S.bundle.height;
+    if (S.region === CLASSES) {
+      // Each pixel of a region class (the pure ones regions.py measures) in its class colour.
+      var tint = new Uint8ClampedArray(count * 4);
+      point()
+        .regions.filter((r) => r.kind === "class")
+        .forEach(function (r) {
+          var rgb = hexColour(S.bundle.class_colours[r.name] || "#000000");
+          var m = P.decodeMask(r.mask, count);
+          for (var i = 0; i < count; i++) {
+            if (!m[i]) continue;
+            tint.set([rgb[0], rgb[1], rgb[2], CLASS_ALPHA], 4 * i);
+          }
+        });
+      S.overlay = { tint: tint };
+      classLegend();
+      return;
+    }
+    $("class-legend").textContent = "";
+    S.overlay = region ? { mask: P.decodeMask(region.mask, count) } : null;
   }
 
   function updateTable() {
@@ -232,6 +278,8 @@ window.Portal = window.Portal || {};
 
   function refreshRegionChoices() {
     var regions = point().regions.map((r) => [r.name, r.title + " (" + r.pixels + " px)"]);
+    var hasClasses = point().regions.some((r) => r.kind === "class");
+    if (hasClasses) regions.push([CLASSES, "region classes, in colour"]);
     if (!regions.some((r) => r[0] === S.region)) S.region = "";
     fillSelect($("region"), [["", "none"]].concat(regions), S.region);
     var names = Object.keys(S.bundle.curves[point().id] || {});
