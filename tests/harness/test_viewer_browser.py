@@ -78,8 +78,11 @@ def _expected(report: Path, data: dict[str, Any], index: int, exposure: float) -
 
 
 def _assert_close(shown: np.ndarray, expected: np.ndarray) -> None:
+    """Within one level everywhere; equal almost everywhere (measured: equal
+    for all 5.9 million channel values of lampshade_ratio's 30 images)."""
     diff = np.abs(shown.astype(int) - expected.astype(int))
     assert diff.max() <= 1, f"max difference {diff.max()} levels at {np.unravel_index(diff.argmax(), diff.shape)}"
+    assert np.mean(diff == 0) >= 0.99
 
 
 def test_01_report_opens_from_disk_side_by_side(chromium: Browser, report: Path, data: dict[str, Any]) -> None:

@@ -4,7 +4,8 @@
 // relMSE per region and the experiment's charts.
 //
 // Keys: 1 reference, 2.. strategies (single view); g side by side; e cycles
-// images, relative error and FLIP; i insets; + / - exposure by half a stop, 0 resets it; f fit.
+// images, relative error and FLIP; i insets; + / - exposure by half a
+// stop, 0 resets it; f fit.
 "use strict";
 window.Portal = window.Portal || {};
 
@@ -468,6 +469,12 @@ window.Portal = window.Portal || {};
     $("fit").addEventListener("click", function () {
       S.view.zoomed = false;
       render();
+    });
+    // A control keeps the focus after a change and would swallow the keys.
+    document.querySelectorAll("header select, header input").forEach(function (el) {
+      el.addEventListener("change", function () {
+        el.blur();
+      });
     });
     document.addEventListener("keydown", onKey);
     window.addEventListener("resize", render);
