@@ -95,6 +95,14 @@ def test_01_report_opens_from_disk_side_by_side(chromium: Browser, report: Path,
     # the region table has a row per region and a column per strategy
     rows = chromium.driver.find_elements(By.CSS_SELECTOR, "#metrics-table tr[data-region]")
     assert [r.get_attribute("data-region") for r in rows] == [r["name"] for r in data["points"][0]["regions"]]
+    # ] and [ step through the sweep's points
+    ActionChains(chromium.driver).send_keys("]").perform()
+    chromium.wait_for("Portal.viewer.state().point === 1 && document.body.dataset.loading === '0'")
+    chromium.wait_for(f"Portal.viewer.state().draws > {s['draws']}")
+    assert _state(chromium)["shown"] == [e["image"] for e in data["points"][1]["images"]]
+    assert chromium.driver.find_element(By.ID, "point").get_attribute("value") == "1"
+    ActionChains(chromium.driver).send_keys("[").perform()
+    chromium.wait_for("Portal.viewer.state().point === 0")
     severe = [m for m in chromium.console() if "SEVERE" in m or "Error" in m]
     assert not severe, severe
 

@@ -307,8 +307,10 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
 def write_bundle(layout: ResultsLayout, experiment: Experiment, out: Path) -> None:
     """Writes into `out/` (created if needed) every data file the viewer
     needs for one swept experiment: img/N.js, then bundle.js last, so that
-    a folder without bundle.js is unfinished. Raises HarnessError when the
-    experiment has not been swept."""
+    a folder without bundle.js is unfinished. Rewriting a folder that a
+    browser may be reading mixes old and new files: write a fresh folder
+    and rename it into place (report.py does). Raises HarnessError when
+    the experiment has not been swept."""
     out.mkdir(parents=True, exist_ok=True)
     data = build(layout, experiment, out)
     text = json.dumps(data, allow_nan=False, separators=(",", ":"))

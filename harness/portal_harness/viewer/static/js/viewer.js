@@ -5,7 +5,7 @@
 //
 // Keys: 1 reference, 2.. strategies (single view); g side by side; e cycles
 // images, relative error and FLIP; i insets; + / - exposure by half a
-// stop, 0 resets it; f fit.
+// stop, 0 resets it; f fit; [ ] the previous and next point; arrows pan.
 "use strict";
 window.Portal = window.Portal || {};
 
@@ -417,6 +417,20 @@ window.Portal = window.Portal || {};
         setLayout("single");
       }
     } else if (k === "g") setLayout(S.layout === "grid" ? "single" : "grid");
+    else if (k === "[" || k === "]") {
+      var next = S.point + (k === "]" ? 1 : -1);
+      if (next < 0 || next >= S.bundle.points.length) return;
+      selectPoint(next);
+    } else if (k.indexOf("Arrow") === 0) {
+      // Pan by a tenth of the first panel.
+      var canvas = $("images").querySelector("canvas");
+      var step = canvas ? canvas.width / 10 : 40;
+      var d = { ArrowLeft: [step, 0], ArrowRight: [-step, 0], ArrowUp: [0, step], ArrowDown: [0, -step] }[k];
+      if (!d) return;
+      S.view.pan(d[0], d[1]);
+      S.view.zoomed = true;
+      draw();
+    }
     else if (k === "e") setErrorKind({ "": "relative", relative: "flip", flip: "" }[S.errorKind]);
     else if (k === "i") {
       S.insets = !S.insets;
