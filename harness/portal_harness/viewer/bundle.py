@@ -8,10 +8,11 @@ taints canvases drawn from file images, so every file is a script:
                 point (the reference, then each strategy), their relMSE per
                 region, the region masks, the insets, the error curves and
                 the tidy summary rows;
-  img/N.js      PORTAL_IMAGE(N, {"width", "height", "rgb"}): image N's
-                linear RGB as base64 of little-endian float32, row 0 at the
-                top (the EXR's values, so that the browser's tone mapping
-                can equal display.to_srgb8 exactly).
+  img/N.js      PORTAL_IMAGE(N, {"width", "height", "channels", "values"}):
+                image N's linear RGB (3 channels: the EXR's values, so that
+                the browser's tone mapping can equal display.to_srgb8
+                exactly) or a FLIP map (1 channel), base64 of little-endian
+                float32, channels interleaved, row 0 at the top.
 
 The same files serve the report (report.py) and the HTTP service. Every
 fact comes from the module that owns it: the strategy images and their
@@ -103,7 +104,7 @@ class _Images:
         self.count += 1
         height, width = values.shape[:2]
         channels = 1 if values.ndim == 2 else values.shape[2]
-        payload = json.dumps({"width": width, "height": height, "channels": channels, "rgb": encode_rgb(values)})
+        payload = json.dumps({"width": width, "height": height, "channels": channels, "values": encode_rgb(values)})
         (self.folder / f"{number}.js").write_text(f"{IMAGE_CALLBACK}({number}, {payload});\n")
         return number
 
@@ -336,4 +337,4 @@ def read_image(folder: Path, number: int) -> np.ndarray:
     if not text.startswith(prefix):
         raise ValueError(f"{folder / image_script(number)}: not image {number} of a viewer bundle")
     payload = json.loads(text[len(prefix) :].rstrip().rstrip(";").rstrip(")"))
-    return decode_rgb(payload["rgb"], payload["width"], payload["height"], payload.get("channels", 3))
+    return decode_rgb(payload["values"], payload["width"], payload["height"], payload["channels"])

@@ -56,8 +56,8 @@ window.Portal = window.Portal || {};
     images[number] = {
       width: payload.width,
       height: payload.height,
-      channels: payload.channels || 3,
-      rgb: decodeFloat32(payload.rgb), // the values of every channel, interleaved
+      channels: payload.channels,
+      rgb: decodeFloat32(payload.values), // every channel's, interleaved (RGB, or one for a FLIP map)
     };
   };
 
