@@ -12,7 +12,18 @@ import pytest
 from portal_harness.cli import build_parser, main
 
 CliRunner = Callable[..., tuple[int, str, str]]
-COMMANDS = ("run", "reference", "sweep", "metrics", "figures", "regress", "query", "reindex", "import-mitsuba")
+COMMANDS = (
+    "run",
+    "reference",
+    "sweep",
+    "metrics",
+    "figures",
+    "regress",
+    "query",
+    "reindex",
+    "import-mitsuba",
+    "report",
+)
 
 
 @pytest.mark.parametrize("command", COMMANDS)
