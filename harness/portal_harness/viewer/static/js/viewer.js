@@ -44,6 +44,7 @@ window.Portal = window.Portal || {};
 
   function shownEntries() {
     var images = point().images;
+    if (!images.length) return [];
     return S.layout === "single" ? [images[S.current]] : images;
   }
 
@@ -153,6 +154,7 @@ window.Portal = window.Portal || {};
   }
 
   function draw() {
+    if (point().missing) return;
     var entries = shownEntries();
     var canvases = $("images").querySelectorAll("canvas");
     entries.forEach(function (entry, i) {
@@ -294,7 +296,7 @@ window.Portal = window.Portal || {};
 
   function selectPoint(i) {
     S.point = i;
-    S.current = Math.min(S.current, point().images.length - 1);
+    S.current = Math.max(Math.min(S.current, point().images.length - 1), 0);
     S.toned = {};
     S.errors = {};
     $("point").value = String(i);
@@ -311,6 +313,7 @@ window.Portal = window.Portal || {};
   }
 
   function render() {
+    if (point().missing) return; // a point without a reference has nothing to show
     buildPanels();
     draw();
     updateTable();
