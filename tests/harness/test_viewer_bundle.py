@@ -246,17 +246,26 @@ def test_09_an_unswept_experiment_writes_nothing(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_10_failed_runs_are_shown_as_failed(swept: Swept, experiment: Experiment, tmp_path: Path) -> None:
+def test_10_failed_runs_and_missing_references_are_shown_as_such(
+    swept: Swept, experiment: Experiment, tmp_path: Path
+) -> None:
     # The index as a sweep leaves it when every portal run crashed (test_sweep.py makes real crashes).
     results = tmp_path / "results"
     shutil.copytree(swept.results, results)
     conn = sqlite3.connect(results / "index.sqlite")
     conn.execute("UPDATE runs SET status = 'failed' WHERE strategy = 'portal' AND kind != 'reference'")
+    # and the second point's reference
+    conn.execute(
+        "UPDATE runs SET status = 'failed' WHERE key = (SELECT key FROM experiment_runs WHERE role = 'reference' "
+        "ORDER BY axis_value DESC LIMIT 1)"
+    )
     conn.commit()
     conn.close()
     vb.write_bundle(ResultsLayout(results), experiment, tmp_path / "bundle")
     data = vb.read_bundle(tmp_path / "bundle")
-    for point in data["points"]:
+    last = data["points"][-1]
+    assert last["missing"] == "reference missing" and last["images"] == [] and last["regions"] == []
+    for point in data["points"][:-1]:
         light, portal = point["images"][1:]
         assert light["status"] == "done" and light["image"] is not None
         assert portal["status"] == "failed" and portal["image"] is None and portal["rel_mse"] == {}
