@@ -53,7 +53,7 @@ VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: all deps venv test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
+.PHONY: all deps venv browser test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -157,16 +157,20 @@ $(VENV_STAMP): harness/pyproject.toml
 	@touch $@
 venv: $(VENV_STAMP)
 
-# A real browser for the page tests (Debian's chromium and its WebDriver;
-# browsers fetched by other tools cannot be downloaded here).
+# A real browser for the page tests of the service and the viewer
+# (tests/harness/browser.py): Debian's
+# chromium and its driver, never a browser downloaded by a tool. The lock
+# timeout lets two makes that install packages at once wait for each other.
 CHROMIUM_STAMP := renderer/build/.chromium-installed
 $(CHROMIUM_STAMP):
 	@mkdir -p $(@D)
-	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+	@if [ ! -x /usr/bin/chromium ] || [ ! -x /usr/bin/chromedriver ]; then \
 	  echo "installing chromium chromium-driver with apt-get" >&2; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
+	    chromium chromium-driver >/dev/null; \
 	fi
 	@touch $@
+browser: $(CHROMIUM_STAMP)
 
 test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \

@@ -236,6 +236,18 @@ def build_parser() -> argparse.ArgumentParser:
         "--nice", type=int, default=0, help="niceness added to the sweeps' processes: keeps the API responsive"
     )
 
+    p = sub.add_parser(
+        "report",
+        parents=[common],
+        help="the comparison viewer of an experiment as a static folder",
+        description="The experiment's comparison viewer (images of every strategy against the reference, "
+        "zoom to pixels, exposure, relative-error maps, insets, relMSE per region, interactive charts) as a "
+        "self-contained folder that opens from disk: DIR/viewer.html. Reads stored runs only. A non-empty "
+        "DIR is replaced only if it is an earlier report.",
+    )
+    p.add_argument("experiment", type=Path, help="experiment file (configs/experiments/*.yaml), swept")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder (new, empty or a report)")
+
     sub.add_parser(
         "reindex",
         parents=[common],
@@ -396,6 +408,15 @@ def cmd_figures(args: argparse.Namespace) -> int:
     experiment = _experiment(args, args.experiment)
     for path in make_all(experiment, _layout(args)):
         print(path)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from portal_harness.viewer.report import check_target, write_report
+
+    check_target(args.out)  # before loading anything: a refused DIR costs nothing
+    experiment = _experiment(args, args.experiment)
+    print(write_report(_layout(args), experiment, args.out))
     return 0
 
 
@@ -595,6 +616,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "sweep": cmd_sweep,
         "metrics": cmd_metrics,
         "figures": cmd_figures,
+        "report": cmd_report,
         "regress": cmd_regress,
         "query": cmd_query,
         "reindex": cmd_reindex,

@@ -180,7 +180,7 @@ def cell_done(cell: Cell | None) -> bool:
     return cell is not None and cell.status == "done" and cell.run_dir is not None
 
 
-def _curve(conn: sqlite3.Connection, cell: Cell, region: str, metric: str) -> list[tuple[float, float, float]]:
+def run_curve(conn: sqlite3.Connection, cell: Cell, region: str, metric: str) -> list[tuple[float, float, float]]:
     """(time_s, metric, reference noise) of a run's images in one region, in time order."""
     return sorted(
         (m["time_s"], m[metric], m["floor_rel"] or 0.0)
@@ -189,7 +189,7 @@ def _curve(conn: sqlite3.Connection, cell: Cell, region: str, metric: str) -> li
     )
 
 
-def _mean_curve(
+def mean_curve(
     curves: list[list[tuple[float, float, float]]],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Replicates aligned by image index (the same snapshot schedule): mean
@@ -225,10 +225,10 @@ def figure_error_curves(
         floor: float | None = None
         for strategy in experiment.strategies:
             cells = [c for c in data.replicates.get((point.id, strategy), []) if cell_done(c)]
-            curves = [c for c in (_curve(conn, cell, region, metric) for cell in cells) if c]
+            curves = [c for c in (run_curve(conn, cell, region, metric) for cell in cells) if c]
             if not curves:
                 continue
-            t, v, lo, hi = _mean_curve(curves)
+            t, v, lo, hi = mean_curve(curves)
             colour_ = strategy_colour(strategy, experiment.strategies)
             ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=strategy_label(strategy))
             if len(curves) > 1:
@@ -239,7 +239,7 @@ def figure_error_curves(
         ax.set_xscale("log")
         ax.set_yscale("log")
         sep = "\n" if point.facets else ": "  # facets make the title long: the region on a line of its own
-        ax.set_title(f"{point_title(experiment, point)}{sep}{_region_title(region)}", fontsize=8)
+        ax.set_title(f"{point_title(experiment, point)}{sep}{region_title(region)}", fontsize=8)
         ax.set_xlabel("render time (s)", fontsize=8)
         if i == 0:
             ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
@@ -279,7 +279,7 @@ def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, 
     )
 
 
-def _region_title(region: str) -> str:
+def region_title(region: str) -> str:
     if region == WHOLE_IMAGE:
         return "whole image"
     if region == LIT:
@@ -290,13 +290,13 @@ def _region_title(region: str) -> str:
 
 
 @dataclass(frozen=True)
-class _Chosen:
+class Chosen:
     image: Path
     time_s: float
     rel_mse: dict[str, float | None]
 
 
-def _choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> _Chosen | None:
+def choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> Chosen | None:
     """The run's last image rendered within `time_s` (the earliest if none is)."""
     assert cell.run_dir is not None
     rows = [m for m in index.metrics_of(conn, cell.key, cell.reference_key) if m["error"] is None]
@@ -307,7 +307,7 @@ def _choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> _Chose
     chosen_t = within[-1] if within else times[0]
     at = [m for m in rows if m["time_s"] == chosen_t]
     image = next((m["image"] for m in at if m["is_final"]), at[0]["image"])
-    return _Chosen(cell.run_dir / image, chosen_t, {m["region"]: m["rel_mse"] for m in at if m["image"] == image})
+    return Chosen(cell.run_dir / image, chosen_t, {m["region"]: m["rel_mse"] for m in at if m["image"] == image})
 
 
 def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: ExperimentData, point: Point) -> float:
@@ -398,7 +398,7 @@ def figure_insets(
                 label_time = ""
                 if cell_done(cell):
                     assert cell is not None
-                    chosen = _choose_image(conn, cell, t_eq)
+                    chosen = choose_image(conn, cell, t_eq)
                     if chosen is not None:
                         try:
                             image = exr.read_snapshot(chosen.image).rgb
@@ -545,7 +545,7 @@ def figure_efficiency(
                 ax.xaxis.set_minor_formatter(NullFormatter())
             if r_i == 0:
                 ax.set_ylabel(label, fontsize=8)
-            ax.set_title(_region_title(region), fontsize=9)
+            ax.set_title(region_title(region), fontsize=9)
             ax.grid(True, which="both", alpha=0.2)
             ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
             ax.tick_params(which="both", labelsize=7)

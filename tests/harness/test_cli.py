@@ -12,7 +12,19 @@ import pytest
 from portal_harness.cli import build_parser, main
 
 CliRunner = Callable[..., tuple[int, str, str]]
-COMMANDS = ("run", "reference", "sweep", "metrics", "figures", "regress", "query", "reindex", "import-mitsuba", "serve")
+COMMANDS = (
+    "run",
+    "reference",
+    "sweep",
+    "metrics",
+    "figures",
+    "regress",
+    "query",
+    "reindex",
+    "import-mitsuba",
+    "report",
+    "serve",
+)
 
 
 @pytest.mark.parametrize("command", COMMANDS)

@@ -5,7 +5,6 @@ a renderer crash, and every refusal of the security section."""
 from __future__ import annotations
 
 import json
-import os
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -79,6 +78,11 @@ def make_client(
         c.__exit__(None, None, None)
 
 
+def tmp_results(client: TestClient) -> Path:
+    root: Path = client.app.state.settings.layout.root  # type: ignore[attr-defined]
+    return root
+
+
 def wait_for(client: TestClient, experiment_id: str, statuses: set[str], timeout_s: float = 60) -> dict[str, Any]:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -141,7 +145,20 @@ def test_01_a_submitted_experiment_runs_to_done_with_events_images_summary_figur
     assert fig.status_code == 200 and len(fig.content) > 1000
     assert client.get(f"/api/experiments/{experiment_id}/figures/..%2Findex.sqlite").status_code == 404
     assert client.get("/api/runs/..%2F..%2Findex.sqlite/image.exr").status_code == 404
+    # A snapshot by its file name (as the viewer's bundle names them); never a path.
+    snapshot = sorted(p.name for p in (tmp_results(client) / "runs" / key).glob("*.exr") if p.name != "final.exr")[0]
+    assert client.get(f"/api/runs/{key}/image.png", params={"image": snapshot}).content.startswith(b"\x89PNG")
+    for bad in ("../manifest.json", "..%2Ffinal.exr", "nothing.exr", "manifest.json"):
+        assert client.get(f"/api/runs/{key}/image.png", params={"image": bad}).status_code == 404
     assert "sweep svc_tiny" in client.get(f"/api/experiments/{experiment_id}/log").text
+    # The comparison viewer: its page, and the bundle the worker wrote after the sweep.
+    viewer = f"/api/experiments/{experiment_id}/viewer"
+    bundle = client.get(f"{viewer}/bundle.js")
+    assert bundle.status_code == 200 and bundle.text.startswith("window.PORTAL_BUNDLE")
+    image = client.get(f"{viewer}/img/0.js")
+    assert image.status_code == 200 and "PORTAL_IMAGE(0" in image.text
+    assert client.get(f"{viewer}/..%2F..%2F..%2Findex.sqlite").status_code == 404
+    assert client.get("/viewer/viewer.html").status_code == 200
 
 
 def test_02_a_renderer_crash_is_a_failed_run_with_its_stderr(
@@ -321,18 +338,12 @@ def test_09_docs_are_served_without_the_network(make_client: Callable[..., TestC
     )
 
 
-def test_10_the_viewer_route_answers_503_until_the_viewer_is_installed(make_client: Callable[..., TestClient]) -> None:
-    client = make_client(figures=False)
+def test_10_the_viewer_route_waits_for_a_finished_experiment(make_client: Callable[..., TestClient]) -> None:
+    client = make_client(parallel=0)  # nothing starts: the experiment stays queued
     experiment_id = submit(client, experiment_text(sweep={"params.s_L": [0.6]}, strategies=["light"]))
-    r = client.get(f"/api/experiments/{experiment_id}/viewer/index.json")
-    try:
-        import portal_harness.viewer.bundle  # type: ignore[import-not-found,unused-ignore]  # noqa: F401
-    except ImportError:
-        assert r.status_code == 503 and "viewer" in r.json()["message"]
-    else:
-        assert r.status_code in (200, 404, 409)
+    r = client.get(f"/api/experiments/{experiment_id}/viewer/bundle.js")
+    assert r.status_code == 409 and "queued" in r.json()["message"]
     client.delete(f"/api/experiments/{experiment_id}", headers=AUTH)
-    assert os.path.isdir(client.app.state.settings.layout.root)  # type: ignore[attr-defined]
 
 
 def test_11_the_worker_checks_the_roots_again_when_the_sweep_starts(

@@ -1,49 +1,25 @@
 """The experiments page in a real browser (Debian's headless chromium,
 driven by Selenium): load it, submit a tiny experiment with the form,
-watch its progress bars reach 100%, see the runs' images. The page's
-screenshot is kept in results/tmp/test-artifacts/ (an artefact to look
-at, not compared)."""
+watch its progress bars reach 100%, see the runs' images, open the
+comparison viewer from the page, flip between strategies and check the
+pixels shown are the service's PNG of each run, zoom. Screenshots are kept
+in results/tmp/test-artifacts/ (artefacts to look at, not compared)."""
 
 from __future__ import annotations
 
-import shutil
+import io
 import time
-from collections.abc import Iterator
+import urllib.request
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
+from browser import Browser, chromium_fixture  # noqa: F401 (pytest finds it as `chromium`)
+from PIL import Image
 from test_service_server import REPO, TOKEN, Service, free_port
 
 ARTIFACTS = REPO / "results" / "tmp" / "test-artifacts"
-CHROMIUM = shutil.which("chromium")
-CHROMEDRIVER = shutil.which("chromedriver")
-
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None or CHROMEDRIVER is None, reason="chromium and chromium-driver are not installed (make test does)"
-)
-
-
-@pytest.fixture
-def browser() -> Iterator[object]:
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service as DriverService
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = str(CHROMIUM)
-    for arg in (
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-dev-shm-usage",
-        "--window-size=1200,1600",
-    ):
-        options.add_argument(arg)
-    driver = webdriver.Chrome(service=DriverService(executable_path=str(CHROMEDRIVER)), options=options)
-    try:
-        yield driver
-    finally:
-        driver.quit()
 
 
 def _experiment() -> str:
@@ -62,13 +38,14 @@ def _experiment() -> str:
 
 
 @pytest.mark.real
-def test_01_submit_from_the_page_and_watch_progress_reach_100(
-    real_renderer: Path, tmp_path: Path, browser: object
+def test_01_submit_watch_progress_reach_100_then_compare_in_the_viewer(
+    real_renderer: Path, tmp_path: Path, chromium: Browser
 ) -> None:
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
     from selenium.webdriver.common.by import By
-    from selenium.webdriver.remote.webdriver import WebDriver
 
-    assert isinstance(browser, WebDriver)
+    browser = chromium.driver
     root = tmp_path / "root"
     root.mkdir()
     (root / "lampshade.yaml").write_bytes((REPO / "configs" / "scenes" / "lampshade.yaml").read_bytes())
@@ -115,8 +92,42 @@ def test_01_submit_from_the_page_and_watch_progress_reach_100(
         )
         ARTIFACTS.mkdir(parents=True, exist_ok=True)
         assert browser.save_screenshot(str(ARTIFACTS / "service_page.png"))
+
+        # The comparison viewer, opened from the page's link: 1 = reference, 2.. = strategies.
+        link = browser.find_element(By.CSS_SELECTOR, "a[href*='viewer.html']")
+        browser.get(str(link.get_attribute("href")))
+        assert chromium.wait_for("document.body.dataset.ready", timeout_s=60) == "1"
+        bundle = browser.execute_script("return window.PORTAL_BUNDLE;")
+        entries = bundle["points"][0]["images"]
+        assert [e["name"] for e in entries] == ["reference", "light", "antishadow"]
+        chromium.viewer_keys("i")  # insets off: their frames would cover pixels
+        shown = []
+        for k in (1, 2):
+            chromium.viewer_keys(str(k + 1))
+            assert chromium.viewer_state()["current"] == k
+            pixels = chromium.viewer_image((16, 16))
+            # The viewer shows each run's image at the point's equal time; the service's PNG
+            # of that image is tone-mapped with the same reference exposure.
+            png = _get(service.port, f"/api/runs/{entries[k]['run']}/image.png?image={entries[k]['file']}")
+            expected = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+            diff = np.abs(pixels.astype(int) - expected.astype(int))
+            assert diff.max() <= 1 and np.mean(diff == 0) >= 0.99, f"max difference {diff.max()} levels"
+            shown.append(pixels)
+        assert not np.array_equal(shown[0], shown[1]), "flipping did not change the pixels"
+        # Zoom: the wheel over the image makes image pixels larger square blocks.
+        before = chromium.viewer_state()["scale"]
+        canvas = browser.find_element(By.CSS_SELECTOR, "#images canvas")
+        ActionChains(browser).scroll_from_origin(ScrollOrigin.from_element(canvas, 10, 10), 0, -120).perform()
+        chromium.wait_for(f"Portal.viewer.state().scale > {before}")
+        chromium.screenshot("service_viewer")
     finally:
         service.stop()
+
+
+def _get(port: int, path: str) -> bytes:
+    with urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=30) as r:
+        data: bytes = r.read()
+        return data
 
 
 def _wait(condition: object, what: str, timeout_s: float = 30) -> None:
@@ -132,11 +143,10 @@ def _wait(condition: object, what: str, timeout_s: float = 30) -> None:
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def test_02_the_api_documentation_renders_offline(tmp_path: Path, real_renderer: Path, browser: object) -> None:
+def test_02_the_api_documentation_renders_offline(tmp_path: Path, real_renderer: Path, chromium: Browser) -> None:
     from selenium.webdriver.common.by import By
-    from selenium.webdriver.remote.webdriver import WebDriver
 
-    assert isinstance(browser, WebDriver)
+    browser = chromium.driver
     root = tmp_path / "root"
     root.mkdir()
     service = Service(tmp_path / "results", root, real_renderer, free_port())

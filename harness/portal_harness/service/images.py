@@ -33,6 +33,20 @@ def find_run(layout: ResultsLayout, key: str) -> RunLayout | None:
     return None
 
 
+_IMAGE = re.compile(r"^[A-Za-z0-9_.-]{1,128}\.exr$")
+
+
+def image_of(run: RunLayout, name: str | None) -> Path | None:
+    """The run's final image, or the snapshot of its folder named `name`
+    (a file name such as the viewer's bundle gives, never a path)."""
+    if name is None:
+        return run.final
+    if not _IMAGE.match(name) or name.startswith("."):
+        return None
+    path = run.dir / name
+    return path if path.is_file() else None
+
+
 class PngCache:
     """PNGs by (final image, its mtime, the reference's), at most CACHE_ENTRIES."""
 

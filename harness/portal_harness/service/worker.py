@@ -18,6 +18,7 @@ import contextlib
 import ctypes
 import json
 import os
+import shutil
 import signal
 import sys
 import traceback
@@ -52,8 +53,17 @@ def write_viewer_bundle(layout: ResultsLayout, experiment: Experiment) -> Path:
     """The viewer's bundle (ImportError while the viewer module is not installed)."""
     from portal_harness.viewer.bundle import write_bundle  # type: ignore[import-not-found,unused-ignore]
 
+    # Written beside the served folder and swapped in whole: a page loading the
+    # old bundle never gets a mix of old and new image scripts.
     out = bundle_dir(layout, experiment.name)
-    write_bundle(layout, experiment, out)
+    fresh = out.with_name(f"{out.name}.new-{os.getpid()}")
+    stale = out.with_name(f"{out.name}.old-{os.getpid()}")
+    shutil.rmtree(fresh, ignore_errors=True)
+    write_bundle(layout, experiment, fresh)
+    if out.exists():
+        out.rename(stale)
+    fresh.rename(out)
+    shutil.rmtree(stale, ignore_errors=True)
     return out
 
 

@@ -1,0 +1,81 @@
+"""A tiny swept experiment for the viewer's tests: the lampshade at 16x16,
+two ratios x two strategies x two replicates, rendered by the fake renderer
+(conftest.fake_renderer) in a few seconds."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parent.parent.parent
+
+
+@dataclass(frozen=True)
+class Swept:
+    experiment: Path
+    results: Path
+    renderer: Path
+
+
+def write_experiment(folder: Path, name: str = "tiny", replicates: int = 2) -> Path:
+    tree = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
+    tree["film"] = {"width": 16, "height": 16}
+    tree["render"] = {
+        "integrator": "direct",
+        "strategy": "light",
+        "spp": 16,
+        "seed": 1,
+        "threads": 1,
+        "snapshots": {"every": 0.5},
+        "output": "unused",
+    }
+    (folder / "scenes").mkdir(parents=True, exist_ok=True)
+    (folder / "scenes" / "tiny.yaml").write_text(yaml.safe_dump(tree, sort_keys=False))
+    doc: dict[str, Any] = {
+        "name": name,
+        "scene": "../scenes/tiny.yaml",
+        "integrator": "direct",
+        "strategies": ["light", "portal"],
+        "sweep": {"params.s_L": [0.15, 0.6]},
+        "fixed": {"params.s_P": 0.3},
+        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "replicates": replicates, "snapshots": {"every": 0.05}},
+        "reference": {"strategy": "light", "spp": 2000, "seed": 99},
+        "insets": [
+            {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
+            {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5},
+        ],
+        "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
+    }
+    (folder / "experiments").mkdir(exist_ok=True)
+    path = folder / "experiments" / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def sweep_tiny(folder: Path, renderer: Path, replicates: int = 2, status: int = 0) -> Swept:
+    """Writes and sweeps the experiment under `folder`; fails unless the
+    sweep exits with `status`."""
+    from portal_harness.cli import main
+
+    experiment = write_experiment(folder, replicates=replicates)
+    results = folder / "results"
+    args = ["--results", str(results), "--renderer", str(renderer)]
+    found = main(["sweep", str(experiment), "--no-progress", *args])
+    if found != status:
+        raise RuntimeError(f"the viewer tests' sweep exited with status {found}, not {status}")
+    return Swept(experiment, results, renderer)
+
+
+_SWEPT: dict[Path, Swept] = {}
+
+
+def swept_once(tmp_path_factory: pytest.TempPathFactory, renderer: Path) -> Swept:
+    """sweep_tiny, once per test session and renderer: the viewer's test
+    modules only read it (reports go to their own folders)."""
+    if renderer not in _SWEPT:
+        _SWEPT[renderer] = sweep_tiny(tmp_path_factory.mktemp("viewer-sweep"), renderer)
+    return _SWEPT[renderer]
