@@ -13,14 +13,17 @@ state), also when the sweep's renders go to Dask.
 
 from __future__ import annotations
 
+import json
 import shutil
+from dataclasses import replace
 from typing import Any
 
 from portal_harness import exr, store
 from portal_harness.errors import CorruptExrError
-from portal_harness.paths import ResultsLayout
+from portal_harness.paths import ResultsLayout, RunLayout
 from portal_harness.renderer import EXIT_OK, render
 from portal_harness.runs import file_tail, final_record, now
+from portal_harness.spec import RunSpec
 
 
 def extension_timeout(manifest: dict[str, Any], total_spp: int) -> float:
@@ -87,3 +90,33 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
     store.write_json_atomic(attempt.manifest, manifest)
     store.install(layout, key, True, attempt)
     return manifest
+
+
+def _stream(spec_dict: dict[str, Any]) -> str:
+    """A reference spec without its length: renders equal in it draw the same
+    samples in the same order (same seed, passes resumable), so the longer
+    one continues the shorter."""
+    return json.dumps({k: v for k, v in spec_dict.items() if k not in ("spp", "time_s")}, sort_keys=True)
+
+
+def stored_stream(layout: ResultsLayout, spec: RunSpec, renderer_version: str) -> RunSpec | None:
+    """`spec` with the length of a finished stored reference of the same
+    sample stream (another experiment's, planned with another first time or
+    spp), whose key it then has; None when `spec`'s own folder is finished
+    or no such reference is stored. Using it continues what is stored
+    instead of rendering the same samples again from the first pass."""
+    if store.is_done(layout.run(spec.key(renderer_version), True)):
+        return None
+    wanted = _stream(json.loads(json.dumps(spec.to_dict())))
+    best: tuple[int, RunSpec] | None = None
+    for folder in sorted(layout.references_dir.glob("*/manifest.json")):
+        m = store.read_manifest(RunLayout(folder.parent))
+        if not m or m.get("status") != store.STATUS_DONE or m.get("parts") or "spec" not in m:
+            continue
+        if (m.get("renderer") or {}).get("version") != renderer_version or _stream(m["spec"]) != wanted:
+            continue
+        candidate = replace(spec, spp=int(m["spec"]["spp"]), time_s=float(m["spec"]["time_s"]))
+        spp = int((m.get("final") or {}).get("spp", 0))
+        if candidate.key(renderer_version) == m.get("key") and (best is None or spp > best[0]):
+            best = (spp, candidate)
+    return best[1] if best else None

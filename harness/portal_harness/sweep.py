@@ -286,6 +286,18 @@ def extend_references(
     return extended
 
 
+def adopt_stored_parts(ref: PointReference, options: SweepOptions) -> tuple[references.Part, ...]:
+    """The reference's parts, each replaced by a stored reference of the same
+    sample stream when its own is not rendered (extend.stored_stream): a
+    reference another experiment planned with another first time, and maybe
+    extended, is continued by the noise check from its stored samples."""
+    parts = []
+    for part in ref.parts:
+        found = extend.stored_stream(options.layout, part.spec, options.renderer_version)
+        parts.append(part if found is None else references.Part(found, found.key(options.renderer_version)))
+    return tuple(parts)
+
+
 def _status(runs: list[PlannedRun], manifests: dict[str, dict[str, Any]], point: str, strategy: str) -> str:
     for r in runs:
         if r.point.id == point and r.strategy == strategy:
@@ -600,6 +612,7 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         }
         for pid, ref in refs.items():
             ref.region_map_key, ref.fractions = maps[pid]
+            ref.parts = adopt_stored_parts(ref, options)
         record_plan(conn, experiment, runs, refs, pilot_keys, sections)
         part_specs = [part.spec for ref in refs.values() for part in ref.parts]
         manifests.update(execute_specs(part_specs, options, conn, desc="references"))
