@@ -96,3 +96,10 @@ def overlapping(boxes: Sequence[tuple[float, float, float, float]]) -> list[tupl
             if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
                 out.append((i, j))
     return out
+
+
+def legend_columns(labels: Sequence[str], width_in: float, fontsize: float, most: int = 4) -> int:
+    """How many legend entries fit side by side in `width_in` (each takes its
+    label's width plus a handle and spacing, ~4 font sizes)."""
+    widest = max((text_width_pt(label, fontsize) for label in labels), default=0.0) + 4 * fontsize
+    return max(1, min(most, len(labels), int(width_in * 72 // widest)))

@@ -312,7 +312,7 @@ def build_error_curves(experiment: Experiment, data: ExperimentData, conn: sqlit
         [h_ for h_, _ in handles],
         [lab for _, lab in handles],
         loc="outside lower center",
-        ncol=min(len(handles), 4),
+        ncol=figure_layout.legend_columns([lab for _, lab in handles], fig.get_figwidth(), 7),
         fontsize=7,
         frameon=False,
     )
@@ -463,11 +463,11 @@ def build_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Con
     for group in reference_groups(data):
         first, last = row_of[group[0].id], row_of[group[-1].id]
         ref_cell = data.references.get(group[0].id)
-        if len(group) == 1:
-            left = outer[first, 0].subgridspec(1, 2, wspace=0.05)
+        if len(group) < 4:
+            left = outer[first : last + 1, 0].subgridspec(1, 2, wspace=0.05)
             ref_ax, class_ax = fig.add_subplot(left[0, 0]), fig.add_subplot(left[0, 1])
         else:
-            # Beside several points' insets: the two images stacked, larger, from the top.
+            # Beside four or more points' insets: the two images stacked, larger, from the top.
             k = min(2, len(group) // 2)  # blocks per image: at most the column's width allows
             left = outer[first : last + 1, 0].subgridspec(len(group), 1, hspace=0.15)
             ref_ax, class_ax = fig.add_subplot(left[0:k, 0]), fig.add_subplot(left[k : 2 * k, 0])
@@ -640,7 +640,8 @@ def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
         ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up at light's final error"),
     )
     grid = figure_layout.blocks(len(measures), len(regions), EFFICIENCY_MAX_COLUMNS)
-    _, h = figure_layout.panel_size(grid.columns, aspect=0.85)
+    # Strategy names under the x axis take room of their own.
+    _, h = figure_layout.panel_size(grid.columns, aspect=0.85 if experiment.axis is not None else 1.2)
     fig = plt.figure(figsize=(figure_layout.PAGE_WIDTH_IN, h * grid.rows + 1.3), layout="constrained")
     axes: Any = fig.subplots(grid.rows, grid.columns, squeeze=False)
     for ax in axes.flat:
@@ -724,7 +725,7 @@ def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
         [h_ for h_, _ in handles],
         [lab for _, lab in handles],
         loc="outside lower center",
-        ncol=min(len(handles), 4),
+        ncol=figure_layout.legend_columns([lab for _, lab in handles], figure_layout.PAGE_WIDTH_IN, 7),
         fontsize=7,
         frameon=False,
     )

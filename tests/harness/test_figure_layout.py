@@ -141,6 +141,8 @@ def test_06_efficiency_fits_a_page_with_the_legend_clear_of_the_panels(weights_s
         w, h = fig.get_size_inches()
         assert w == pytest.approx(figure_layout.PAGE_WIDTH_IN) and h < 10
         renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+        # what is saved (bbox_inches="tight"): nothing, the legend included, sticks out of the page
+        assert fig.get_tightbbox(renderer).width <= figure_layout.PAGE_WIDTH_IN * 1.02
         legend = _box(fig.legends[0], renderer)
         title = _box(_title(fig), renderer)
         for ax in fig.axes:
