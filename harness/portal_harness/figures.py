@@ -640,9 +640,9 @@ def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
         ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up at light's final error"),
     )
     grid = figure_layout.blocks(len(measures), len(regions), EFFICIENCY_MAX_COLUMNS)
-    # Strategy names under the x axis take room of their own.
-    _, h = figure_layout.panel_size(grid.columns, aspect=0.85 if experiment.axis is not None else 1.2)
-    fig = plt.figure(figsize=(figure_layout.PAGE_WIDTH_IN, h * grid.rows + 1.3), layout="constrained")
+    _, h = figure_layout.panel_size(grid.columns, aspect=0.85)
+    labels_in = 0.6 * len(measures) if experiment.axis is None else 0.0  # strategy names under the x axes
+    fig = plt.figure(figsize=(figure_layout.PAGE_WIDTH_IN, h * grid.rows + 1.3 + labels_in), layout="constrained")
     axes: Any = fig.subplots(grid.rows, grid.columns, squeeze=False)
     for ax in axes.flat:
         ax.set_visible(False)
@@ -686,15 +686,20 @@ def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
                     for r in rows:
                         _draw_value(ax, r["axis"], r, column, se_column, bound_column, colour_)
             ax.set_yscale("log")
+            # The x labels only under the last panel of each column of a measure's block.
+            bottom = r_i >= len(regions) - grid.columns
             if experiment.axis is None:
                 ax.set_xticks(range(len(experiment.strategies)))
                 ax.set_xticklabels(
-                    [strategy_label(s) for s in experiment.strategies], rotation=35, ha="right", fontsize=6
+                    [strategy_label(s) for s in experiment.strategies] if bottom else [],
+                    rotation=35,
+                    ha="right",
+                    fontsize=6,
                 )
                 ax.set_xlim(-0.6, len(experiment.strategies) - 0.4)
             else:
                 ax.set_xscale("log")
-                if grid.cells.index((row, col)) % len(regions) >= len(regions) - grid.columns:
+                if bottom:
                     ax.set_xlabel(experiment.axis.label, fontsize=7)
                 ax.set_xticks(sorted({p.axis_value for p in data.points}))
                 ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
