@@ -6,7 +6,6 @@ cylinders tessellated into OBJ files; area emitters as polygon lights
 from __future__ import annotations
 
 import os
-
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
