@@ -145,6 +145,9 @@ class Experiment:
     lit_threshold: float = 0.001  # regions.lit_threshold: reference radiance above which a pixel is lit
     facets: tuple[str, ...] = ()  # swept keys that are not the axis, in sweep order (facets.py)
     region_sections: RegionSections | None = None  # figures.region_sections
+    # figures.compare: (the direct-lighting experiment, the strategy) whose
+    # gain over light this experiment's is set against (gain_figure.py).
+    compare: tuple[str, str] | None = None
     # The region AOV's classes, in the renderer's order (render --describe: aov.region).
     region_classes: tuple[str, ...] = REGION_CLASSES
 
@@ -518,7 +521,16 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
     regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
     lit_threshold = r.number(regions_node.get("lit_threshold", 0.001), "regions.lit_threshold", positive=True)
 
-    fig = r.mapping(root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric", "region_sections"})
+    fig = r.mapping(
+        root.get("figures", {}) or {}, "figures", {"equal_time_s", "curve_metric", "region_sections", "compare"}
+    )
+    compare = None
+    if "compare" in fig:
+        c = r.mapping(fig["compare"], "figures.compare", {"experiment", "strategy"}, {"experiment", "strategy"})
+        compare = (
+            r.string(c["experiment"], "figures.compare.experiment"),
+            r.choice(c["strategy"], "figures.compare.strategy", strategies, "strategy"),
+        )
     equal_time = fig.get("equal_time_s")
     sections = (
         _region_sections(r, folder, renderer, fig["region_sections"], fixed_overrides, points)
@@ -548,6 +560,7 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
         lit_threshold=lit_threshold,
         facets=facet_keys,
         region_sections=sections,
+        compare=compare,
         region_classes=tuple(c.removeprefix("region.") for c in names.region_channels),
     )
 

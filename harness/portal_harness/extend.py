@@ -14,13 +14,15 @@ state), also when the sweep's renders go to Dask.
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 from typing import Any
 
 from portal_harness import exr, store
 from portal_harness.errors import CorruptExrError
-from portal_harness.paths import ResultsLayout
+from portal_harness.paths import ResultsLayout, RunLayout
 from portal_harness.renderer import EXIT_OK, render
 from portal_harness.runs import file_tail, final_record, now
+from portal_harness.spec import RunSpec
 
 
 def extension_timeout(manifest: dict[str, Any], total_spp: int) -> float:
@@ -87,3 +89,29 @@ def extend(layout: ResultsLayout, key: str, total_spp: int, renderer: str, threa
     store.write_json_atomic(attempt.manifest, manifest)
     store.install(layout, key, True, attempt)
     return manifest
+
+
+def stored_stream(layout: ResultsLayout, spec: RunSpec, renderer_version: str) -> RunSpec | None:
+    """`spec` with the length of the longest finished stored reference that
+    differs from it in nothing but its length (spp, time_s: another
+    experiment's, whose pilot predicted another first time), so that it
+    has that reference's key; None when `spec`'s own folder is finished or
+    no such reference is stored. The sweep then continues what is stored
+    instead of rendering the same reference again from its first pass.
+    Measured: multi_lamp's and multi_lamp_weights' antishadow_exact parts
+    were planned at 25 s and 23 s, two keys for one reference."""
+    if store.is_done(layout.run(spec.key(renderer_version), True)):
+        return None
+    best: tuple[int, RunSpec] | None = None
+    for folder in sorted(layout.references_dir.glob("*/manifest.json")):
+        m = store.read_manifest(RunLayout(folder.parent))
+        stored = (m or {}).get("spec") or {}
+        if not m or m.get("status") != store.STATUS_DONE or m.get("parts") or stored.get("strategy") != spec.strategy:
+            continue
+        # The reference key says which renders are one stream (spec.RunSpec.key: the
+        # image's scene hash, strategy, seed); with the stored length it must be the stored key.
+        candidate = replace(spec, spp=int(stored.get("spp", 0)), time_s=float(stored.get("time_s", 0.0)))
+        spp = int((m.get("final") or {}).get("spp", 0))
+        if candidate.key(renderer_version) == m.get("key") and (best is None or spp > best[0]):
+            best = (spp, candidate)
+    return best[1] if best else None

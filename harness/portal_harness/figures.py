@@ -48,7 +48,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from portal_harness import class_style, display, exr, facets, index, tables
+from portal_harness import class_style, display, exr, facets, figure_layout, index, tables
 from portal_harness.config import Experiment, Point
 from portal_harness.errors import CorruptExrError, HarnessError
 from portal_harness.index import ROLE_REFERENCE, ROLE_RUN
@@ -200,29 +200,74 @@ def mean_curve(
     return t.mean(axis=0), v.mean(axis=0), v.min(axis=0), v.max(axis=0)
 
 
-def figure_error_curves(
-    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
-) -> list[Path]:
-    """Error against render time, log-log: one column per sweep point, one
-    row per region (lit, each inset, whole image); mean over replicates with
-    their range."""
+ERROR_PANEL_IN = (1.75, 1.5)  # one error-over-time panel, inches
+ERROR_MAX_COLUMNS = 6
+
+
+@dataclass(frozen=True)
+class ErrorLayout:
+    """Where each (region, point) panel of the error figure goes: with a
+    numeric axis, a row per region and a column per axis value, the facets
+    drawn as line styles in the same panel; without one, a row per facet
+    combination and a column per region (wrapped at ERROR_MAX_COLUMNS)."""
+
+    grid: figure_layout.Grid
+    panels: dict[tuple[str, str], int]  # (region, point id) -> index into grid.cells
+    column_titles: tuple[str, ...]  # over the top row
+    row_labels: tuple[str, ...]  # left of each row
+    line_styles: dict[str, Any]  # point id -> its facet's line style
+
+
+def error_layout(experiment: Experiment, points: Sequence[Point], regions: Sequence[str]) -> ErrorLayout:
+    groups = facet_groups(points)
+    by_axis = experiment.axis is not None and max(len(pts) for _, pts in groups) > 1
+    styles: dict[str, Any] = {}
+    panels: dict[tuple[str, str], int] = {}
+    if by_axis:
+        values = sorted({p.axis_value for p in points})
+        assert experiment.axis is not None
+        grid = figure_layout.Grid(
+            len(regions), len(values), tuple((r, c) for r in range(len(regions)) for c in range(len(values)))
+        )
+        for g_i, (_, pts) in enumerate(groups):
+            for p in pts:
+                styles[p.id] = FACET_LINE_STYLES[g_i % len(FACET_LINE_STYLES)] if len(groups) > 1 else "-"
+                for r_i, region in enumerate(regions):
+                    panels[(region, p.id)] = r_i * len(values) + values.index(p.axis_value)
+        titles = tuple(f"{experiment.axis.label} = {v:g}" for v in values)
+        rows = tuple(region_title(r) for r in regions)
+        return ErrorLayout(grid, panels, titles, rows, styles)
+    flat = [p for _, pts in groups for p in pts]
+    grid = figure_layout.blocks(len(flat), len(regions), ERROR_MAX_COLUMNS)
+    for p_i, p in enumerate(flat):
+        styles[p.id] = "-"
+        for r_i, region in enumerate(regions):
+            panels[(region, p.id)] = p_i * len(regions) + r_i
+    per_block = grid.rows // max(len(flat), 1)
+    rows = tuple(
+        point_title(experiment, flat[row // per_block]) if row % per_block == 0 else "" for row in range(grid.rows)
+    )
+    titles = tuple(region_title(r) for r in regions[: grid.columns])
+    return ErrorLayout(grid, panels, titles if per_block == 1 else (), rows, styles)
+
+
+def build_error_curves(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection) -> Figure:
+    """Error against render time, log-log (error_layout places the panels):
+    the mean over replicates with their range."""
     metric = experiment.curve_metric
     regions = [LIT, *(r.name for r in experiment.insets), WHOLE_IMAGE]
-    groups = facet_groups(data.points)
-    # One block of rows (one per region) per facet combination, its points across.
-    panels = [(region, point, i) for _, pts in groups for region in regions for i, point in enumerate(pts)]
-    n = max(len(pts) for _, pts in groups)
-    n_rows = len(regions) * len(groups)
-    fig, axes = plt.subplots(n_rows, n, figsize=(3.2 * n, 2.9 * n_rows), squeeze=False)
-    row_of = {(g, region): g * len(regions) + r_i for g in range(len(groups)) for r_i, region in enumerate(regions)}
-    group_of = {p.id: g for g, (_, pts) in enumerate(groups) for p in pts}
-    for ax in axes.flat:
-        ax.set_visible(False)
-    for region, point, i in panels:
-        row = row_of[(group_of[point.id], region)]
-        ax = axes[row][i]
-        ax.set_visible(True)
-        floor: float | None = None
+    lay = error_layout(experiment, data.points, regions)
+    w, h = ERROR_PANEL_IN
+    fig = plt.figure(figsize=(w * lay.grid.columns + 0.6, h * lay.grid.rows + 1.0), layout="constrained")
+    axes: Any = fig.subplots(lay.grid.rows, lay.grid.columns, squeeze=False)
+    used = {lay.grid.cells[i] for i in lay.panels.values()}
+    for r, c in np.ndindex(lay.grid.rows, lay.grid.columns):
+        axes[r, c].set_visible((r, c) in used)
+    floors: dict[int, float] = {}
+    for (region, pid), i in lay.panels.items():
+        point = next(p for p in data.points if p.id == pid)
+        row, col = lay.grid.cells[i]
+        ax = axes[row][col]
         for strategy in experiment.strategies:
             cells = [c for c in data.replicates.get((point.id, strategy), []) if cell_done(c)]
             curves = [c for c in (run_curve(conn, cell, region, metric) for cell in cells) if c]
@@ -230,32 +275,71 @@ def figure_error_curves(
                 continue
             t, v, lo, hi = mean_curve(curves)
             colour_ = strategy_colour(strategy, experiment.strategies)
-            ax.plot(t, v, marker=".", ms=3, lw=1.2, color=colour_, label=strategy_label(strategy))
+            ax.plot(t, v, marker=".", ms=2, lw=1.0, ls=lay.line_styles[pid], color=colour_)
             if len(curves) > 1:
-                ax.fill_between(t, lo, hi, color=colour_, alpha=0.2, lw=0)
-            floor = curves[0][0][2]
-        if metric == "rel_mse" and floor:
-            ax.axhline(floor, color="k", ls=":", lw=0.8, label="reference noise")
+                ax.fill_between(t, lo, hi, color=colour_, alpha=0.15, lw=0)
+            floors[i] = curves[0][0][2]
+        if metric == "rel_mse" and floors.get(i):
+            ax.axhline(floors[i], color="k", ls=":", lw=0.7)
+    for r, c in used:
+        ax = axes[r][c]
         ax.set_xscale("log")
         ax.set_yscale("log")
-        sep = "\n" if point.facets else ": "  # facets make the title long: the region on a line of its own
-        ax.set_title(f"{point_title(experiment, point)}{sep}{region_title(region)}", fontsize=8)
-        ax.set_xlabel("render time (s)", fontsize=8)
-        if i == 0:
-            ax.set_ylabel(METRIC_LABELS[metric], fontsize=8)
+        if not lay.column_titles:
+            i = lay.grid.cells.index((r, c))
+            ax.set_title(region_title(regions[i % len(regions)]), fontsize=7)
+        elif r == 0:
+            ax.set_title(lay.column_titles[c], fontsize=7)
+        if r == lay.grid.rows - 1 or (r + 1, c) not in used:
+            ax.set_xlabel("render time (s)", fontsize=7)
+        if c == 0:
+            label = lay.row_labels[r]
+            text, size = figure_layout.fit_text(label, h * 72 * 0.95, 7, max_lines=3) if label else ("", 7)
+            ax.set_ylabel(f"{text}\n{METRIC_LABELS[metric]}" if text else METRIC_LABELS[metric], fontsize=size)
         ax.grid(True, which="both", alpha=0.2)
         _plain_log_ticks(ax.xaxis)
         _plain_log_ticks(ax.yaxis)
-        ax.tick_params(which="both", labelsize=7)
-    _legend_below(fig, axes, 2)
-    reps = experiment.budget.replicates if experiment.budget else 1
-    fig.suptitle(
-        f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
-        f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})",
-        fontsize=10,
+        ax.tick_params(which="both", labelsize=6)
+    handles = _strategy_handles(experiment, data)
+    if metric == "rel_mse":
+        handles.append((Line2D([], [], color="k", ls=":", lw=0.7), "reference noise"))
+    groups = facet_groups(data.points)
+    if experiment.axis is not None and len(groups) > 1 and any(len(pts) > 1 for _, pts in groups):
+        for g_i, (values, _) in enumerate(groups):
+            style = FACET_LINE_STYLES[g_i % len(FACET_LINE_STYLES)]
+            handles.append((Line2D([], [], color="k", lw=1.0, ls=style), facets.labels(values)))
+    fig.legend(
+        [h_ for h_, _ in handles],
+        [lab for _, lab in handles],
+        loc="outside lower center",
+        ncol=figure_layout.legend_columns([lab for _, lab in handles], fig.get_figwidth(), 7),
+        fontsize=7,
+        frameon=False,
     )
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.12 / fig.get_figheight()))  # room for the title
-    return save_figure(fig, layout, experiment, "error_time")
+    reps = experiment.budget.replicates if experiment.budget else 1
+    title = (
+        f"{experiment.name}: {METRIC_LABELS[metric]} over time (mean of {reps} replicate"
+        f"{'s' if reps > 1 else ''}{', band: their range' if reps > 1 else ''})"
+    )
+    text, size = figure_layout.fit_text(title, fig.get_figwidth() * 72 * 0.95, 9, max_lines=2)
+    fig.suptitle(text, fontsize=size)
+    return fig
+
+
+def _strategy_handles(experiment: Experiment, data: ExperimentData) -> list[tuple[Any, str]]:
+    """A legend entry (solid line in its colour) per strategy that has a run."""
+    present = {s for _, s in data.replicates}
+    return [
+        (Line2D([], [], color=strategy_colour(s, experiment.strategies), lw=1.2, marker="."), strategy_label(s))
+        for s in experiment.strategies
+        if s in present
+    ]
+
+
+def figure_error_curves(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
+    return save_figure(build_error_curves(experiment, data, conn), layout, experiment, "error_time")
 
 
 def _legend_below(fig: Figure, axes: Any, rows: int, extra: Sequence[tuple[Any, str]] = ()) -> None:
@@ -325,40 +409,77 @@ def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: Experimen
     return min(finals) if finals else math.inf
 
 
-def figure_insets(
-    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
-) -> list[Path]:
-    """Per sweep point: the reference with the insets drawn on it, then each
-    inset of the reference and of every strategy at equal time, relMSE under it."""
+def reference_groups(data: ExperimentData) -> list[list[Point]]:
+    """Consecutive points measured against the same reference image (facets
+    that only change how the image is sampled share one): the insets figure
+    draws each such reference once."""
+    groups: list[list[Point]] = []
+    last: str | None = None
+    for p in data.points:
+        cell = data.references.get(p.id)
+        key = cell.key if cell is not None else None
+        if groups and key is not None and key == last:
+            groups[-1].append(p)
+        else:
+            groups.append([p])
+        last = key
+    return groups
+
+
+INSET_CELL_IN = 1.0  # width of one inset column, inches
+INSET_LABEL_IN = 0.22  # the relMSE line under an inset
+
+
+def build_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection) -> Figure:
+    """Per reference (shared by the points of reference_groups): the image
+    with the insets drawn and its region classes, once; beside it, per
+    point, each inset of the reference and of every strategy at equal time,
+    relMSE under it."""
     regions: tuple[Region, ...] = experiment.insets or (Region(WHOLE_IMAGE, 0, 0, experiment.width, experiment.height),)
     n_sub = len(regions)
     columns = ["reference", *experiment.strategies]
-    # Sizes in inches: every inset column is cell_in wide; a block (one sweep
-    # point) is as tall as its insets plus their labels, and the reference
-    # beside it keeps the image's aspect ratio.
-    cell_in, label_in = 1.25, 0.24
+    cell_in, label_in = INSET_CELL_IN, INSET_LABEL_IN
     inset_h = cell_in * max(r.height / r.width for r in regions)
-    block_h = n_sub * (inset_h + label_in)
+    block_h = n_sub * (inset_h + label_in)  # one point's insets
     ref_w = block_h * experiment.width / experiment.height
-    height = len(data.points) * block_h * 1.1 + 0.8
-    fig = plt.figure(figsize=(ref_w + cell_in * len(columns) * 1.08 + 0.5, height))
-    outer = fig.add_gridspec(len(data.points), 1, hspace=0.1, top=1 - 0.55 / height, bottom=0.25 / height)
-    for p_i, point in enumerate(data.points):
-        ref_cell = data.references.get(point.id)
-        grid = outer[p_i].subgridspec(
-            n_sub,
-            2 + len(columns),
-            width_ratios=[ref_w / cell_in] * 2 + [1] * len(columns),
-            wspace=0.06,
-            hspace=label_in / inset_h * 1.1,
-        )
-        ref_ax = fig.add_subplot(grid[:, 0])
-        class_ax = fig.add_subplot(grid[:, 1])
-        class_ax.set_xticks([])
-        class_ax.set_yticks([])
-        ref_ax.set_xticks([])
-        ref_ax.set_yticks([])
-        ref_ax.set_ylabel(point_title(experiment, point), fontsize=8)
+    gap_in, header_in, label_col_in = 0.3, 0.45, 0.35
+    insets_w = cell_in * len(columns) * 1.06
+    width = 2 * ref_w * 1.05 + label_col_in + insets_w + 0.2
+    height = len(data.points) * (block_h + gap_in) + header_in + 0.6
+    fig = plt.figure(figsize=(width, height))
+    outer = fig.add_gridspec(
+        len(data.points),
+        3,
+        width_ratios=[2 * ref_w * 1.05, label_col_in, insets_w],
+        wspace=0.0,
+        hspace=gap_in / block_h,
+        left=0.1 / width,
+        right=1 - 0.1 / width,
+        top=1 - header_in / height,
+        bottom=0.5 / height,
+    )
+    row_of = {p.id: i for i, p in enumerate(data.points)}
+    headers_done = False
+    for group in reference_groups(data):
+        first, last = row_of[group[0].id], row_of[group[-1].id]
+        ref_cell = data.references.get(group[0].id)
+        if len(group) < 4:
+            left = outer[first : last + 1, 0].subgridspec(1, 2, wspace=0.05)
+            ref_ax, class_ax = fig.add_subplot(left[0, 0]), fig.add_subplot(left[0, 1])
+        else:
+            # Beside four or more points' insets: the two images stacked, larger, from the top.
+            k = min(2, len(group) // 2)  # blocks per image: at most the column's width allows
+            left = outer[first : last + 1, 0].subgridspec(len(group), 1, hspace=0.15)
+            ref_ax, class_ax = fig.add_subplot(left[0:k, 0]), fig.add_subplot(left[k : 2 * k, 0])
+        for ax_ in (ref_ax, class_ax):
+            ax_.set_xticks([])
+            ax_.set_yticks([])
+            ax_.set_anchor("N")
+        if len(group) > 1:
+            ref_ax.set_ylabel(f"one reference for the {len(group)} points beside it", fontsize=7)
+        if first == 0 or len(group) > 1:
+            ref_ax.set_title("reference", fontsize=8)
+            class_ax.set_title("antishadow region classes", fontsize=8)
         if not cell_done(ref_cell):
             ref_ax.text(0.5, 0.5, "reference\nmissing", ha="center", va="center", fontsize=8)
             continue
@@ -379,62 +500,88 @@ def figure_insets(
                         (region.x - 0.5, region.y - 0.5), region.width, region.height, fill=False, ec=colour_, lw=1.2
                     )
                 )
-        if p_i == 0:
-            ref_ax.set_title("reference", fontsize=8)
-            class_ax.set_title("antishadow region classes", fontsize=8)
-        t_eq = equal_time(experiment, conn, data, point)
-        if math.isfinite(t_eq):
-            ref_ax.set_ylabel(f"{point_title(experiment, point)}\n(strategies at {t_eq:.3g} s)", fontsize=8)
-        for c_i, column in enumerate(columns):
-            image: np.ndarray | None = None
-            label = ""
-            if column == "reference":
-                image = reference.rgb
-                values: dict[str, float | None] = {}
-                label_time = f"{reference.header.spp} spp"
-            else:
-                cell = data.runs.get((point.id, column))
-                values = {}
-                label_time = ""
-                if cell_done(cell):
-                    assert cell is not None
-                    chosen = choose_image(conn, cell, t_eq)
-                    if chosen is not None:
-                        try:
-                            image = exr.read_snapshot(chosen.image).rgb
-                            values = chosen.rel_mse
-                            label_time = f"{chosen.time_s:.2g} s"
-                        except CorruptExrError:
-                            label = "unreadable"
-                else:
-                    label = cell.status if cell and cell.status else "missing"
-            for r_i, region in enumerate(regions):
-                ax = fig.add_subplot(grid[r_i, 2 + c_i])
-                ax.set_xticks([])
-                ax.set_yticks([])
-                for spine in ax.spines.values():
-                    spine.set_edgecolor(INSET_COLOURS[r_i % len(INSET_COLOURS)])
-                    spine.set_linewidth(1.2)
-                if p_i == 0 and r_i == 0:
-                    ax.set_title(strategy_label(column), fontsize=8)
-                if image is None:
-                    ax.set_facecolor("#dddddd")
-                    ax.text(0.5, 0.5, label, ha="center", va="center", fontsize=7, transform=ax.transAxes)
-                    continue
-                ax.imshow(display.to_display(crop(image, region), exposure), interpolation="nearest")
-                value = values.get(region.name)
-                text = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
-                ax.set_xlabel(text, fontsize=7, labelpad=1.5)
+        for g_i, point in enumerate(group):
+            grid = outer[row_of[point.id], 2].subgridspec(n_sub, len(columns), wspace=0.06, hspace=label_in / inset_h)
+            t_eq = equal_time(experiment, conn, data, point)
+            label = point_title(experiment, point) + (f" (strategies at {t_eq:.3g} s)" if math.isfinite(t_eq) else "")
+            box = outer[row_of[point.id], 1].get_position(fig)
+            text, size = figure_layout.fit_text(label, block_h * 72 * 0.95, 8, max_lines=2)
+            fig.text(box.x1, (box.y0 + box.y1) / 2, text, rotation=90, ha="right", va="center", fontsize=size)
+            for c_i, column in enumerate(columns):
+                if column == "reference" and g_i > 0:
+                    continue  # the same reference insets as the group's first point
+                image, values, label_time, missing = _column_image(conn, data, point, column, t_eq, reference)
+                for r_i, region in enumerate(regions):
+                    ax = fig.add_subplot(grid[r_i, c_i])
+                    ax.set_xticks([])
+                    ax.set_yticks([])
+                    for spine in ax.spines.values():
+                        spine.set_edgecolor(INSET_COLOURS[r_i % len(INSET_COLOURS)])
+                        spine.set_linewidth(1.2)
+                    if image is None:
+                        ax.set_facecolor("#dddddd")
+                        ax.text(0.5, 0.5, missing, ha="center", va="center", fontsize=7, transform=ax.transAxes)
+                        continue
+                    ax.imshow(display.to_display(crop(image, region), exposure), interpolation="nearest")
+                    value = values.get(region.name)
+                    text_ = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
+                    ax.set_xlabel(text_, fontsize=7, labelpad=1.5)
+            if not headers_done:
+                _column_headers(fig, grid, columns, height)
+                headers_done = True
     fig.legend(
         handles=class_style.legend_handles(exr.REGION_CLASSES),
         loc="lower center",
-        ncol=8,
+        ncol=4,
         fontsize=7,
         frameon=False,
-        bbox_to_anchor=(0.5, -0.01),
+        bbox_to_anchor=(0.5, 0.0),
     )
-    fig.suptitle(f"{experiment.name}: insets at equal render time (relMSE under each inset)", fontsize=10, y=0.995)
-    return save_figure(fig, layout, experiment, "insets")
+    title = f"{experiment.name}: insets at equal render time (relMSE under each inset)"
+    text, size = figure_layout.fit_text(title, width * 72 * 0.95, 10, max_lines=2)
+    fig.suptitle(text, fontsize=size, y=1 - 0.05 / height, va="top")
+    return fig
+
+
+def _column_headers(fig: Figure, grid: Any, columns: Sequence[str], height_in: float) -> None:
+    """The column names over the inset columns, each broken into lines (or
+    made smaller) so that it fits its own column: long strategy names never
+    run into their neighbours."""
+    for c_i, column in enumerate(columns):
+        box = grid[0, c_i].get_position(fig)
+        width_pt = box.width * fig.get_figwidth() * 72 * 0.98
+        text, size = figure_layout.fit_text(strategy_label(column), width_pt, 8, max_lines=3)
+        fig.text((box.x0 + box.x1) / 2, box.y1 + 0.04 / height_in, text, ha="center", va="bottom", fontsize=size)
+
+
+def _column_image(
+    conn: sqlite3.Connection,
+    data: ExperimentData,
+    point: Point,
+    column: str,
+    t_eq: float,
+    reference: exr.Snapshot,
+) -> tuple[np.ndarray | None, dict[str, float | None], str, str]:
+    """(image, relMSE by region, time label, why missing) of one inset column."""
+    if column == "reference":
+        return reference.rgb, {}, f"{reference.header.spp} spp", ""
+    cell = data.runs.get((point.id, column))
+    if not cell_done(cell):
+        return None, {}, "", cell.status if cell and cell.status else "missing"
+    assert cell is not None
+    chosen = choose_image(conn, cell, t_eq)
+    if chosen is None:
+        return None, {}, "", "no image"
+    try:
+        return exr.read_snapshot(chosen.image).rgb, chosen.rel_mse, f"{chosen.time_s:.2g} s", ""
+    except CorruptExrError:
+        return None, {}, "", "unreadable"
+
+
+def figure_insets(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
+    return save_figure(build_insets(experiment, data, conn), layout, experiment, "insets")
 
 
 def _draw_classes(ax: Any, reference: exr.Snapshot) -> None:
@@ -476,9 +623,10 @@ def _draw_value(
     )
 
 
-def figure_efficiency(
-    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
-) -> list[Path]:
+EFFICIENCY_MAX_COLUMNS = 5
+
+
+def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
     """Efficiency relative to light sampling (top row) and equal-error
     speed-up (bottom row) against the swept axis, one column per region,
     from the tidy summary; error bars of one standard error over replicates,
@@ -491,12 +639,18 @@ def figure_efficiency(
         ("efficiency_vs_light", "efficiency_vs_light_stderr", "bound", "efficiency relative to light"),
         ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up at light's final error"),
     )
-    fig, axes = plt.subplots(
-        len(measures), len(regions), figsize=(3.3 * len(regions), 3.0 * len(measures)), squeeze=False
-    )
+    grid = figure_layout.blocks(len(measures), len(regions), EFFICIENCY_MAX_COLUMNS)
+    _, h = figure_layout.panel_size(grid.columns, aspect=0.85)
+    labels_in = 0.6 * len(measures) if experiment.axis is None else 0.0  # strategy names under the x axes
+    fig = plt.figure(figsize=(figure_layout.PAGE_WIDTH_IN, h * grid.rows + 1.3 + labels_in), layout="constrained")
+    axes: Any = fig.subplots(grid.rows, grid.columns, squeeze=False)
+    for ax in axes.flat:
+        ax.set_visible(False)
     for m_i, (column, se_column, bound_column, label) in enumerate(measures):
         for r_i, region in enumerate(regions):
-            ax = axes[m_i][r_i]
+            row, col = grid.cells[m_i * len(regions) + r_i]
+            ax = axes[row][col]
+            ax.set_visible(True)
             for s_i, strategy in enumerate(experiment.strategies):
                 for g_i, values in enumerate(groups):
                     rows = sorted(
@@ -525,30 +679,39 @@ def figure_efficiency(
                     ax.plot(
                         [r["axis"] for r in rows],
                         [r[column] for r in rows],
-                        lw=1.3,
+                        lw=1.0,
                         ls=style,
                         color=colour_,
-                        label=strategy_label(strategy),
                     )
                     for r in rows:
                         _draw_value(ax, r["axis"], r, column, se_column, bound_column, colour_)
             ax.set_yscale("log")
+            # The x labels only under the last panel of each column of a measure's block.
+            bottom = r_i >= len(regions) - grid.columns
             if experiment.axis is None:
                 ax.set_xticks(range(len(experiment.strategies)))
-                ax.set_xticklabels([strategy_label(s) for s in experiment.strategies], rotation=30, ha="right")
+                ax.set_xticklabels(
+                    [strategy_label(s) for s in experiment.strategies] if bottom else [],
+                    rotation=35,
+                    ha="right",
+                    fontsize=6,
+                )
                 ax.set_xlim(-0.6, len(experiment.strategies) - 0.4)
             else:
                 ax.set_xscale("log")
-                ax.set_xlabel(experiment.axis.label, fontsize=8)
+                if bottom:
+                    ax.set_xlabel(experiment.axis.label, fontsize=7)
                 ax.set_xticks(sorted({p.axis_value for p in data.points}))
                 ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
                 ax.xaxis.set_minor_formatter(NullFormatter())
-            if r_i == 0:
-                ax.set_ylabel(label, fontsize=8)
-            ax.set_title(region_title(region), fontsize=9)
+            if col == 0:
+                text, size = figure_layout.fit_text(label, h * 72 * 0.9, 7, max_lines=2)
+                ax.set_ylabel(text, fontsize=size)
+            ax.set_title(region_title(region), fontsize=7)
             ax.grid(True, which="both", alpha=0.2)
             ax.axhline(1.0, color="k", lw=0.6, alpha=0.5)
-            ax.tick_params(which="both", labelsize=7)
+            _plain_log_ticks(ax.yaxis)
+            ax.tick_params(which="both", labelsize=6)
     extra: list[tuple[Any, str]] = []
     if len(groups) > 1 or (groups and groups[0]):
         for g_i, values in enumerate(groups):
@@ -562,15 +725,29 @@ def figure_efficiency(
         (Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
         (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound"),
     ]
-    _legend_below(fig, axes, len(measures) + (len(extra) > 7), extra)
-    reps = experiment.budget.replicates if experiment.budget else 1
-    fig.suptitle(
-        f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
-        f"sampling (reference noise removed; bars: one standard error over {reps} replicates)",
-        fontsize=10,
+    handles = ([] if experiment.axis is None else _strategy_handles(experiment, data)) + extra
+    fig.legend(
+        [h_ for h_, _ in handles],
+        [lab for _, lab in handles],
+        loc="outside lower center",
+        ncol=figure_layout.legend_columns([lab for _, lab in handles], figure_layout.PAGE_WIDTH_IN, 7),
+        fontsize=7,
+        frameon=False,
     )
-    fig.tight_layout()
-    return save_figure(fig, layout, experiment, "efficiency")
+    reps = experiment.budget.replicates if experiment.budget else 1
+    title = (
+        f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
+        f"sampling (reference noise removed; bars: one standard error over {reps} replicates)"
+    )
+    text, size = figure_layout.fit_text(title, figure_layout.PAGE_WIDTH_IN * 72 * 0.95, 8, max_lines=2)
+    fig.suptitle(text, fontsize=size)
+    return fig
+
+
+def figure_efficiency(
+    experiment: Experiment, data: ExperimentData, conn: sqlite3.Connection, layout: ResultsLayout
+) -> list[Path]:
+    return save_figure(build_efficiency(experiment, data), layout, experiment, "efficiency")
 
 
 def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
@@ -594,6 +771,9 @@ def make_all(experiment: Experiment, layout: ResultsLayout) -> list[Path]:
         from portal_harness.region_figures import figure_regions
 
         paths += figure_regions(experiment, data, conn, layout)
+        from portal_harness.gain_figure import figure as figure_gain
+
+        paths += figure_gain(experiment, layout)
     finally:
         conn.close()
     return paths

@@ -22,6 +22,15 @@ long. The second, independent part uses `light` (the baseline every paper
 trusts), or the runner-up when the best is `light` itself, so that the two
 differ.
 
+A candidate whose pilot shows fireflies (noise_check.firefly_share over
+the image above FIREFLY_SHARE_MAX) is not chosen while another is: its
+variance, and so its cost, is underestimated until its rare large samples
+have been drawn many times, and a short pilot makes it look best. The
+path-traced lampshade's pilots at ratio 0.25 and 1 measured `projection`
+at a tenth of every other candidate's cost with 0.79 and 0.95 of the
+image's noise in fireflies; it was chosen, and its references were full
+of them (169 firefly pixels holding 0.60 of the noise at 0.25).
+
 The first part's render time is then predicted: the noise limit q of the
 error gives T = t * max_R need(R) * (1 - q) / q * margin (noise_check.py's
 extension formula with the pilot's costs), between reference.time_s and the
@@ -33,8 +42,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from portal_harness import exr
 from portal_harness.metrics import rel_variance_floor
+from portal_harness.noise_check import FIREFLY_SHARE_MAX, firefly_share
 from portal_harness.regions import NamedRegion
 
 BASELINE = "light"
@@ -46,6 +58,11 @@ class PilotResult:
     time_s: float
     worst_need: float  # max over regions of cost / best cost there; lower is better
     needs: dict[str, float]  # by region
+    firefly_share: float = 0.0  # of the pilot's image noise (noise_check.firefly_share)
+
+    @property
+    def trusted(self) -> bool:
+        return math.isfinite(self.worst_need) and self.firefly_share <= FIREFLY_SHARE_MAX
 
 
 def region_costs(pilot: exr.Snapshot, regions: list[NamedRegion]) -> dict[str, float]:
@@ -68,13 +85,16 @@ def score(pilots: dict[str, exr.Snapshot], regions: list[NamedRegion]) -> list[P
         needs = {n: costs[s][n] / best[n] for n in names if best[n] > 0 and n in costs[s]}
         complete = len(needs) == sum(1 for n in names if best[n] > 0)
         worst = max(needs.values(), default=math.inf) if complete else math.inf
-        results.append(PilotResult(s, p.header.render_time_s, worst, needs))
+        share = firefly_share(p.rgb, p.variance, np.ones(p.rgb.shape[:2], dtype=bool))
+        results.append(PilotResult(s, p.header.render_time_s, worst, needs, share))
     return sorted(results, key=lambda r: (r.worst_need, r.strategy))
 
 
 def choose(ranked: list[PilotResult]) -> tuple[str, ...]:
-    """The reference strategies: the best, then light (or the runner-up)."""
-    usable = [r.strategy for r in ranked if math.isfinite(r.worst_need)]
+    """The reference strategies: the best without fireflies, then light (or
+    the runner-up); candidates with fireflies only when no other is left."""
+    usable = [r.strategy for r in ranked if r.trusted]
+    usable += [r.strategy for r in ranked if math.isfinite(r.worst_need) and not r.trusted]
     if not usable:
         return (BASELINE,)
     best = usable[0]
@@ -84,7 +104,7 @@ def choose(ranked: list[PilotResult]) -> tuple[str, ...]:
 
 def first_time(ranked: list[PilotResult], run_time_s: float, noise_ratio: float, margin: float) -> float | None:
     """The predicted render time of the first reference part (None without a prediction)."""
-    usable = [r for r in ranked if math.isfinite(r.worst_need)]
+    usable = [r for r in ranked if r.trusted] or [r for r in ranked if math.isfinite(r.worst_need)]
     if not usable or run_time_s <= 0:
         return None
     return run_time_s * usable[0].worst_need * (1 - noise_ratio) / noise_ratio * margin

@@ -18,7 +18,8 @@ and relMSE_j, t_j the final image's error and render time:
   to reach light's mean final error (speedup.py), mean over replicates;
 - reference_noise_ratio = F / mean_j relMSE_j (the measured error, F
   included: it is the ratio noise_check.py limits);
-- bound = "lower" where that ratio exceeds reference.noise_ratio: the
+- bound = "lower" where that ratio exceeds reference.noise_ratio (or
+  fireflies carry F: noise_check.py): the
   reference does not resolve the error, so F is not subtracted and the
   efficiency is a lower bound (the measured error overestimates the true).
   speedup_bound is "lower"/"upper" where the curves only bound the time.
@@ -131,6 +132,7 @@ class RegionInfo:
     kind: str
     pixels: int
     floor: float
+    fireflies: bool = False  # the floor rests on a few samples (noise_check.firefly_share)
 
 
 def rows_for_point(
@@ -172,7 +174,7 @@ def rows_for_point(
                 continue
             measured = statistics.fmean([r.rel_mse for r in mine])
             ratio = floor / measured if measured > 0 else (math.nan if floor == 0 else math.inf)
-            resolved = not (ratio > noise_ratio)
+            resolved = not (ratio > noise_ratio) and not info.fireflies
             cost = _mean_se([_cost(r, floor, resolved) for r in mine])
             rel, rel_se = _mean_se([r.rel_mse - floor for r in mine])
             eff = 1.0 / cost[0] if cost[0] > 0 else math.nan

@@ -230,11 +230,18 @@ def floors_of(ref: PointReference) -> dict[str, float]:
     return {r.name: rel_variance_floor(ref.snapshot.rgb, ref.snapshot.variance, r.mask) for r in ref.regions}
 
 
+def firefly_shares_of(ref: PointReference) -> dict[str, float]:
+    assert ref.snapshot is not None
+    return {r.name: noise_check.firefly_share(ref.snapshot.rgb, ref.snapshot.variance, r.mask) for r in ref.regions}
+
+
 def check_references(
     experiment: Experiment, runs: list[PlannedRun], refs: dict[str, PointReference], conn: sqlite3.Connection
 ) -> dict[str, list[noise_check.RegionCheck]]:
     return {
-        pid: noise_check.check(floors_of(ref), _final_errors(conn, runs, ref), experiment.reference.noise_ratio)
+        pid: noise_check.check(
+            floors_of(ref), _final_errors(conn, runs, ref), experiment.reference.noise_ratio, firefly_shares_of(ref)
+        )
         for pid, ref in refs.items()
         if ref.snapshot is not None
     }
@@ -286,6 +293,18 @@ def extend_references(
     return extended
 
 
+def adopt_stored_parts(ref: PointReference, options: SweepOptions) -> tuple[references.Part, ...]:
+    """The reference's parts, each replaced by a stored reference of the same
+    sample stream when its own is not rendered (extend.stored_stream): a
+    reference another experiment planned with another first time, and maybe
+    extended, is continued by the noise check from its stored samples."""
+    parts = []
+    for part in ref.parts:
+        found = extend.stored_stream(options.layout, part.spec, options.renderer_version)
+        parts.append(part if found is None else references.Part(found, found.key(options.renderer_version)))
+    return tuple(parts)
+
+
 def _status(runs: list[PlannedRun], manifests: dict[str, dict[str, Any]], point: str, strategy: str) -> str:
     for r in runs:
         if r.point.id == point and r.strategy == strategy:
@@ -309,7 +328,11 @@ def summarize(
         if ref.snapshot is None or ref.key is None:
             continue
         floors = floors_of(ref)
-        regions = {r.name: summary.RegionInfo(r.kind, r.pixels, floors[r.name]) for r in ref.regions}
+        shares = firefly_shares_of(ref)
+        regions = {
+            r.name: summary.RegionInfo(r.kind, r.pixels, floors[r.name], shares[r.name] > noise_check.FIREFLY_SHARE_MAX)
+            for r in ref.regions
+        }
         reps = {
             s: summary.replicates_of(conn, [r.key for r in runs if r.point.id == pid and r.strategy == s], ref.key)
             for s in experiment.strategies
@@ -390,6 +413,7 @@ def references_info(
                         "floor": c.floor,
                         "smallest_error": c.smallest_error,
                         "ratio": store.finite_or_none(c.ratio),
+                        "firefly_share": c.firefly_share,
                         "ok": c.ok,
                     }
                     for c in checks.get(pid, [])
@@ -600,6 +624,7 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         }
         for pid, ref in refs.items():
             ref.region_map_key, ref.fractions = maps[pid]
+            ref.parts = adopt_stored_parts(ref, options)
         record_plan(conn, experiment, runs, refs, pilot_keys, sections)
         part_specs = [part.spec for ref in refs.values() for part in ref.parts]
         manifests.update(execute_specs(part_specs, options, conn, desc="references"))

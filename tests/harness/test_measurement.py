@@ -312,3 +312,63 @@ def test_11_an_extension_may_take_as_long_as_its_samples_need() -> None:
     # 1000 spp in 15 s, extended to 16000: 225 s expected, so more than 3 x that before it counts as hung
     manifest = {"final": {"spp": 1000, "time_s": 15.0}}
     assert extension_timeout(manifest, 16000) == pytest.approx(3 * 225 + 60)
+
+
+def test_12_a_firefly_reference_is_refused_however_small_its_noise_looks(rng: np.random.Generator) -> None:
+    # A smooth reference at N = 4000 spp: every pixel's value carried by all its samples.
+    n = 4000
+    mean = np.full((H, W, 3), 0.5)
+    var = np.full_like(mean, 0.5 * 0.5 * 0.2 / n)  # relative sample variance 0.2
+    image = np.ones((H, W), dtype=bool)
+    clean = noise_check.firefly_share(mean, var, image)
+    assert clean == 0.0
+    # The same with a rare large sample X = 2000 drawn once in 12 pixels: there the mean
+    # rises by X / n = 0.5 and the variance of the mean is about X^2 / n^2 (one sample
+    # carries the pixel: relative standard error ~ 1).
+    hit = rng.choice(H * W, size=12, replace=False)
+    ff_mean, ff_var = mean.copy(), var.copy()
+    ys, xs = np.unravel_index(hit, (H, W))
+    ff_mean[ys, xs] += 2000 / n
+    ff_var[ys, xs] += (2000 / n) ** 2
+    share = noise_check.firefly_share(ff_mean, ff_var, image)
+    assert share > noise_check.FIREFLY_SHARE_MAX
+    floor = float(np.mean(ff_var / (ff_mean**2 + 0.01)))
+    # its noise is 1/20 of the smallest error: resolved by the ratio alone, refused for its fireflies
+    (c,) = noise_check.check({"image": floor}, {"image": 20 * floor}, 0.1, {"image": share})
+    assert c.ratio == pytest.approx(0.05) and c.fireflies and not c.ok
+    (clean_check,) = noise_check.check({"image": floor}, {"image": 20 * floor}, 0.1, {"image": clean})
+    assert clean_check.ok
+    # the extension asked for is FIREFLY_EXTENSION times the samples
+    part = _snap(ff_mean, ff_var)
+    plan = noise_check.plan_extension([c], [part], ff_mean, regions.regions_of(part, ())[:1], 0.1)
+    assert plan is not None and plan.factor == noise_check.FIREFLY_EXTENSION
+    # and where it stays, every efficiency measured against it is reported as a lower bound
+    reps = {s: {"lit": _replicates(0.4, [4, 4, 4], [0.1, -0.1, 0.0], 1e-4)} for s in ("light", "portal")}
+    info = {"lit": summary.RegionInfo("lit", 100, 1e-4, fireflies=True)}
+    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps, info, 0.1, {"light": "done", "portal": "done"})
+    assert all(r["bound"] == "lower" for r in rows)
+
+
+def test_13_the_pilot_passes_over_a_candidate_with_fireflies(rng: np.random.Generator) -> None:
+    mean = np.full((H, W, 3), 0.5)
+    smooth = np.full_like(mean, 1e-4)
+    # projection looks ten times cheaper, but a tenth of its noise is where a pixel rests
+    # on one sample: most of its image noise is in those fireflies
+    ff_mean, ff_var = mean.copy(), np.full_like(mean, 1e-6)
+    hit = rng.choice(H * W, size=8, replace=False)
+    ys, xs = np.unravel_index(hit, (H, W))
+    ff_mean[ys, xs] = 2.0
+    ff_var[ys, xs] = 4.0
+    pilots = {
+        "light": _snap(mean, 2 * smooth, time_s=0.5),
+        "antishadow": _snap(mean, smooth, time_s=0.5),
+        "projection": _snap(ff_mean, ff_var, time_s=0.5),
+    }
+    found = regions.regions_of(pilots["light"], ())
+    ranked = pilot.score(pilots, found)
+    by = {r.strategy: r for r in ranked}
+    assert by["projection"].firefly_share > noise_check.FIREFLY_SHARE_MAX and not by["projection"].trusted
+    assert by["antishadow"].trusted and by["light"].trusted
+    assert pilot.choose(ranked) == ("antishadow", "light")
+    # with nothing else left it is still a reference strategy (the noise check then judges it)
+    assert pilot.choose([by["projection"]])[0] == "projection"

@@ -4,6 +4,7 @@ the harness was killed."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -358,3 +359,31 @@ def test_10_run_keys_follow_the_included_files_and_meshes(
         rendered = sweep()
         assert len(rendered) == 8 and not rendered & seen, f.name
         seen |= rendered
+
+
+def test_12_a_shared_reference_is_continued_from_what_is_stored(
+    cli: CliRunner, write_experiment: Callable[..., Path], results: Path, render_log: Callable[[], list[str]]
+) -> None:
+    # Two experiments whose references draw the same sample stream (same scene, strategy, seed)
+    # but were planned with different lengths: the second continues the first's stored and
+    # extended references instead of rendering its own from the first pass.
+    a = write_experiment("a", reference={"strategy": "light", "spp": 60, "seed": 99})
+    status, out, _ = cli("sweep", str(a), "--no-progress")
+    assert status == 0 and "extending reference" in out, out
+    folders = [d for d in (results / "references").iterdir() if (d / "manifest.json").exists()]
+    stored = {d.name: json.loads((d / "manifest.json").read_text()) for d in folders}
+    extended = {k: m["final"]["spp"] for k, m in stored.items() if m.get("extensions")}
+    assert len(extended) == 2
+    b = write_experiment("b", reference={"strategy": "light", "spp": 80, "seed": 99, "noise_ratio": 0.05})
+    status, out, _ = cli("sweep", str(b), "--no-progress")
+    assert status == 0, out
+    summary = _summary(results, "b")
+    for ref in summary["references"]:
+        (part,) = ref["parts"]
+        assert part["key"] in extended  # the stored reference, not a new 80-spp one
+        manifest = json.loads((results / "references" / part["key"] / "manifest.json").read_text())
+        history = [(e["from_spp"], e["to_spp"]) for e in manifest["extensions"]]
+        # every extension starts where the one before ended: nothing rendered twice
+        assert history[0][0] == 60 and all(x[1] == y[0] for x, y in itertools.pairwise(history))
+    # b has no reference folder of its own
+    assert {d.name for d in (results / "references").iterdir() if (d / "manifest.json").exists()} == set(stored)
