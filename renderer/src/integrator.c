@@ -3,6 +3,7 @@
 #include <stdlib.h>
 
 #include "bsdf.h"
+#include "fastmath.h"
 #include "config.h"
 
 void integrator_init(struct integrator *it, const struct render_desc *rd, const struct scene *scene,
@@ -148,7 +149,7 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         ray_o = scene_offset_origin(sc, v.p, v.n, ray_d);
 
         if (depth + 1 >= it->rr_depth) {
-            double q = fmax(0.05, 1.0 - rgb_max(beta));
+            double q = fm_fmax(0.05, 1.0 - rgb_max(beta));
             if (sampler_roulette(smp, depth) < q) break;
             beta = rgb_scale(beta, 1.0 / (1.0 - q));
         }

@@ -3,6 +3,8 @@
 
 #include <float.h>
 
+#include "fastmath.h"
+
 /* Relative tolerances, as fractions of the polygon's size (bounding-box
    diagonal). Clipping snaps distances below POLYGON_SNAP_REL to the plane so
    that vertices on a clip edge are kept as they are and no sliver vertex is
@@ -19,17 +21,26 @@ double polygon_size(const struct polygon *poly)
     struct vec3 lo = poly->v[0], hi = poly->v[0];
     for (int i = 1; i < poly->n; ++i) {
         struct vec3 p = poly->v[i];
-        lo = vec3_make(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
-        hi = vec3_make(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+        lo = vec3_make(fm_fmin(lo.x, p.x), fm_fmin(lo.y, p.y), fm_fmin(lo.z, p.z));
+        hi = vec3_make(fm_fmax(hi.x, p.x), fm_fmax(hi.y, p.y), fm_fmax(hi.z, p.z));
     }
     return vec3_length(vec3_sub(hi, lo));
 }
 
-static double polygon_max_abs(const struct polygon *poly)
+/* polygon_size and the largest coordinate magnitude in one pass over the
+   vertices: clipping needs both for every plane. */
+static void polygon_size_max_abs(const struct polygon *poly, double *size, double *max_abs)
 {
     double m = 0.0;
-    for (int i = 0; i < poly->n; ++i) m = fmax(m, vec3_max_abs(poly->v[i]));
-    return m;
+    struct vec3 lo = poly->v[0], hi = poly->v[0];
+    for (int i = 0; i < poly->n; ++i) {
+        struct vec3 p = poly->v[i];
+        m = fm_fmax(m, vec3_max_abs(p));
+        lo = vec3_make(fm_fmin(lo.x, p.x), fm_fmin(lo.y, p.y), fm_fmin(lo.z, p.z));
+        hi = vec3_make(fm_fmax(hi.x, p.x), fm_fmax(hi.y, p.y), fm_fmax(hi.z, p.z));
+    }
+    *size = vec3_length(vec3_sub(hi, lo));
+    *max_abs = m;
 }
 
 /* The fan sum of cross(v_i - v_0, v_{i+1} - v_0) equals Newell's sum of
@@ -138,8 +149,8 @@ enum polygon_defect polygon_check(const struct polygon *poly)
 bool polygon_triangle_is_sound(struct vec3 a, struct vec3 b, struct vec3 c)
 {
     struct vec3 ab = vec3_sub(b, a), ac = vec3_sub(c, a), bc = vec3_sub(c, b);
-    double d2 = fmax(vec3_length2(ab), fmax(vec3_length2(ac), vec3_length2(bc)));
-    double m = fmax(vec3_max_abs(a), fmax(vec3_max_abs(b), vec3_max_abs(c)));
+    double d2 = fm_fmax(vec3_length2(ab), fm_fmax(vec3_length2(ac), vec3_length2(bc)));
+    double m = fm_fmax(vec3_max_abs(a), fm_fmax(vec3_max_abs(b), vec3_max_abs(c)));
     /* Height over the longest edge >= 1e-2 d <=> |cross| >= 1e-2 d^2. */
     return vec3_length2(vec3_cross(ab, ac)) >= 1e-4 * d2 * d2 && m * m <= 1e10 * d2 && isfinite(m) && d2 > 0.0;
 }
@@ -212,9 +223,9 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
         out->n = 0;
         return 0;
     }
-    double size = polygon_size(in);
-    double eps = POLYGON_SNAP_REL * size +
-                 4.0 * DBL_EPSILON * (polygon_max_abs(in) * vec3_max_abs(pl->normal) + fabs(pl->offset));
+    double size, max_abs;
+    polygon_size_max_abs(in, &size, &max_abs);
+    double eps = POLYGON_SNAP_REL * size + 4.0 * DBL_EPSILON * (max_abs * vec3_max_abs(pl->normal) + fabs(pl->offset));
     double d[POLYGON_MAX];
     bool all_in = true;
     for (int i = 0; i < n; ++i) {
@@ -229,7 +240,7 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
     struct vec3 buf[2 * POLYGON_MAX + 2];
     int m = 0;
     for (int i = 0; i < n; ++i) {
-        int j = (i + 1) % n;
+        int j = i + 1 < n ? i + 1 : 0;
         struct vec3 a = in->v[i], b = in->v[j];
         if (d[i] >= 0.0) buf[m++] = a;
         if ((d[i] > 0.0 && d[j] < 0.0) || (d[i] < 0.0 && d[j] > 0.0)) {

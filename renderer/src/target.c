@@ -1,5 +1,6 @@
 #include "target.h"
 
+#include "fastmath.h"
 #include "spherical.h"
 
 /* Below this solid angle (sr), or this height above the plane relative to
@@ -14,7 +15,7 @@
 static void simplify(const struct polygon *in, struct polygon *out)
 {
     double scale = 0.0;
-    for (int i = 0; i < in->n; ++i) scale = fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
+    for (int i = 0; i < in->n; ++i) scale = fm_fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
     double tol2 = 1e-20 * scale * scale + 1e-300;
     polygon_copy(out, in);
     int n = out->n;
