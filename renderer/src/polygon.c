@@ -58,12 +58,24 @@ struct vec3 polygon_area_normal(const struct polygon *poly)
     return n;
 }
 
-struct vec3 polygon_normal(const struct polygon *poly)
+/* polygon_normal from the Newell normal n = polygon_area_normal(poly). */
+static struct vec3 normal_from_area_normal(const struct polygon *poly, struct vec3 n)
 {
-    struct vec3 n = polygon_area_normal(poly);
     double len = vec3_length(n), size = polygon_size(poly);
     if (!(len > POLYGON_DEGENERATE_REL * size * size) || !isfinite(len)) return vec3_make(0.0, 0.0, 0.0);
     return vec3_scale(n, 1.0 / len);
+}
+
+struct vec3 polygon_normal(const struct polygon *poly)
+{
+    return normal_from_area_normal(poly, polygon_area_normal(poly));
+}
+
+void polygon_normal_area(const struct polygon *poly, struct vec3 *normal, double *area)
+{
+    struct vec3 n = polygon_area_normal(poly);
+    *normal = normal_from_area_normal(poly, n);
+    *area = 0.5 * vec3_length(n);
 }
 
 double polygon_area(const struct polygon *poly)
@@ -179,6 +191,16 @@ bool polygon_is_convex(const struct polygon *poly)
     return true;
 }
 
+/* |a - b| <= tol, with the square root only where the squared length is
+   too close to tol^2 to decide (the answer is the square root's, bit for
+   bit: clipping runs for every light sample in an anti-penumbra). */
+static bool within(struct vec3 a, struct vec3 b, double tol)
+{
+    double l2 = vec3_length2(vec3_sub(a, b));
+    if (l2 > 4.0 * (tol * tol)) return false;
+    return sqrt(l2) <= tol;
+}
+
 /* Removes consecutive (cyclically) vertices closer than tol, then, if the
    vertex count still exceeds POLYGON_MAX, drops the vertex whose triangle
    with its neighbours has the least area until it fits: the result shrinks
@@ -188,10 +210,10 @@ static int polygon_finish(const struct vec3 *buf, int m, double tol, struct poly
     struct vec3 tmp[2 * POLYGON_MAX + 2];
     int k = 0;
     for (int i = 0; i < m; ++i) {
-        if (k > 0 && vec3_length(vec3_sub(buf[i], tmp[k - 1])) <= tol) continue;
+        if (k > 0 && within(buf[i], tmp[k - 1], tol)) continue;
         tmp[k++] = buf[i];
     }
-    while (k > 1 && vec3_length(vec3_sub(tmp[k - 1], tmp[0])) <= tol) --k;
+    while (k > 1 && within(tmp[k - 1], tmp[0], tol)) --k;
     while (k > POLYGON_MAX) {
         int best = 0;
         double best_area = INFINITY;
@@ -212,31 +234,11 @@ static int polygon_finish(const struct vec3 *buf, int m, double tol, struct poly
     return k;
 }
 
-/* Sutherland-Hodgman for one plane. Distances within the snap tolerance
-   count as exactly zero, so a vertex on the plane is emitted once as itself
-   and an edge is split only where its end points lie strictly on opposite
-   sides. `in` and `out` may be the same polygon. */
-int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out)
+/* The split of polygon_clip_plane, once the snapped distances d (n of
+   them) put some vertex below the plane. */
+static int clip_split(const struct polygon *in, const double *d, double size, struct polygon *out)
 {
     int n = in->n;
-    if (n < 3 || n > POLYGON_MAX) {
-        out->n = 0;
-        return 0;
-    }
-    double size, max_abs;
-    polygon_size_max_abs(in, &size, &max_abs);
-    double eps = POLYGON_SNAP_REL * size + 4.0 * DBL_EPSILON * (max_abs * vec3_max_abs(pl->normal) + fabs(pl->offset));
-    double d[POLYGON_MAX];
-    bool all_in = true;
-    for (int i = 0; i < n; ++i) {
-        d[i] = plane_distance(pl, in->v[i]);
-        if (fabs(d[i]) <= eps) d[i] = 0.0;
-        if (d[i] < 0.0) all_in = false;
-    }
-    if (all_in) {
-        polygon_copy(out, in);
-        return out->n;
-    }
     struct vec3 buf[2 * POLYGON_MAX + 2];
     int m = 0;
     for (int i = 0; i < n; ++i) {
@@ -251,6 +253,42 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
         }
     }
     return polygon_finish(buf, m, POLYGON_DUP_REL * size, out);
+}
+
+/* Sutherland-Hodgman for one plane. Distances within the snap tolerance
+   count as exactly zero, so a vertex on the plane is emitted once as itself
+   and an edge is split only where its end points lie strictly on opposite
+   sides. `in` and `out` may be the same polygon. */
+int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out)
+{
+    int n = in->n;
+    if (n < 3 || n > POLYGON_MAX) {
+        out->n = 0;
+        return 0;
+    }
+    /* Snapping only moves distances within eps to zero, so a polygon with
+       no vertex below the plane is kept whole whatever eps is: the common
+       case (a horizon, most portal edges) needs no bounding box. */
+    double d[POLYGON_MAX];
+    bool all_in = true;
+    for (int i = 0; i < n; ++i) {
+        d[i] = plane_distance(pl, in->v[i]);
+        if (d[i] < 0.0) all_in = false;
+    }
+    if (!all_in) {
+        double size, max_abs;
+        polygon_size_max_abs(in, &size, &max_abs);
+        double eps =
+            POLYGON_SNAP_REL * size + 4.0 * DBL_EPSILON * (max_abs * vec3_max_abs(pl->normal) + fabs(pl->offset));
+        all_in = true;
+        for (int i = 0; i < n; ++i) {
+            if (fabs(d[i]) <= eps) d[i] = 0.0;
+            if (d[i] < 0.0) all_in = false;
+        }
+        if (!all_in) return clip_split(in, d, size, out);
+    }
+    polygon_copy(out, in);
+    return out->n;
 }
 
 /* The clip polygon's edge planes point inwards: with its winding normal N,

@@ -41,8 +41,7 @@ bool target_init(struct target *t, const struct polygon *poly)
 {
     simplify(poly, &t->polygon);
     if (t->polygon.n < 3) return false;
-    t->normal = polygon_normal(&t->polygon);
-    t->area = polygon_area(&t->polygon);
+    polygon_normal_area(&t->polygon, &t->normal, &t->area);
     if (!(t->area > 0.0)) return false;
     t->min_height = TARGET_MIN_REL_HEIGHT * sqrt(t->area);
     t->is_rectangle = false;
