@@ -370,8 +370,17 @@ static void test_round(void)
 }
 
 /* fm_fmin and fm_fmax stand in for fmin and fmax on the per-sample
-   paths, where images must stay bit-identical: the same bits as libm's,
-   signed zeros, infinities and NaNs included. */
+   paths: the same values as libm's, infinities and NaNs included. Only the
+   sign of the zero that +0 and -0 give is left open, as C leaves it (this
+   glibc returns the second argument at -O2 and the first under the
+   sanitizers); fm_fmin and fm_fmax return the second. */
+static bool same_result(double got, double ref, double a, double b)
+{
+    if (isnan(got) || isnan(ref)) return isnan(got) && isnan(ref);
+    if (a == 0.0 && b == 0.0) return got == 0.0 && ref == 0.0 && memcmp(&got, &b, sizeof got) == 0;
+    return memcmp(&got, &ref, sizeof got) == 0;
+}
+
 static void test_fmin_fmax_bits(void)
 {
     const double v[] = { 0.0, -0.0, 1.0, -1.0, 0x1p-1074, -0x1p-1074, 1e300, -1e300, INFINITY, -INFINITY, NAN, 2.5 };
@@ -379,10 +388,8 @@ static void test_fmin_fmax_bits(void)
     long mismatches = 0;
     for (size_t i = 0; i < n; ++i)
         for (size_t j = 0; j < n; ++j) {
-            double lo = fm_fmin(v[i], v[j]), hi = fm_fmax(v[i], v[j]);
-            double lo_ref = fmin(v[i], v[j]), hi_ref = fmax(v[i], v[j]);
-            mismatches += memcmp(&lo, &lo_ref, sizeof lo) != 0 && !(isnan(lo) && isnan(lo_ref));
-            mismatches += memcmp(&hi, &hi_ref, sizeof hi) != 0 && !(isnan(hi) && isnan(hi_ref));
+            mismatches += !same_result(fm_fmin(v[i], v[j]), fmin(v[i], v[j]), v[i], v[j]);
+            mismatches += !same_result(fm_fmax(v[i], v[j]), fmax(v[i], v[j]), v[i], v[j]);
         }
     CHECK_MSG(mismatches == 0, "%ld of %zu pairs differ from libm", mismatches, 2 * n * n);
 }
