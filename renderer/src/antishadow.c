@@ -51,6 +51,8 @@
 
 #include <string.h>
 
+#include "fastmath.h"
+
 /* Clearance demanded between the light and the portal plane (and used to
    decide whether the portal reaches the light's plane), as a fraction of
    the pair's size. */
@@ -172,6 +174,55 @@ static struct section edge_section(const struct polygon *poly, int i, struct vec
     return s;
 }
 
+/* Relative tolerance of the box test (antishadow_box): right angles,
+   parallel planes and edges up to rounding of the input coordinates. */
+#define ANTISHADOW_BOX_REL 1e-12
+
+/* Fills a->box when the portal is a rectangle and the light a rectangle in
+   a parallel plane with edges along the portal's; leaves it invalid
+   otherwise. Needs a->portal_plane (oriented). */
+static void box_build(struct antishadow *a, const struct polygon *light, const struct polygon *portal, double scale)
+{
+    struct antishadow_box *b = &a->box;
+    b->valid = false;
+    if (portal->n != 4 || light->n != 4) return;
+    const struct vec3 *q = portal->v;
+    struct vec3 e0 = vec3_sub(q[1], q[0]), e1 = vec3_sub(q[2], q[1]);
+    double tol = ANTISHADOW_BOX_REL * scale;
+    if (fabs(vec3_dot(e0, e1)) > tol * scale || vec3_length(vec3_sub(vec3_add(q[0], e1), q[3])) > tol) return;
+    b->origin = q[0];
+    b->len_u = vec3_length(e0);
+    b->len_w = vec3_length(e1);
+    b->u = vec3_scale(e0, 1.0 / b->len_u);
+    b->w = vec3_scale(e1, 1.0 / b->len_w);
+    double lu[4], lw[4], ld[4];
+    for (int i = 0; i < 4; ++i) {
+        struct vec3 r = vec3_sub(light->v[i], b->origin);
+        lu[i] = vec3_dot(r, b->u);
+        lw[i] = vec3_dot(r, b->w);
+        ld[i] = plane_distance(&a->portal_plane, light->v[i]);
+    }
+    /* Parallel planes; each light edge along u or along w, alternating. */
+    bool first_along_u = fabs(lw[1] - lw[0]) <= tol;
+    for (int i = 0; i < 4; ++i) {
+        int j = (i + 1) % 4;
+        if (fabs(ld[i] - ld[0]) > tol) return;
+        bool along_u = fabs(lw[j] - lw[i]) <= tol, along_w = fabs(lu[j] - lu[i]) <= tol;
+        if (along_u == along_w || along_u != (first_along_u == (i % 2 == 0))) return;
+    }
+    b->lo_u = b->hi_u = lu[0];
+    b->lo_w = b->hi_w = lw[0];
+    for (int i = 1; i < 4; ++i) {
+        b->lo_u = fmin(b->lo_u, lu[i]);
+        b->hi_u = fmax(b->hi_u, lu[i]);
+        b->lo_w = fmin(b->lo_w, lw[i]);
+        b->hi_w = fmax(b->hi_w, lw[i]);
+    }
+    b->light_dist = 0.25 * (ld[0] + ld[1] + ld[2] + ld[3]);
+    b->flip = vec3_dot(polygon_area_normal(light), vec3_cross(b->u, b->w)) < 0.0;
+    b->valid = b->light_dist < 0.0;
+}
+
 bool antishadow_build(const struct polygon *light, const struct polygon *portal, struct antishadow *a,
                       struct error *err)
 {
@@ -272,6 +323,7 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
     /* Each light edge's line misses the portal when the portal is strictly
        on one side of the light's plane, so every edge gave its plane. */
     if (a->has_antumbra && a->n_antumbra != light->n) a->has_antumbra = false;
+    box_build(a, light, portal, scale);
     return true;
 }
 
@@ -312,6 +364,33 @@ static int project_light(const struct antishadow *a, struct vec3 p, struct polyg
     return out->n;
 }
 
+/* The anti-penumbra's visible polygon for a box pair: the light's
+   projection x(l) = (1 - s) l + s p (s the same for every vertex, the
+   planes being parallel) is the light's rectangle scaled about p, so in the
+   portal's frame its extent is the light's, scaled, and clipping it to the
+   portal intersects intervals. The corners keep the light's winding, as
+   Sutherland-Hodgman's output does. */
+static int box_visible(const struct antishadow_box *b, const struct plane *portal_plane, struct vec3 p,
+                       struct polygon *out)
+{
+    double dp = plane_distance(portal_plane, p);
+    out->n = 0;
+    if (!(dp > 0.0)) return 0;
+    double s = b->light_dist / (b->light_dist - dp), t = 1.0 - s;
+    struct vec3 r = vec3_sub(p, b->origin);
+    double pu = s * vec3_dot(r, b->u), pw = s * vec3_dot(r, b->w);
+    double u0 = fm_fmax(t * b->lo_u + pu, 0.0), u1 = fm_fmin(t * b->hi_u + pu, b->len_u);
+    double w0 = fm_fmax(t * b->lo_w + pw, 0.0), w1 = fm_fmin(t * b->hi_w + pw, b->len_w);
+    if (!(u1 > u0) || !(w1 > w0)) return 0;
+    const double cu[4] = { u0, u1, u1, u0 }, cw[4] = { w0, w0, w1, w1 };
+    for (int i = 0; i < 4; ++i) {
+        int k = b->flip ? 3 - i : i;
+        out->v[i] = vec3_add(b->origin, vec3_add(vec3_scale(b->u, cu[k]), vec3_scale(b->w, cw[k])));
+    }
+    out->n = 4;
+    return 4;
+}
+
 int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out)
 {
     switch (region) {
@@ -326,6 +405,7 @@ int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enu
         memcpy(out->v, a->portal.v, (size_t)a->portal.n * sizeof out->v[0]);
         return out->n;
     case REGION_ANTI_PENUMBRA: {
+        if (a->box.valid) return box_visible(&a->box, &a->portal_plane, p, out);
         struct polygon projected;
         if (project_light(a, p, &projected) == 0) {
             out->n = 0;

@@ -36,6 +36,20 @@ enum region { REGION_OUTSIDE, REGION_ANTI_UMBRA, REGION_ANTI_PENUMBRA, REGION_AN
 /* One separating plane per portal edge and at most two per light edge. */
 #define ANTISHADOW_SEPARATING_MAX (3 * POLYGON_INPUT_MAX)
 
+/* A rectangular portal and a light that is a rectangle in a parallel
+   plane with its edges along the portal's (the lamps of the shipped
+   scenes): seen from any point, the light projects onto the portal plane
+   as a rectangle with the same edge directions, so clipping it to the
+   portal is an intersection of intervals in the portal's frame. */
+struct antishadow_box {
+    bool valid;
+    struct vec3 origin, u, w;      /* portal corner, unit edge directions */
+    double len_u, len_w;           /* the portal is [0, len_u] x [0, len_w] */
+    double lo_u, hi_u, lo_w, hi_w; /* the light's extent in the same frame */
+    double light_dist;             /* the light plane's distance from the portal plane (< 0) */
+    bool flip;                     /* the light winds clockwise about u x w */
+};
+
 /* Every plane is oriented so that its positive side (plane_distance > 0) is
    the side of the region it bounds; distances are in scene units (metres). */
 struct antishadow {
@@ -49,6 +63,7 @@ struct antishadow {
     struct plane antumbra[POLYGON_INPUT_MAX];
     struct polygon light, portal;   /* copies of the inputs, as given */
     struct clip_planes portal_clip; /* the portal's edge planes, for clipping */
+    struct antishadow_box box;      /* the anti-penumbra's clip as intervals, when box.valid */
 };
 
 /* Precomputes the planes of a light/portal pair (once, at scene load). Both

@@ -71,10 +71,10 @@ static struct vec3 ggx_sample_visible_normal(double alpha, struct vec3 wo, doubl
     fm_sincos(2.0 * M_PI * v, &sin_phi, &cos_phi);
     double p1 = r * cos_phi, p2 = r * sin_phi;
     double s = 0.5 * (1.0 + vh.z);
-    p2 = (1.0 - s) * sqrt(fmax(0.0, 1.0 - p1 * p1)) + s * p2;
+    p2 = (1.0 - s) * sqrt(fm_fmax(0.0, 1.0 - p1 * p1)) + s * p2;
     struct vec3 nh = vec3_add(vec3_add(vec3_scale(t1, p1), vec3_scale(t2, p2)),
-                              vec3_scale(vh, sqrt(fmax(0.0, 1.0 - p1 * p1 - p2 * p2))));
-    return vec3_normalize(vec3_make(alpha * nh.x, alpha * nh.y, fmax(1e-9, nh.z)));
+                              vec3_scale(vh, sqrt(fm_fmax(0.0, 1.0 - p1 * p1 - p2 * p2))));
+    return vec3_normalize(vec3_make(alpha * nh.x, alpha * nh.y, fm_fmax(1e-9, nh.z)));
 }
 
 bool bsdf_sample(const struct material *m, struct vec3 wo, double u, double v, struct bsdf_sample *out)

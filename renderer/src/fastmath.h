@@ -122,4 +122,18 @@ FM_INLINE double fm_atan2(double y, double x)
     return y < 0.0 ? -a : a;
 }
 
+/* fmin and fmax as glibc gives them (a NaN argument yields the other one;
+   of two equal values the second, which for +0 and -0 C leaves open), but
+   inline: without -ffinite-math-only GCC calls libm for fmin and fmax, and
+   polygon bounding boxes on the per-sample path made those calls 4-7% of a
+   portal strategy's profile. */
+FM_INLINE double fm_fmin(double a, double b)
+{
+    return (a < b || b != b) ? a : b;
+}
+FM_INLINE double fm_fmax(double a, double b)
+{
+    return (a > b || b != b) ? a : b;
+}
+
 #endif

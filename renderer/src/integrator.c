@@ -3,6 +3,7 @@
 #include <stdlib.h>
 
 #include "bsdf.h"
+#include "fastmath.h"
 #include "config.h"
 
 void integrator_init(struct integrator *it, const struct render_desc *rd, const struct scene *scene,
@@ -53,12 +54,16 @@ static struct rgb sample_direct(const struct integrator *it, const struct strate
     return direct_from_sample(it, v, ok, &ls, stats);
 }
 
-/* Emission found by a BSDF-sampled ray, weighted against the strategy. */
-static struct rgb bsdf_hit_light(const struct integrator *it, const struct strategy_point *sp, int light, struct vec3 d,
-                                 double bsdf_pdf_value)
+/* Emission found by a BSDF-sampled ray, weighted against the strategy.
+   With `reprepare` set, sp's scratch has since served other points (a row
+   prepares each point in turn): sp is prepared again in it, from the same
+   point and normal, so that the pdf is the one it would have been. */
+static struct rgb bsdf_hit_light(const struct integrator *it, struct strategy_point *sp,
+                                 struct strategy_scratch *reprepare, int light, struct vec3 d, double bsdf_pdf_value)
 {
     struct rgb le = light_emitted(&it->scene->lights[light], vec3_neg(d));
     if (it->mis == MIS_NONE || rgb_is_black(le)) return rgb_make(0.0, 0.0, 0.0);
+    if (reprepare) strategy_prepare(it->strategy, reprepare, sp->p, sp->n, sp);
     double pdf_light = strategy_pdf(it->strategy, sp, light, d);
     return rgb_scale(le, mis_weight(it->mis, bsdf_pdf_value, pdf_light));
 }
@@ -68,21 +73,21 @@ static int bsdf_trace(const struct integrator *it, const struct bsdf_query *q)
     return q->trace ? scene_first_light(it->scene, q->ray.o, q->ray.d, q->ray.tmax) : -1;
 }
 
-static struct rgb bsdf_resolve(const struct integrator *it, const struct strategy_point *sp, const struct bsdf_query *q,
-                               int light)
+static struct rgb bsdf_resolve(const struct integrator *it, struct strategy_point *sp,
+                               struct strategy_scratch *reprepare, const struct bsdf_query *q, int light)
 {
     if (light < 0) return rgb_make(0.0, 0.0, 0.0);
-    return rgb_mul(q->weight, bsdf_hit_light(it, sp, light, q->ray.d, q->pdf));
+    return rgb_mul(q->weight, bsdf_hit_light(it, sp, reprepare, light, q->ray.d, q->pdf));
 }
 
-static struct rgb bsdf_mis(const struct integrator *it, const struct strategy_point *sp, const struct vertex *v,
+static struct rgb bsdf_mis(const struct integrator *it, struct strategy_point *sp, const struct vertex *v,
                            struct sampler *smp, struct integrator_stats *stats)
 {
     double u[2];
     sampler_bsdf(smp, 0, u);
     struct bsdf_query q;
     bsdf_setup(it->scene, v, u, stats, &q);
-    return bsdf_resolve(it, sp, &q, bsdf_trace(it, &q));
+    return bsdf_resolve(it, sp, NULL, &q, bsdf_trace(it, &q));
 }
 
 struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
@@ -122,7 +127,7 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
             /* Lights emit and reflect nothing. Seen directly: full weight;
                reached by BSDF sampling: weighted against the strategy. */
             if (depth == 0) L = rgb_add(L, light_emitted(&sc->lights[h.light], vec3_neg(ray_d)));
-            else L = rgb_add(L, rgb_mul(beta, bsdf_hit_light(it, &sp, h.light, ray_d, bsdf_pdf_prev)));
+            else L = rgb_add(L, rgb_mul(beta, bsdf_hit_light(it, &sp, NULL, h.light, ray_d, bsdf_pdf_prev)));
             break;
         }
         if (depth >= it->max_depth) break;
@@ -148,7 +153,7 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         ray_o = scene_offset_origin(sc, v.p, v.n, ray_d);
 
         if (depth + 1 >= it->rr_depth) {
-            double q = fmax(0.05, 1.0 - rgb_max(beta));
+            double q = fm_fmax(0.05, 1.0 - rgb_max(beta));
             if (sampler_roulette(smp, depth) < q) break;
             beta = rgb_scale(beta, 1.0 / (1.0 - q));
         }
@@ -223,13 +228,17 @@ void integrator_row_destroy(struct integrator_row *row)
    chains of neighbouring pixels, which ray tracing calls in between would
    otherwise serialise. Each pixel draws its uniforms in the same order as
    integrator_direct_at and goes through the same functions, so the result
-   is the same, bit for bit. */
+   is the same, bit for bit.
+   The portal strategies keep a point's pair distribution in the one
+   scratch, so each point is sampled as soon as it is prepared; the rare
+   BSDF ray that reaches a light prepares its point again for the pdf
+   (bsdf_hit_light), which costs less than a scratch per point. */
 static void direct_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                        const struct vec3 *d, const struct hit *hits, const bool *found, int n, struct sampler *smp,
                        struct rgb *out, struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
-    bool mis = it->mis != MIS_NONE;
+    bool mis = it->mis != MIS_NONE, batches = strategy_batches(it->strategy);
     int lanes = 0;
     for (int x = 0; x < n; ++x) {
         out[x] = rgb_make(0.0, 0.0, 0.0);
@@ -246,16 +255,17 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
         sampler_light(&smp[x], 0, row->u[lanes]);
         if (mis) sampler_bsdf(&smp[x], 0, row->ub[lanes]);
+        if (!batches) row->ok[lanes] = strategy_sample(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes]);
         row->pixel[lanes++] = x;
     }
-    strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
+    if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
     shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, mis ? (const double(*)[2])row->ub : NULL, lanes, stats,
                        row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
     scene_occluded_stream(sc, &row->shadow_rays, lanes);
     if (mis) scene_first_light_stream(sc, &row->bsdf_rays, lanes, row->light);
     for (int k = 0; k < lanes; ++k) {
         struct rgb L = shadow_resolve(&row->shadow[k], ray_stream_blocked(&row->shadow_rays, k), stats);
-        if (mis) L = rgb_add(L, bsdf_resolve(it, &row->sp[k], &row->bsdf[k], row->light[k]));
+        if (mis) L = rgb_add(L, bsdf_resolve(it, &row->sp[k], batches ? NULL : scratch, &row->bsdf[k], row->light[k]));
         out[row->pixel[k]] = L;
     }
 }
@@ -264,7 +274,7 @@ void integrator_radiance_row(const struct integrator *it, struct integrator_row 
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
 {
-    if (it->kind == INTEGRATOR_DIRECT && strategy_batches(it->strategy)) {
+    if (it->kind == INTEGRATOR_DIRECT) {
         direct_row(it, row, scratch, d, hits, found, n, smp, out, stats);
         return;
     }

@@ -55,8 +55,9 @@ void integrator_row_destroy(struct integrator_row *row);
 /* integrator_radiance_from for the n camera rays o + t d[x] of one film row
    (n at most the size row was created for),
    their first hits already traced (found[x]: hit hits[x]); out[x] is the
-   same, bit for bit. Direct lighting with a strategy_batches strategy draws
-   the row's light samples together (strategy_sample_many). */
+   same, bit for bit. Direct lighting sets up and traces the row's shadow
+   and BSDF rays together, and with a strategy_batches strategy draws the
+   row's light samples together too (strategy_sample_many). */
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct sampler *smp, struct rgb *out, struct integrator_stats *stats);

@@ -47,6 +47,8 @@ struct vec3 polygon_area_normal(const struct polygon *poly);
 /* Unit normal by right-hand winding (zero vector when degenerate). */
 struct vec3 polygon_normal(const struct polygon *poly);
 double polygon_area(const struct polygon *poly);
+/* polygon_normal and polygon_area from one Newell sum (the same bits). */
+void polygon_normal_area(const struct polygon *poly, struct vec3 *normal, double *area);
 struct vec3 polygon_centroid(const struct polygon *poly);
 /* Diagonal of the bounding box: the size that relative tolerances scale with. */
 double polygon_size(const struct polygon *poly);

@@ -429,7 +429,7 @@ struct vec3 sphtri_sample(const struct sphtri *t, double u, double v)
     }
     struct vec3 d = vec3_sub(cp, t->b);
     double one_minus_z = v * 0.5 * vec3_length2(d);
-    double sin_theta = sqrt(fmax(0.0, one_minus_z * (2.0 - one_minus_z)));
+    double sin_theta = sqrt(fm_fmax(0.0, one_minus_z * (2.0 - one_minus_z)));
     struct vec3 tangent = vec3_normalize(sph_tangent(t->b, cp));
     struct vec3 w = vec3_add(vec3_scale(t->b, 1.0 - one_minus_z), vec3_scale(tangent, sin_theta));
     return vec3_normalize(w);
@@ -443,7 +443,7 @@ bool sphpoly_init(struct sphpoly *sp, const struct polygon *poly, struct vec3 o)
     struct plane pl = polygon_plane(poly);
     if (vec3_length2(pl.normal) == 0.0) return false;
     double size = 0.0;
-    for (int i = 1; i < poly->n; ++i) size = fmax(size, vec3_length(vec3_sub(poly->v[i], poly->v[0])));
+    for (int i = 1; i < poly->n; ++i) size = fm_fmax(size, vec3_length(vec3_sub(poly->v[i], poly->v[0])));
     if (!(fabs(plane_distance(&pl, o)) > SPHERICAL_PLANE_REL * size)) return false;
 
     struct vec3 w[POLYGON_MAX];

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "config.h"
+#include "fastmath.h"
 
 /* The antishadow strategies classify; `portal` and `projection` are the
    plain techniques of the paper and must not benefit from classification. */
@@ -400,7 +401,7 @@ static double light_weight(const struct light *l, enum portal_weight_kind heuris
         return l->power;
     case PORTAL_WEIGHT_DISTANCE: {
         struct vec3 c = polygon_centroid(&l->target.polygon);
-        return l->power / fmax(vec3_length2(vec3_sub(c, p)), 1e-12);
+        return l->power / fm_fmax(vec3_length2(vec3_sub(c, p)), 1e-12);
     }
     case PORTAL_WEIGHT_IRRADIANCE:
         return rgb_luminance(l->radiance) * irradiance_factor(&l->target.polygon, p, n);
@@ -418,7 +419,7 @@ static double emitter_weight(const struct strategy *s, int emitter, enum portal_
 {
     const struct emitter *e = &s->scene->emitters[emitter];
     if (e->n_lights == 1) return light_weight(&s->scene->lights[e->first_light], heuristic, p, n);
-    double d2 = fmax(vec3_length2(vec3_sub(s->centre[emitter], p)), 1e-12);
+    double d2 = fm_fmax(vec3_length2(vec3_sub(s->centre[emitter], p)), 1e-12);
     switch (heuristic) {
     case PORTAL_WEIGHT_AREA:
         return e->power;
@@ -451,7 +452,7 @@ static enum region mesh_pair_bound(const struct strategy *s, const struct strate
         if (vec3_dot(nrm, vec3_sub(pt->centroid, p)) < 0.0) nrm = vec3_neg(nrm);
         double d = vec3_dot(nrm, vec3_sub(c, p));
         if (d <= -r) return REGION_OUTSIDE;
-        nearest = fmin(nearest, d);
+        nearest = fm_fmin(nearest, d);
     }
     return nearest >= r ? REGION_ANTI_UMBRA : REGION_ANTI_PENUMBRA;
 }
@@ -483,9 +484,9 @@ static double mesh_portal_irradiance(const struct strategy *s, const struct stra
 {
     const struct portal *pt = &s->scene->portals[pair->portal];
     struct vec3 d = vec3_sub(pt->centroid, p);
-    double d2 = fmax(vec3_length2(d), 1e-12);
+    double d2 = fm_fmax(vec3_length2(d), 1e-12);
     double sa = pt->target.area * fabs(vec3_dot(d, pt->target.normal)) / (d2 * sqrt(d2));
-    return rgb_luminance(s->scene->lights[pair->light].radiance) * fmin(sa, 2.0 * M_PI);
+    return rgb_luminance(s->scene->lights[pair->light].radiance) * fm_fmin(sa, 2.0 * M_PI);
 }
 
 /* Weight of pair i at the point under the strategy's heuristic; sets the
@@ -537,7 +538,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
         double sum = 0.0, mine = 0.0;
         for (int k = 0; k < l->n_portals; ++k) {
             const struct portal *q = &sc->portals[l->first_portal + k];
-            double w = q->target.area / fmax(vec3_length2(vec3_sub(q->centroid, p)), 1e-12);
+            double w = q->target.area / fm_fmax(vec3_length2(vec3_sub(q->centroid, p)), 1e-12);
             sum += w;
             if (l->first_portal + k == pair->portal) mine = w;
         }

@@ -1,5 +1,6 @@
 #include "target.h"
 
+#include "fastmath.h"
 #include "spherical.h"
 
 /* Below this solid angle (sr), or this height above the plane relative to
@@ -14,7 +15,7 @@
 static void simplify(const struct polygon *in, struct polygon *out)
 {
     double scale = 0.0;
-    for (int i = 0; i < in->n; ++i) scale = fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
+    for (int i = 0; i < in->n; ++i) scale = fm_fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
     double tol2 = 1e-20 * scale * scale + 1e-300;
     polygon_copy(out, in);
     int n = out->n;
@@ -40,8 +41,7 @@ bool target_init(struct target *t, const struct polygon *poly)
 {
     simplify(poly, &t->polygon);
     if (t->polygon.n < 3) return false;
-    t->normal = polygon_normal(&t->polygon);
-    t->area = polygon_area(&t->polygon);
+    polygon_normal_area(&t->polygon, &t->normal, &t->area);
     if (!(t->area > 0.0)) return false;
     t->min_height = TARGET_MIN_REL_HEIGHT * sqrt(t->area);
     t->is_rectangle = false;
