@@ -365,3 +365,22 @@ def test_11_the_worker_checks_the_roots_again_when_the_sweep_starts(
     with pytest.raises(HarnessError, match="outside the --root folders"):
         worker.run(experiment_id, results, str(fake_renderer), None, None, False, (root.resolve(),))
     assert not (results / "runs").exists()
+
+
+def test_12_a_sweep_runs_on_the_dask_scheduler_given(
+    make_client: Callable[..., TestClient], render_log: Callable[[], list[str]]
+) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None, silence_logs=40
+    ) as cluster:
+        client = make_client(scheduler=cluster.scheduler_address, figures=False)
+        experiment_id = submit(client, experiment_text(sweep={"params.s_L": [0.6]}, strategies=["light", "portal"]))
+        view = wait_for(client, experiment_id, {"done", "failed"}, timeout_s=120)
+        # The worker's log says where the renders went: the scheduler, not the local pool.
+        log = client.get(f"/api/experiments/{experiment_id}/log").text
+    assert view["status"] == "done", view["error"]
+    runs = [r for r in view["runs"] if r["role"] == "run"]
+    assert len(runs) == 2 and {r["status"] for r in runs} == {"done"} and all(r["progress"] == 1.0 for r in runs)
+    assert cluster.scheduler_address in log, log
+    assert len(render_log()) >= 2

@@ -97,6 +97,7 @@ def run(
         scheduler=scheduler,
         progress=False,
     )
+    print(f"renders on {'the Dask scheduler ' + scheduler if scheduler else 'the local pool'}", flush=True)
     status = sweep(experiment, options, out=sys.stdout)
     sys.stdout.flush()
     problems = _figures(layout, experiment) if figures else []
