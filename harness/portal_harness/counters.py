@@ -18,13 +18,13 @@ from the `start` event) says how many samples were drawn per camera sample.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from portal_harness.paths import RunLayout
+from portal_harness.renderer import parse_events
 
 COUNTER_FIELDS = ("light_samples", "light_missed", "shadow_rays", "shadow_blocked")
 
@@ -62,15 +62,7 @@ def _events(run_dir: Path) -> list[dict[str, Any]]:
         lines = RunLayout(run_dir).events.read_text().splitlines()
     except OSError:
         return []
-    out = []
-    for line in lines:
-        try:
-            event = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(event, dict):
-            out.append(event)
-    return out
+    return parse_events(lines)
 
 
 def _count(value: Any) -> int | None:

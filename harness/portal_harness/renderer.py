@@ -9,7 +9,7 @@ import signal
 import subprocess
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -24,6 +24,21 @@ EXIT_OK = 0
 EXIT_RUNTIME = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 3
+
+
+def parse_events(lines: Iterable[str | bytes]) -> list[dict[str, Any]]:
+    """The events of a stored JSON-lines stream (a run's events.jsonl): each
+    line that is a JSON object; anything else (a line cut by a tail read or
+    by a killed render) is skipped."""
+    out: list[dict[str, Any]] = []
+    for line in lines:
+        try:
+            event = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(event, dict):
+            out.append(event)
+    return out
 
 
 @lru_cache(maxsize=16)

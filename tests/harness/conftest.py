@@ -82,11 +82,9 @@ def results(tmp_path: Path) -> Path:
     return tmp_path / "results"
 
 
-@pytest.fixture
-def fake_scene(tmp_path: Path) -> Path:
-    """The lampshade at 16x16, self-contained: a scene the real renderer
-    accepts (the fake asks it for the effective config)."""
-    tree = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
+def tiny_scene_tree() -> dict[str, Any]:
+    """The lampshade at 16x16 with light sampling: the scene of the small sweeps."""
+    tree: dict[str, Any] = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
     tree["film"] = {"width": 16, "height": 16}
     tree["render"] = {
         "integrator": "direct",
@@ -97,6 +95,14 @@ def fake_scene(tmp_path: Path) -> Path:
         "snapshots": {"every": 0.5},
         "output": "unused",
     }
+    return tree
+
+
+@pytest.fixture
+def fake_scene(tmp_path: Path) -> Path:
+    """The lampshade at 16x16, self-contained: a scene the real renderer
+    accepts (the fake asks it for the effective config)."""
+    tree = tiny_scene_tree()
     path = tmp_path / "scenes" / "tiny.yaml"
     path.parent.mkdir(parents=True)
     path.write_text(yaml.safe_dump(tree, sort_keys=False))

@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 import yaml
+from conftest import tiny_scene_tree
 
 REPO = Path(__file__).resolve().parent.parent.parent
 
@@ -22,17 +23,7 @@ class Swept:
 
 
 def write_experiment(folder: Path, name: str = "tiny", replicates: int = 2) -> Path:
-    tree = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
-    tree["film"] = {"width": 16, "height": 16}
-    tree["render"] = {
-        "integrator": "direct",
-        "strategy": "light",
-        "spp": 16,
-        "seed": 1,
-        "threads": 1,
-        "snapshots": {"every": 0.5},
-        "output": "unused",
-    }
+    tree = tiny_scene_tree()
     (folder / "scenes").mkdir(parents=True, exist_ok=True)
     (folder / "scenes" / "tiny.yaml").write_text(yaml.safe_dump(tree, sort_keys=False))
     doc: dict[str, Any] = {

@@ -277,16 +277,21 @@ def create_app(settings: ServiceSettings) -> FastAPI:
 
     # --- images ------------------------------------------------------------------------------------------------
 
-    @app.get("/api/runs/{key}/image.png", tags=["results"])
-    def run_png(key: str, image: str | None = None) -> Response:
-        """The run's final image (or its snapshot `image`, a file name of the run's folder such as the
-        viewer's bundle names), tone-mapped with the exposure of its reference (its own if it has none)."""
+    def run_image(key: str, image: str | None) -> Path:
+        """A finished run's final image, or its snapshot named `image`; 404 otherwise."""
         run = images.find_run(settings.layout, key)
         if run is None:
             raise ApiError(404, f"no finished image of run {key!r}")
         path = images.image_of(run, image)
         if path is None:
             raise ApiError(404, f"run {key!r} has no image {image!r}")
+        return path
+
+    @app.get("/api/runs/{key}/image.png", tags=["results"])
+    def run_png(key: str, image: str | None = None) -> Response:
+        """The run's final image (or its snapshot `image`, a file name of the run's folder such as the
+        viewer's bundle names), tone-mapped with the exposure of its reference (its own if it has none)."""
+        path = run_image(key, image)
         ref_key = queue.reference_of(key)
         ref = images.find_run(settings.layout, ref_key) if ref_key else None
         data = pngs.png(path, ref.final if ref is not None else None)
@@ -295,12 +300,7 @@ def create_app(settings: ServiceSettings) -> FastAPI:
     @app.get("/api/runs/{key}/image.exr", tags=["results"])
     def run_exr(key: str, image: str | None = None) -> FileResponse:
         """The run's final EXR (linear radiance and the variance of the mean), or its snapshot `image`."""
-        run = images.find_run(settings.layout, key)
-        if run is None:
-            raise ApiError(404, f"no finished image of run {key!r}")
-        path = images.image_of(run, image)
-        if path is None:
-            raise ApiError(404, f"run {key!r} has no image {image!r}")
+        path = run_image(key, image)
         name = f"{key}.exr" if image is None else f"{key}_{image}"
         return FileResponse(path, media_type="image/x-exr", filename=name)
 

@@ -10,7 +10,6 @@ or following events cost one look at the store per experiment.
 
 from __future__ import annotations
 
-import json
 import os
 import threading
 import time
@@ -20,6 +19,7 @@ from typing import Any
 from portal_harness import store
 from portal_harness.index import ROLE_RUN
 from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.renderer import parse_events
 from portal_harness.service import queue as q
 
 TAIL_BYTES = 8192
@@ -44,15 +44,7 @@ def tail_events(path: Path) -> list[dict[str, Any]]:
         lines = lines[1:]  # the first line may be cut
     if not data.endswith(b"\n"):
         lines = lines[:-1]
-    out = []
-    for line in lines:
-        try:
-            event = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(event, dict):
-            out.append(event)
-    return out
+    return parse_events(lines)
 
 
 def progress_of(events: list[dict[str, Any]], spp_target: int = 0, time_target_s: float = 0.0) -> dict[str, Any]:
