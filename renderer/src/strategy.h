@@ -75,6 +75,11 @@ struct strategy_scratch {
     unsigned char *region;    /* enum region per pair (candidates only) */
     unsigned char *vis_state; /* VIS_UNKNOWN, VIS_EMPTY or VIS_READY */
     struct target *vis;       /* the clipped projection, when VIS_READY */
+    /* strategy_prepare_pairs' weights left to finish together: the polygon,
+       the candidate's position, the projected solid angle. */
+    const struct polygon **defer_poly;
+    int *defer_cand;
+    double *defer_value;
 };
 bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err);
 void strategy_scratch_free(struct strategy_scratch *scratch);
