@@ -800,9 +800,11 @@ static double pair_probability(const struct strategy_point *pt, int i)
    share plus every pair of that light's emitter that could have produced
    wi (for a mesh light, through its member for that light, picked with the
    light's share of the emitter's power). The density of pair `known` (if
-   >= 0) is already known to be known_pdf (the member's pick included). */
+   >= 0) is already known to be known_pdf (the member's pick included),
+   and its probability at the point to be known_sel when that is >= 0 (a
+   waiting sample's, whose scratch has served other points since). */
 static double mixture_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi,
-                          int known, double known_pdf)
+                          int known, double known_pdf, double known_sel)
 {
     const struct scene *sc = s->scene;
     const struct light *l = &sc->lights[light];
@@ -812,7 +814,7 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
     if (pt->total > 0.0) {
         double mix = 0.0, pick = e->n_lights > 1 ? s->members[l->emitter].prob[light - e->first_light] : 1.0;
         for (int i = s->first_pair[l->emitter]; i < s->first_pair[l->emitter + 1]; ++i) {
-            double sel = pair_probability(pt, i);
+            double sel = i == known && known_sel >= 0.0 ? known_sel : pair_probability(pt, i);
             if (sel <= 0.0) continue;
             if (i == known) {
                 mix += sel * known_pdf;
@@ -842,7 +844,7 @@ double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, i
         return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
                                                      : target_pdf_solid_angle(&l->target, pt->p, wi));
     }
-    return mixture_pdf(s, pt, light, wi, -1, 0.0);
+    return mixture_pdf(s, pt, light, wi, -1, 0.0, -1.0);
 }
 
 /* First index whose cdf exceeds x (cdf non-decreasing, x < cdf[n-1]). */
@@ -860,9 +862,11 @@ static int cdf_find(const double *cdf, int n, double x)
 /* The light sample from a technique's target point: the light it reaches
    and its density under the whole strategy. `pick` is the probability with
    which the pair's light was picked within its emitter (1 but for a mesh
-   light's member). */
+   light's member); known_sel the pair's probability when known (mixture_pdf),
+   else -1. */
 static void finish_sample(const struct strategy *s, const struct strategy_point *pt, const struct strategy_pair *pair,
-                          int index, const struct target_point *tp, double pick, struct light_sample *out)
+                          int index, const struct target_point *tp, double pick, double known_sel,
+                          struct light_sample *out)
 {
     const struct scene *sc = s->scene;
     out->wi = tp->wi;
@@ -894,12 +898,28 @@ static void finish_sample(const struct strategy *s, const struct strategy_point 
     /* Light-only strategies know their density already; mixtures must add
        every other way of producing the same direction. */
     if (!strategy_kind_uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp->pdf_sa;
-    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, pick * tp->pdf_sa);
-    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0);
+    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, pick * tp->pdf_sa, known_sel);
+    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0, -1.0);
 }
 
-bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
-                     struct light_sample *out)
+/* The target a portal strategy's sample may leave waiting
+   (strategy_sample_begin), or NULL: a rectangle sampled by solid angle
+   that outlives the point's scratch (the light's own or the portal's, not
+   a visible part), of a pair that is its emitter's only one, so that the
+   sample's density needs no other pair's. */
+static const struct target *waiting_target(const struct strategy *s, const struct strategy_pair *pair, int index,
+                                           enum technique t, const struct target *member_vis)
+{
+    if (index < 0 || member_vis || s->first_pair[pair->emitter + 1] - s->first_pair[pair->emitter] != 1) return NULL;
+    const struct target *target = NULL;
+    if (t == TECHNIQUE_LIGHT_SOLID) target = &s->scene->lights[pair->light].target;
+    else if (t == TECHNIQUE_PORTAL_SOLID) target = &s->scene->portals[pair->portal].target;
+    return target && target->is_rectangle ? target : NULL;
+}
+
+/* strategy_sample, or with pend set, strategy_sample_begin. */
+static bool sample_at(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                      struct light_sample *out, struct strategy_pending *pend)
 {
     double u0 = u[0], pick = 1.0;
     struct strategy_pair light_only, member;
@@ -909,6 +929,7 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     struct target member_vis;
     struct target *vis = NULL;
     int index = -1;
+    if (pend) pend->waiting = false;
 
     if (strategy_kind_uses_portals(s->kind) && u0 >= s->defensive) {
         /* Rescale u0 to [0,1) and pick a pair by the point's weights. */
@@ -941,10 +962,31 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
         t = s->kind == STRATEGY_LIGHT_AREA ? TECHNIQUE_LIGHT_AREA : TECHNIQUE_LIGHT_SOLID;
     }
 
+    if (pend) {
+        pend->target = waiting_target(s, pair, index, t, vis);
+        pend->waiting = pend->target != NULL;
+        if (pend->waiting) {
+            pend->index = index;
+            pend->sel = pair_probability(pt, index);
+            return false;
+        }
+    }
     struct target_point tp;
     if (!technique_sample(s, pt, pair, index, t, region, vis, u + 1, &tp)) return false;
-    finish_sample(s, pt, pair, index, &tp, pick, out);
+    finish_sample(s, pt, pair, index, &tp, pick, -1.0, out);
     return true;
+}
+
+bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                     struct light_sample *out)
+{
+    return sample_at(s, pt, u, out, NULL);
+}
+
+bool strategy_sample_begin(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                           struct light_sample *out, struct strategy_pending *pend)
+{
+    return sample_at(s, pt, u, out, pend);
 }
 
 /* Points per batch (stack arrays, no allocation). */
@@ -974,6 +1016,36 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
         }
         target_sample_solid_angle_many(t, p, (const double(*)[3])uu, m, tp, ok + b);
         for (int k = 0; k < m; ++k)
-            if (ok[b + k]) finish_sample(s, &pts[b + k], &pairs[k], -1, &tp[k], 1.0, &out[b + k]);
+            if (ok[b + k]) finish_sample(s, &pts[b + k], &pairs[k], -1, &tp[k], 1.0, -1.0, &out[b + k]);
+    }
+}
+
+void strategy_sample_finish_many(const struct strategy *s, const struct strategy_point *pts, const double (*u)[4],
+                                 const struct strategy_pending *pend, int n, struct light_sample *out, bool *ok)
+{
+    for (int b = 0; b < n; b += STRATEGY_MANY_CHUNK) {
+        int end = n - b < STRATEGY_MANY_CHUNK ? n : b + STRATEGY_MANY_CHUNK, m = 0;
+        const struct target *t[STRATEGY_MANY_CHUNK];
+        struct vec3 p[STRATEGY_MANY_CHUNK];
+        double uu[STRATEGY_MANY_CHUNK][3];
+        int lane[STRATEGY_MANY_CHUNK];
+        struct target_point tp[STRATEGY_MANY_CHUNK];
+        bool got[STRATEGY_MANY_CHUNK];
+        for (int i = b; i < end; ++i) {
+            if (!pend[i].waiting) continue;
+            /* strategy_sample's technique_sample: the same target, point
+               and uniforms. */
+            t[m] = pend[i].target;
+            p[m] = pts[i].p;
+            for (int j = 0; j < 3; ++j) uu[m][j] = u[i][j + 1];
+            lane[m++] = i;
+        }
+        target_sample_solid_angle_many(t, p, (const double(*)[3])uu, m, tp, got);
+        for (int k = 0; k < m; ++k) {
+            int i = lane[k];
+            ok[i] = got[k];
+            if (got[k])
+                finish_sample(s, &pts[i], &s->pairs[pend[i].index], pend[i].index, &tp[k], 1.0, pend[i].sel, &out[i]);
+        }
     }
 }
