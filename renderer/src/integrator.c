@@ -168,6 +168,7 @@ struct integrator_row {
     double (*u)[4];  /* light sample uniforms */
     double (*ub)[2]; /* BSDF sample uniforms */
     struct light_sample *ls;
+    struct strategy_pending *pend;
     bool *ok;
     struct shadow_query *shadow;
     struct bsdf_query *bsdf;
@@ -189,13 +190,15 @@ struct integrator_row *integrator_row_create(int n, struct error *err)
     row->u = malloc(m * sizeof *row->u);
     row->ub = malloc(m * sizeof *row->ub);
     row->ls = malloc(m * sizeof *row->ls);
+    row->pend = malloc(m * sizeof *row->pend);
     row->ok = malloc(m * sizeof *row->ok);
     row->shadow = malloc(m * sizeof *row->shadow);
     row->bsdf = malloc(m * sizeof *row->bsdf);
     row->light = malloc(m * sizeof *row->light);
     row->pixel = malloc(m * sizeof *row->pixel);
-    if (row->v && row->sp && row->u && row->ub && row->ls && row->ok && row->shadow && row->bsdf && row->light &&
-        row->pixel && ray_stream_init(&row->shadow_rays, (int)m, err) && ray_stream_init(&row->bsdf_rays, (int)m, err))
+    if (row->v && row->sp && row->u && row->ub && row->ls && row->pend && row->ok && row->shadow && row->bsdf &&
+        row->light && row->pixel && ray_stream_init(&row->shadow_rays, (int)m, err) &&
+        ray_stream_init(&row->bsdf_rays, (int)m, err))
         return row;
     integrator_row_destroy(row);
     error_set(err, "out of memory for a row of %d shading points", n);
@@ -210,6 +213,7 @@ void integrator_row_destroy(struct integrator_row *row)
     free(row->u);
     free(row->ub);
     free(row->ls);
+    free(row->pend);
     free(row->ok);
     free(row->shadow);
     free(row->bsdf);
@@ -230,9 +234,11 @@ void integrator_row_destroy(struct integrator_row *row)
    integrator_direct_at and goes through the same functions, so the result
    is the same, bit for bit.
    The portal strategies keep a point's pair distribution in the one
-   scratch, so each point is sampled as soon as it is prepared; the rare
-   BSDF ray that reaches a light prepares its point again for the pdf
-   (bsdf_hit_light), which costs less than a scratch per point. */
+   scratch, so each point is sampled as soon as it is prepared, but for
+   the samples of a whole light or portal rectangle, which wait and are
+   drawn together (strategy_sample_begin); the rare BSDF ray that reaches
+   a light prepares its point again for the pdf (bsdf_hit_light), which
+   costs less than a scratch per point. */
 static void direct_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                        const struct vec3 *d, const struct hit *hits, const bool *found, int n, struct sampler *smp,
                        struct rgb *out, struct integrator_stats *stats)
@@ -255,10 +261,15 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
         sampler_light(&smp[x], 0, row->u[lanes]);
         if (mis) sampler_bsdf(&smp[x], 0, row->ub[lanes]);
-        if (!batches) row->ok[lanes] = strategy_sample(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes]);
+        if (!batches)
+            row->ok[lanes] =
+                strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes], &row->pend[lanes]);
         row->pixel[lanes++] = x;
     }
     if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
+    else
+        strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
+                                    row->ok);
     shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, mis ? (const double(*)[2])row->ub : NULL, lanes, stats,
                        row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
     scene_occluded_stream(sc, &row->shadow_rays, lanes);

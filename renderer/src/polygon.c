@@ -460,3 +460,103 @@ double polygon_projected_solid_angle(const struct polygon *poly, struct vec3 o, 
     if (polygon_clip_plane(poly, &horizon, &above) == 0) return 0.0;
     return M_PI * fabs(vec3_dot(n, polygon_vector_irradiance(&above, o)));
 }
+
+/* Edges per vectorised pass of polygon_projected_solid_angle_many; a
+   polygon with more edges than this goes the one-polygon way. */
+#define IRRADIANCE_MANY_EDGES 64
+
+/* The edge angles of polygon_vector_irradiance for m edges (a_k, b_k) seen
+   from o, with the same arithmetic edge for edge: the plane normal c_k and
+   its weight w_k (0 for an edge through o). m is padded to whole vectors
+   by the caller. */
+FM_SIMD_CLONES static void edge_terms(const double *restrict xa, const double *restrict ya, const double *restrict za,
+                                      const double *restrict xb, const double *restrict yb, const double *restrict zb,
+                                      struct vec3 o, int m, double *restrict cx, double *restrict cy,
+                                      double *restrict cz, double *restrict w)
+{
+#pragma omp simd
+    for (int k = 0; k < m; ++k) {
+        double ax = xa[k] - o.x, ay = ya[k] - o.y, az = za[k] - o.z;
+        double bx = xb[k] - o.x, by = yb[k] - o.y, bz = zb[k] - o.z;
+        double ex = xb[k] - xa[k], ey = yb[k] - ya[k], ez = zb[k] - za[k];
+        double px = ay * ez - az * ey, py = az * ex - ax * ez, pz = ax * ey - ay * ex;
+        double len = sqrt(px * px + py * py + pz * pz);
+        double theta = fm_atan2(len, ax * bx + ay * by + az * bz);
+        cx[k] = px;
+        cy[k] = py;
+        cz[k] = pz;
+        w[k] = len > 0.0 ? -theta / len : 0.0;
+    }
+}
+
+/* The edges gathered for one pass, and which polygon owns which run. */
+struct edge_batch {
+    int n_edges, n_polys;
+    int out_index[IRRADIANCE_MANY_EDGES]; /* per gathered polygon: its slot in out */
+    int first[IRRADIANCE_MANY_EDGES + 1]; /* per gathered polygon: its first edge */
+    double xa[IRRADIANCE_MANY_EDGES], ya[IRRADIANCE_MANY_EDGES], za[IRRADIANCE_MANY_EDGES];
+    double xb[IRRADIANCE_MANY_EDGES], yb[IRRADIANCE_MANY_EDGES], zb[IRRADIANCE_MANY_EDGES];
+};
+
+/* Runs the gathered edges and finishes each polygon as
+   polygon_projected_solid_angle does: the edge terms summed in edge order,
+   then pi |dot(n, Phi)|. */
+static void edge_batch_flush(struct edge_batch *eb, struct vec3 o, struct vec3 n, double *out)
+{
+    double cx[IRRADIANCE_MANY_EDGES], cy[IRRADIANCE_MANY_EDGES], cz[IRRADIANCE_MANY_EDGES], w[IRRADIANCE_MANY_EDGES];
+    /* Pad to whole vectors of 8 with empty edges (results unused), so that
+       no edge runs in a scalar remainder loop. */
+    int m = (eb->n_edges + 7) & ~7;
+    for (int k = eb->n_edges; k < m; ++k) {
+        eb->xa[k] = eb->ya[k] = eb->za[k] = 0.0;
+        eb->xb[k] = eb->yb[k] = eb->zb[k] = 0.0;
+    }
+    edge_terms(eb->xa, eb->ya, eb->za, eb->xb, eb->yb, eb->zb, o, m, cx, cy, cz, w);
+    eb->first[eb->n_polys] = eb->n_edges;
+    for (int i = 0; i < eb->n_polys; ++i) {
+        struct vec3 phi = vec3_make(0.0, 0.0, 0.0);
+        for (int k = eb->first[i]; k < eb->first[i + 1]; ++k)
+            if (w[k] != 0.0) phi = vec3_madd(phi, vec3_make(cx[k], cy[k], cz[k]), w[k]);
+        phi = vec3_scale(phi, 1.0 / (2.0 * M_PI));
+        out[eb->out_index[i]] = M_PI * fabs(vec3_dot(n, phi));
+    }
+    eb->n_edges = 0;
+    eb->n_polys = 0;
+}
+
+void polygon_projected_solid_angle_many(const struct polygon *const *polys, int count, struct vec3 o, struct vec3 n,
+                                        double *out)
+{
+    struct plane horizon;
+    horizon.normal = n;
+    horizon.offset = vec3_dot(n, o);
+    struct edge_batch eb;
+    eb.n_edges = 0;
+    eb.n_polys = 0;
+    for (int i = 0; i < count; ++i) {
+        struct polygon above;
+        int m = polygon_clip_plane(polys[i], &horizon, &above);
+        if (m == 0) {
+            out[i] = 0.0;
+            continue;
+        }
+        if (m > IRRADIANCE_MANY_EDGES - 8) {
+            out[i] = M_PI * fabs(vec3_dot(n, polygon_vector_irradiance(&above, o)));
+            continue;
+        }
+        /* Room for m edges and the padding to a whole vector of 8. */
+        if (eb.n_edges + m > IRRADIANCE_MANY_EDGES - 8) edge_batch_flush(&eb, o, n, out);
+        eb.out_index[eb.n_polys] = i;
+        eb.first[eb.n_polys++] = eb.n_edges;
+        for (int k = 0; k < m; ++k) {
+            struct vec3 a = above.v[k], b = above.v[k + 1 < m ? k + 1 : 0];
+            eb.xa[eb.n_edges] = a.x;
+            eb.ya[eb.n_edges] = a.y;
+            eb.za[eb.n_edges] = a.z;
+            eb.xb[eb.n_edges] = b.x;
+            eb.yb[eb.n_edges] = b.y;
+            eb.zb[eb.n_edges++] = b.z;
+        }
+    }
+    if (eb.n_polys > 0) edge_batch_flush(&eb, o, n, out);
+}

@@ -127,5 +127,12 @@ struct vec3 polygon_vector_irradiance(const struct polygon *poly, struct vec3 o)
    towards the polygon; clips the polygon to n's hemisphere first. Equals
    E / L for a uniform emitter. */
 double polygon_projected_solid_angle(const struct polygon *poly, struct vec3 o, struct vec3 n);
+/* polygon_projected_solid_angle of count polygons from the same o and n:
+   out[i] is what it gives for polys[i], bit for bit. The edges of all the
+   polygons go through one vectorised loop, so that their angles' long
+   dependency chains overlap instead of running one short polygon at a
+   time. */
+void polygon_projected_solid_angle_many(const struct polygon *const *polys, int count, struct vec3 o, struct vec3 n,
+                                        double *out);
 
 #endif

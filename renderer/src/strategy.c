@@ -271,8 +271,11 @@ bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *sc
     scratch->region = malloc(n);
     scratch->vis_state = calloc(n, 1);
     scratch->vis = malloc(sizeof *scratch->vis * n);
+    scratch->defer_poly = malloc(sizeof *scratch->defer_poly * n);
+    scratch->defer_cand = malloc(sizeof *scratch->defer_cand * n);
+    scratch->defer_value = malloc(sizeof *scratch->defer_value * n);
     if (!scratch->cand || !scratch->cand_pos || !scratch->cdf || !scratch->region || !scratch->vis_state ||
-        !scratch->vis) {
+        !scratch->vis || !scratch->defer_poly || !scratch->defer_cand || !scratch->defer_value) {
         strategy_scratch_free(scratch);
         return error_set(err, "out of memory for strategy scratch");
     }
@@ -288,6 +291,12 @@ void strategy_scratch_free(struct strategy_scratch *scratch)
     free(scratch->region);
     free(scratch->vis_state);
     free(scratch->vis);
+    free(scratch->defer_poly);
+    free(scratch->defer_cand);
+    free(scratch->defer_value);
+    scratch->defer_poly = NULL;
+    scratch->defer_cand = NULL;
+    scratch->defer_value = NULL;
     scratch->cand = NULL;
     scratch->cand_pos = NULL;
     scratch->cdf = NULL;
@@ -360,12 +369,35 @@ static const struct target *member_visible(const struct strategy *s, const struc
     return n >= 3 && target_init(storage, &vis) ? storage : NULL;
 }
 
-/* Projected solid angle (cosine-weighted when n is set) of a polygon: the
-   unoccluded irradiance per unit radiance it delivers to p. */
-static double irradiance_factor(const struct polygon *poly, struct vec3 p, struct vec3 n)
+/* A pair's weight, or with poly set its `irradiance` form left to finish:
+   scale times the projected solid angle of poly from the point, so that a
+   point's candidates compute those together
+   (polygon_projected_solid_angle_many): their edge angles were a third of
+   antishadow_exact's time on multi_lamp, one short polygon at a time. */
+struct weight_term {
+    double value;
+    double scale;
+    const struct polygon *poly;
+};
+
+static struct weight_term weight_value(double value)
 {
-    if (vec3_length2(n) > 0.0) return polygon_projected_solid_angle(poly, p, n);
-    return polygon_solid_angle(poly, p);
+    return (struct weight_term){ value, 0.0, NULL };
+}
+
+/* lum times the projected solid angle (cosine-weighted when n is set) of a
+   polygon: the unoccluded irradiance it delivers to p for a radiance of
+   luminance lum. The cosine-weighted one is left to finish. */
+static struct weight_term irradiance_term(double lum, const struct polygon *poly, struct vec3 p, struct vec3 n)
+{
+    if (vec3_length2(n) > 0.0) return (struct weight_term){ 0.0, lum, poly };
+    return weight_value(lum * polygon_solid_angle(poly, p));
+}
+
+/* A weight term finished one at a time. */
+static double weight_finish(struct weight_term t, struct vec3 p, struct vec3 n)
+{
+    return t.poly ? t.scale * polygon_projected_solid_angle(t.poly, p, n) : t.value;
 }
 
 /* True when p is inside the emitter's shade: on the light's side of every
@@ -392,21 +424,27 @@ static bool above_horizon(const struct polygon *poly, struct vec3 p, struct vec3
 
 /* Weight of a light sampled by itself (no portal): facing test, then the
    heuristic on the light's own polygon. */
-static double light_weight(const struct light *l, enum portal_weight_kind heuristic, struct vec3 p, struct vec3 n)
+static struct weight_term light_weight_term(const struct light *l, enum portal_weight_kind heuristic, struct vec3 p,
+                                            struct vec3 n)
 {
     struct vec3 to_p = vec3_sub(p, l->target.polygon.v[0]);
-    if (!l->two_sided && vec3_dot(to_p, l->target.normal) <= 0.0) return 0.0;
+    if (!l->two_sided && vec3_dot(to_p, l->target.normal) <= 0.0) return weight_value(0.0);
     switch (heuristic) {
     case PORTAL_WEIGHT_AREA:
-        return l->power;
+        return weight_value(l->power);
     case PORTAL_WEIGHT_DISTANCE: {
         struct vec3 c = polygon_centroid(&l->target.polygon);
-        return l->power / fm_fmax(vec3_length2(vec3_sub(c, p)), 1e-12);
+        return weight_value(l->power / fm_fmax(vec3_length2(vec3_sub(c, p)), 1e-12));
     }
     case PORTAL_WEIGHT_IRRADIANCE:
-        return rgb_luminance(l->radiance) * irradiance_factor(&l->target.polygon, p, n);
+        return irradiance_term(rgb_luminance(l->radiance), &l->target.polygon, p, n);
     }
-    return 0.0;
+    return weight_value(0.0);
+}
+
+static double light_weight(const struct light *l, enum portal_weight_kind heuristic, struct vec3 p, struct vec3 n)
+{
+    return weight_finish(light_weight_term(l, heuristic, p, n), p, n);
 }
 
 /* light_weight for an emitter. A mesh light's is O(1) in its triangles: its
@@ -414,21 +452,27 @@ static double light_weight(const struct light *l, enum portal_weight_kind heuris
    `irradiance` power / (pi d^2), the irradiance of a small emitter facing p
    without the cosines (an estimate, not the exact sum over triangles,
    which would make every point's cost linear in the triangles). */
-static double emitter_weight(const struct strategy *s, int emitter, enum portal_weight_kind heuristic, struct vec3 p,
-                             struct vec3 n)
+static struct weight_term emitter_weight_term(const struct strategy *s, int emitter, enum portal_weight_kind heuristic,
+                                              struct vec3 p, struct vec3 n)
 {
     const struct emitter *e = &s->scene->emitters[emitter];
-    if (e->n_lights == 1) return light_weight(&s->scene->lights[e->first_light], heuristic, p, n);
+    if (e->n_lights == 1) return light_weight_term(&s->scene->lights[e->first_light], heuristic, p, n);
     double d2 = fm_fmax(vec3_length2(vec3_sub(s->centre[emitter], p)), 1e-12);
     switch (heuristic) {
     case PORTAL_WEIGHT_AREA:
-        return e->power;
+        return weight_value(e->power);
     case PORTAL_WEIGHT_DISTANCE:
-        return e->power / d2;
+        return weight_value(e->power / d2);
     case PORTAL_WEIGHT_IRRADIANCE:
-        return e->power / (M_PI * d2);
+        return weight_value(e->power / (M_PI * d2));
     }
-    return 0.0;
+    return weight_value(0.0);
+}
+
+static double emitter_weight(const struct strategy *s, int emitter, enum portal_weight_kind heuristic, struct vec3 p,
+                             struct vec3 n)
+{
+    return weight_finish(emitter_weight_term(s, emitter, heuristic, p, n), p, n);
 }
 
 /* What the bounding sphere of a mesh light tells of its pair at p (beyond
@@ -494,7 +538,7 @@ static double mesh_portal_irradiance(const struct strategy *s, const struct stra
    bounding sphere (mesh_pair_bound): no weight where no triangle can be
    seen through the portal, and where the sphere cannot tell, its
    triangles are classified one by one when a sample or a pdf picks one. */
-static double pair_weight(const struct strategy *s, const struct strategy_point *ptp, int i)
+static struct weight_term pair_weight(const struct strategy *s, const struct strategy_point *ptp, int i)
 {
     const struct scene *sc = s->scene;
     const struct strategy_pair *pair = &s->pairs[i];
@@ -508,7 +552,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
     enum portal_weight_kind heuristic = classify ? s->weight : PORTAL_WEIGHT_AREA;
     *region = REGION_ANTI_PENUMBRA;
 
-    if (pair->portal < 0) return emitter_weight(s, pair->emitter, heuristic, p, n);
+    if (pair->portal < 0) return emitter_weight_term(s, pair->emitter, heuristic, p, n);
 
     const struct portal *pt = &sc->portals[pair->portal];
     if (classify) {
@@ -519,19 +563,20 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
                light is not tested: its triangles below the horizon only
                waste their samples.) */
             *region = REGION_INSIDE;
-            if (pair->portal != l->first_portal || (!mesh && !above_horizon(&l->target.polygon, p, n))) return 0.0;
-            return s->n_pairs == 1 ? 1.0 : emitter_weight(s, pair->emitter, heuristic, p, n);
+            if (pair->portal != l->first_portal || (!mesh && !above_horizon(&l->target.polygon, p, n)))
+                return weight_value(0.0);
+            return s->n_pairs == 1 ? weight_value(1.0) : emitter_weight_term(s, pair->emitter, heuristic, p, n);
         }
         *region = (unsigned char)(mesh ? mesh_pair_bound(s, pair, p) : antishadow_classify(&pt->antishadow, p));
-        if (*region == REGION_OUTSIDE) return 0.0;
+        if (*region == REGION_OUTSIDE) return weight_value(0.0);
         /* A lone pair needs no weight beyond "can light p". */
-        if (s->n_pairs == 1) return 1.0;
+        if (s->n_pairs == 1) return weight_value(1.0);
     }
     switch (heuristic) {
     case PORTAL_WEIGHT_AREA: {
         double sum = 0.0;
         for (int k = 0; k < l->n_portals; ++k) sum += sc->portals[l->first_portal + k].target.area;
-        return e->power * pt->target.area / sum;
+        return weight_value(e->power * pt->target.area / sum);
     }
     case PORTAL_WEIGHT_DISTANCE: {
         /* Each portal's share of its light falls off as area / distance^2. */
@@ -542,7 +587,7 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
             sum += w;
             if (l->first_portal + k == pair->portal) mine = w;
         }
-        return sum > 0.0 ? e->power * mine / sum : 0.0;
+        return weight_value(sum > 0.0 ? e->power * mine / sum : 0.0);
     }
     case PORTAL_WEIGHT_IRRADIANCE: {
         /* A mesh light: as if the light filled the portal, and with the
@@ -552,12 +597,12 @@ static double pair_weight(const struct strategy *s, const struct strategy_point 
            32-gon cost more than the sample it weighs (measured on the Little
            Lamp at 16 spp: antishadow_exact 2.4-2.7x the CPU time of light,
            1.3-1.4x with this). */
-        if (mesh) return mesh_portal_irradiance(s, pair, p);
+        if (mesh) return weight_value(mesh_portal_irradiance(s, pair, p));
         const struct target *vis = visible_target(s, ptp, i);
-        return vis ? rgb_luminance(l->radiance) * irradiance_factor(&vis->polygon, p, n) : 0.0;
+        return vis ? irradiance_term(rgb_luminance(l->radiance), &vis->polygon, p, n) : weight_value(0.0);
     }
     }
-    return 0.0;
+    return weight_value(0.0);
 }
 
 /* strategy_pair_irradiance for one light/portal pair (a polygon light's
@@ -584,7 +629,7 @@ static double member_irradiance(const struct strategy *s, const struct strategy_
     if (r == REGION_OUTSIDE) return 0.0;
     struct polygon vis;
     if (antishadow_visible_polygon_in(a, p, r, &vis) < 3) return 0.0;
-    return rgb_luminance(l->radiance) * irradiance_factor(&vis, p, n);
+    return weight_finish(irradiance_term(rgb_luminance(l->radiance), &vis, p, n), p, n);
 }
 
 /* A mesh light's pair: its region (mesh_pair_region, or REGION_INSIDE) and
@@ -626,11 +671,28 @@ void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
         scratch->vis_state[scratch->cand[k]] = VIS_UNKNOWN;
     }
     scratch->n_cand = strategy_candidates(s, p, scratch->cand);
-    double acc = 0.0;
+    /* cdf holds each candidate's weight first, or the scale of a weight
+       left to finish; those finish together. */
+    int n_defer = 0;
     for (int k = 0; k < scratch->n_cand; ++k) {
         int i = scratch->cand[k];
         scratch->cand_pos[i] = k;
-        double w = pair_weight(s, pt, i);
+        struct weight_term t = pair_weight(s, pt, i);
+        if (t.poly) {
+            scratch->defer_poly[n_defer] = t.poly;
+            scratch->defer_cand[n_defer++] = k;
+            scratch->cdf[k] = t.scale;
+        } else {
+            scratch->cdf[k] = t.value;
+        }
+    }
+    if (n_defer > 0) {
+        polygon_projected_solid_angle_many(scratch->defer_poly, n_defer, p, pt->n, scratch->defer_value);
+        for (int j = 0; j < n_defer; ++j) scratch->cdf[scratch->defer_cand[j]] *= scratch->defer_value[j];
+    }
+    double acc = 0.0;
+    for (int k = 0; k < scratch->n_cand; ++k) {
+        double w = scratch->cdf[k];
         if (!(w > 0.0) || !isfinite(w)) w = 0.0;
         acc += w;
         scratch->cdf[k] = acc;
@@ -738,9 +800,11 @@ static double pair_probability(const struct strategy_point *pt, int i)
    share plus every pair of that light's emitter that could have produced
    wi (for a mesh light, through its member for that light, picked with the
    light's share of the emitter's power). The density of pair `known` (if
-   >= 0) is already known to be known_pdf (the member's pick included). */
+   >= 0) is already known to be known_pdf (the member's pick included),
+   and its probability at the point to be known_sel when that is >= 0 (a
+   waiting sample's, whose scratch has served other points since). */
 static double mixture_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi,
-                          int known, double known_pdf)
+                          int known, double known_pdf, double known_sel)
 {
     const struct scene *sc = s->scene;
     const struct light *l = &sc->lights[light];
@@ -750,7 +814,7 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
     if (pt->total > 0.0) {
         double mix = 0.0, pick = e->n_lights > 1 ? s->members[l->emitter].prob[light - e->first_light] : 1.0;
         for (int i = s->first_pair[l->emitter]; i < s->first_pair[l->emitter + 1]; ++i) {
-            double sel = pair_probability(pt, i);
+            double sel = i == known && known_sel >= 0.0 ? known_sel : pair_probability(pt, i);
             if (sel <= 0.0) continue;
             if (i == known) {
                 mix += sel * known_pdf;
@@ -780,7 +844,7 @@ double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, i
         return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
                                                      : target_pdf_solid_angle(&l->target, pt->p, wi));
     }
-    return mixture_pdf(s, pt, light, wi, -1, 0.0);
+    return mixture_pdf(s, pt, light, wi, -1, 0.0, -1.0);
 }
 
 /* First index whose cdf exceeds x (cdf non-decreasing, x < cdf[n-1]). */
@@ -798,9 +862,11 @@ static int cdf_find(const double *cdf, int n, double x)
 /* The light sample from a technique's target point: the light it reaches
    and its density under the whole strategy. `pick` is the probability with
    which the pair's light was picked within its emitter (1 but for a mesh
-   light's member). */
+   light's member); known_sel the pair's probability when known (mixture_pdf),
+   else -1. */
 static void finish_sample(const struct strategy *s, const struct strategy_point *pt, const struct strategy_pair *pair,
-                          int index, const struct target_point *tp, double pick, struct light_sample *out)
+                          int index, const struct target_point *tp, double pick, double known_sel,
+                          struct light_sample *out)
 {
     const struct scene *sc = s->scene;
     out->wi = tp->wi;
@@ -832,12 +898,28 @@ static void finish_sample(const struct strategy *s, const struct strategy_point 
     /* Light-only strategies know their density already; mixtures must add
        every other way of producing the same direction. */
     if (!strategy_kind_uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp->pdf_sa;
-    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, pick * tp->pdf_sa);
-    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0);
+    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, pick * tp->pdf_sa, known_sel);
+    else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0, -1.0);
 }
 
-bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
-                     struct light_sample *out)
+/* The target a portal strategy's sample may leave waiting
+   (strategy_sample_begin), or NULL: a rectangle sampled by solid angle
+   that outlives the point's scratch (the light's own or the portal's, not
+   a visible part), of a pair that is its emitter's only one, so that the
+   sample's density needs no other pair's. */
+static const struct target *waiting_target(const struct strategy *s, const struct strategy_pair *pair, int index,
+                                           enum technique t, const struct target *member_vis)
+{
+    if (index < 0 || member_vis || s->first_pair[pair->emitter + 1] - s->first_pair[pair->emitter] != 1) return NULL;
+    const struct target *target = NULL;
+    if (t == TECHNIQUE_LIGHT_SOLID) target = &s->scene->lights[pair->light].target;
+    else if (t == TECHNIQUE_PORTAL_SOLID) target = &s->scene->portals[pair->portal].target;
+    return target && target->is_rectangle ? target : NULL;
+}
+
+/* strategy_sample, or with pend set, strategy_sample_begin. */
+static bool sample_at(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                      struct light_sample *out, struct strategy_pending *pend)
 {
     double u0 = u[0], pick = 1.0;
     struct strategy_pair light_only, member;
@@ -847,6 +929,7 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
     struct target member_vis;
     struct target *vis = NULL;
     int index = -1;
+    if (pend) pend->waiting = false;
 
     if (strategy_kind_uses_portals(s->kind) && u0 >= s->defensive) {
         /* Rescale u0 to [0,1) and pick a pair by the point's weights. */
@@ -879,10 +962,31 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
         t = s->kind == STRATEGY_LIGHT_AREA ? TECHNIQUE_LIGHT_AREA : TECHNIQUE_LIGHT_SOLID;
     }
 
+    if (pend) {
+        pend->target = waiting_target(s, pair, index, t, vis);
+        pend->waiting = pend->target != NULL;
+        if (pend->waiting) {
+            pend->index = index;
+            pend->sel = pair_probability(pt, index);
+            return false;
+        }
+    }
     struct target_point tp;
     if (!technique_sample(s, pt, pair, index, t, region, vis, u + 1, &tp)) return false;
-    finish_sample(s, pt, pair, index, &tp, pick, out);
+    finish_sample(s, pt, pair, index, &tp, pick, -1.0, out);
     return true;
+}
+
+bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                     struct light_sample *out)
+{
+    return sample_at(s, pt, u, out, NULL);
+}
+
+bool strategy_sample_begin(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                           struct light_sample *out, struct strategy_pending *pend)
+{
+    return sample_at(s, pt, u, out, pend);
 }
 
 /* Points per batch (stack arrays, no allocation). */
@@ -912,6 +1016,36 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
         }
         target_sample_solid_angle_many(t, p, (const double(*)[3])uu, m, tp, ok + b);
         for (int k = 0; k < m; ++k)
-            if (ok[b + k]) finish_sample(s, &pts[b + k], &pairs[k], -1, &tp[k], 1.0, &out[b + k]);
+            if (ok[b + k]) finish_sample(s, &pts[b + k], &pairs[k], -1, &tp[k], 1.0, -1.0, &out[b + k]);
+    }
+}
+
+void strategy_sample_finish_many(const struct strategy *s, const struct strategy_point *pts, const double (*u)[4],
+                                 const struct strategy_pending *pend, int n, struct light_sample *out, bool *ok)
+{
+    for (int b = 0; b < n; b += STRATEGY_MANY_CHUNK) {
+        int end = n - b < STRATEGY_MANY_CHUNK ? n : b + STRATEGY_MANY_CHUNK, m = 0;
+        const struct target *t[STRATEGY_MANY_CHUNK];
+        struct vec3 p[STRATEGY_MANY_CHUNK];
+        double uu[STRATEGY_MANY_CHUNK][3];
+        int lane[STRATEGY_MANY_CHUNK];
+        struct target_point tp[STRATEGY_MANY_CHUNK];
+        bool got[STRATEGY_MANY_CHUNK];
+        for (int i = b; i < end; ++i) {
+            if (!pend[i].waiting) continue;
+            /* strategy_sample's technique_sample: the same target, point
+               and uniforms. */
+            t[m] = pend[i].target;
+            p[m] = pts[i].p;
+            for (int j = 0; j < 3; ++j) uu[m][j] = u[i][j + 1];
+            lane[m++] = i;
+        }
+        target_sample_solid_angle_many(t, p, (const double(*)[3])uu, m, tp, got);
+        for (int k = 0; k < m; ++k) {
+            int i = lane[k];
+            ok[i] = got[k];
+            if (got[k])
+                finish_sample(s, &pts[i], &s->pairs[pend[i].index], pend[i].index, &tp[k], 1.0, pend[i].sel, &out[i]);
+        }
     }
 }

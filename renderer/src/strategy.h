@@ -75,6 +75,11 @@ struct strategy_scratch {
     unsigned char *region;    /* enum region per pair (candidates only) */
     unsigned char *vis_state; /* VIS_UNKNOWN, VIS_EMPTY or VIS_READY */
     struct target *vis;       /* the clipped projection, when VIS_READY */
+    /* strategy_prepare_pairs' weights left to finish together: the polygon,
+       the candidate's position, the projected solid angle. */
+    const struct polygon **defer_poly;
+    int *defer_cand;
+    double *defer_value;
 };
 bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err);
 void strategy_scratch_free(struct strategy_scratch *scratch);
@@ -168,6 +173,26 @@ bool strategy_sample(const struct strategy *s, const struct strategy_point *pt, 
    points' scratch is not read). */
 void strategy_sample_many(const struct strategy *s, const struct strategy_point *pts, const double (*u)[4], int n,
                           struct light_sample *out, bool *ok);
+/* A portal strategy's sample left waiting by strategy_sample_begin. */
+struct strategy_pending {
+    bool waiting;
+    int index;                   /* the pair */
+    const struct target *target; /* a light's or a portal's own (outlives the scratch) */
+    double sel;                  /* the pair's probability at the point */
+};
+
+/* strategy_sample in two steps, so that a row's portal-strategy samples of
+   whole rectangles (the light's or the portal's, which do not live in the
+   scratch) are drawn together in vectorised batches. begin is called right
+   after strategy_prepare: it returns what strategy_sample would, or leaves
+   the sample waiting (pend->waiting, return false); then
+   strategy_sample_finish_many, once for the n points, sets ok[i] and out[i]
+   of the waiting ones to what strategy_sample would have given, bit for
+   bit. The points' scratch is not read by the finish. */
+bool strategy_sample_begin(const struct strategy *s, const struct strategy_point *pt, const double u[4],
+                           struct light_sample *out, struct strategy_pending *pend);
+void strategy_sample_finish_many(const struct strategy *s, const struct strategy_point *pts, const double (*u)[4],
+                                 const struct strategy_pending *pend, int n, struct light_sample *out, bool *ok);
 /* Density with which strategy_sample generates wi, given that wi reaches
    light `light` (the first light along wi). */
 double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi);

@@ -594,6 +594,39 @@ static void test_projected_solid_angle_numeric(void)
     }
 }
 
+/* polygon_projected_solid_angle_many gives polygon_projected_solid_angle's
+   bits for each polygon: polygons of 3 to POLYGON_MAX vertices (the large
+   ones beyond a batch), above, straddling and below the horizon, enough of
+   them that the edges fill several batches. */
+static void test_projected_solid_angle_many(void)
+{
+    enum { COUNT = 40 };
+    static struct polygon polys[COUNT];
+    const struct polygon *ptr[COUNT];
+    struct vec3 o = vec3_make(0.1, -0.2, 0.05), n = vec3_normalize(vec3_make(0.2, 0.1, 1.0));
+    for (int i = 0; i < COUNT; ++i) {
+        int sides = i % 9 == 8 ? POLYGON_MAX - i % 3 : 3 + i % 7;
+        struct polygon base = regular_ngon(sides, 0.3 + 0.05 * i, 0.1 * i);
+        /* Heights from below the horizon to above it. */
+        struct vec3 at = vec3_make(0.4 * cos(i), 0.4 * sin(i), -0.6 + 0.04 * i);
+        polys[i] = poly_transform(&base, at);
+        ptr[i] = &polys[i];
+    }
+    double out[COUNT];
+    int zero = 0, positive = 0;
+    for (int count = 1; count <= COUNT; count += 13) {
+        polygon_projected_solid_angle_many(ptr, count, o, n, out);
+        for (int i = 0; i < count; ++i) {
+            double one = polygon_projected_solid_angle(ptr[i], o, n);
+            CHECK_MSG(memcmp(&one, &out[i], sizeof one) == 0, "polygon %d of %d: %.17g vs %.17g", i, count, out[i],
+                      one);
+            zero += one == 0.0;
+            positive += one > 0.0;
+        }
+    }
+    CHECK(zero > 0 && positive > 0);
+}
+
 static const struct test_case polygon_tests[] = {
     { "area_normal_centroid", test_area_normal_centroid },
     { "planar_convex", test_planar_convex },
@@ -606,6 +639,7 @@ static const struct test_case polygon_tests[] = {
     { "solid_angle", test_solid_angle },
     { "vector_irradiance", test_vector_irradiance },
     { "projected_solid_angle_numeric", test_projected_solid_angle_numeric },
+    { "projected_solid_angle_many", test_projected_solid_angle_many },
 };
 
 TEST_MAIN(polygon_tests)
