@@ -657,6 +657,10 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         write_summary(experiment, layout, rows, info, failures, problems)
     finally:
         conn.close()
+        # Again at the end: a process of a killed earlier sweep (the pool's
+        # workers die with their parent, but not at once) may still have been
+        # alive when this sweep started, and its attempt folder kept.
+        store.clean_stale_attempts(layout)
     # Combined references are computed, not rendered: they have no command.
     rendered = sum(1 for m in manifests.values() if not m.get("cached") and m.get("command"))
     cached = sum(1 for m in manifests.values() if m.get("cached") and m.get("command"))
