@@ -3,6 +3,7 @@ before any render with the file and the key in the message."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,22 @@ def test_02_shipped_experiments_load(real_renderer: Path) -> None:
         assert exp.scene == (REPO / "configs" / "scenes" / "lampshade.yaml").resolve()
     ratio = load_experiment(REPO / "configs" / "experiments" / "lampshade_ratio.yaml", str(real_renderer))
     assert [p.axis_value for p in ratio.points()] == pytest.approx([0.25, 0.5, 1, 2, 4])
+
+
+def test_02b_every_shipped_experiment_and_its_full_version_load(real_renderer: Path) -> None:
+    # make figures runs FIGURE_EXPERIMENTS, FULL=1 their NAME_full.yaml: all must load, or a run of
+    # hours stops at its first file.
+    makefile = (REPO / "Makefile").read_text()
+    assignment = re.search(r"^FIGURE_EXPERIMENTS :=((?:.*\\\n)*.*)$", makefile, re.M)
+    assert assignment is not None
+    listed = assignment.group(1).replace("\\", " ").split()
+    assert "lampshade_ratio" in listed
+    folder = REPO / "configs" / "experiments"
+    for name in listed:
+        assert (folder / f"{name}_full.yaml").is_file(), f"{name} has no {name}_full.yaml for FULL=1"
+    for path in sorted(folder.glob("*.yaml")):
+        exp = load_experiment(path, str(real_renderer))
+        assert len(exp.points()) >= 1, path.name
 
 
 BAD: list[tuple[dict[str, Any], str, str]] = [
