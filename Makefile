@@ -205,7 +205,7 @@ FIGURE_EXPERIMENTS := lampshade_ratio lampshade_ratio_samplers lampshade_ratio_p
                       multi_lamp_weights
 figures: $(BUILD)/render $(VENV_STAMP)
 	@set -e; for e in $(FIGURE_EXPERIMENTS); do \
-	  f=configs/experiments/$$e$(if $(FULL),_full,).yaml; \
+	  f=configs/experiments/$${e}$(if $(FULL),_full,).yaml; \
 	  echo "figures: $$f" >&2; \
 	  $(VENV)/bin/portal-harness sweep $$f; \
 	  $(VENV)/bin/portal-harness figures $$f; \

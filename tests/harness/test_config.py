@@ -4,6 +4,7 @@ before any render with the file and the key in the message."""
 from __future__ import annotations
 
 import re
+import subprocess
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -52,13 +53,18 @@ def test_02_shipped_experiments_load(real_renderer: Path) -> None:
     assert [p.axis_value for p in ratio.points()] == pytest.approx([0.25, 0.5, 1, 2, 4])
 
 
-def test_02b_every_shipped_experiment_and_its_full_version_load(real_renderer: Path) -> None:
-    # make figures runs FIGURE_EXPERIMENTS, FULL=1 their NAME_full.yaml: all must load, or a run of
-    # hours stops at its first file.
+def figure_experiments() -> list[str]:
+    """The Makefile's FIGURE_EXPERIMENTS, in order."""
     makefile = (REPO / "Makefile").read_text()
     assignment = re.search(r"^FIGURE_EXPERIMENTS :=((?:.*\\\n)*.*)$", makefile, re.M)
     assert assignment is not None
-    listed = assignment.group(1).replace("\\", " ").split()
+    return assignment.group(1).replace("\\", " ").split()
+
+
+def test_02b_every_shipped_experiment_and_its_full_version_load(real_renderer: Path) -> None:
+    # make figures runs FIGURE_EXPERIMENTS, FULL=1 their NAME_full.yaml: all must load, or a run of
+    # hours stops at its first file.
+    listed = figure_experiments()
     assert "lampshade_ratio" in listed
     folder = REPO / "configs" / "experiments"
     for name in listed:
@@ -66,6 +72,26 @@ def test_02b_every_shipped_experiment_and_its_full_version_load(real_renderer: P
     for path in sorted(folder.glob("*.yaml")):
         exp = load_experiment(path, str(real_renderer))
         assert len(exp.points()) >= 1, path.name
+
+
+@pytest.mark.parametrize("full", [False, True])
+def test_02c_make_figures_sweeps_and_draws_each_file_in_order(tmp_path: Path, real_renderer: Path, full: bool) -> None:
+    # The Makefile's loop itself, with a fake portal-harness that logs its arguments: FULL=1 once
+    # swept files named "configs/experiments/.yaml" (the shell read $e_full as one variable).
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    log = tmp_path / "calls"
+    fake = venv / "bin" / "portal-harness"
+    fake.write_text(f'#!/bin/sh\necho "$@" >> {log}\n')
+    fake.chmod(0o755)
+    (venv / ".installed").touch()  # newer than harness/pyproject.toml: make does not reinstall
+    args = ["make", "--no-print-directory", "figures", f"VENV={venv}", *(["FULL=1"] if full else [])]
+    done = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    suffix = "_full" if full else ""
+    files = [f"configs/experiments/{name}{suffix}.yaml" for name in figure_experiments()]
+    expected = [f"{command} {file}" for file in files for command in ("sweep", "figures")]
+    assert log.read_text().splitlines() == expected
 
 
 BAD: list[tuple[dict[str, Any], str, str]] = [
