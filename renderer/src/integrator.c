@@ -161,7 +161,19 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
     return L;
 }
 
-/* One film row of shading points in flight (direct_row). */
+/* One path of a film row in flight (path_row): what integrator_radiance_from
+   keeps from one bounce to the next. */
+struct path_lane {
+    int pixel;
+    struct rgb beta;          /* throughput up to the ray o + t d */
+    double bsdf_pdf_prev;     /* the density with which d was sampled */
+    struct vec3 o, d;         /* the ray that reaches h */
+    struct strategy_point sp; /* the vertex d left from, for MIS where h is a light */
+    struct hit h;
+    bool found;
+};
+
+/* One film row of shading points in flight (direct_row, path_row). */
 struct integrator_row {
     struct vertex *v;
     struct strategy_point *sp;
@@ -175,6 +187,10 @@ struct integrator_row {
     struct ray_stream shadow_rays, bsdf_rays;
     int *light;
     int *pixel;
+    struct path_lane *paths;
+    struct vec3 *ray_o, *ray_d; /* path_row's bounce rays, in double */
+    struct hit *hit;
+    bool *found;
 };
 
 struct integrator_row *integrator_row_create(int n, struct error *err)
@@ -196,9 +212,14 @@ struct integrator_row *integrator_row_create(int n, struct error *err)
     row->bsdf = malloc(m * sizeof *row->bsdf);
     row->light = malloc(m * sizeof *row->light);
     row->pixel = malloc(m * sizeof *row->pixel);
+    row->paths = malloc(m * sizeof *row->paths);
+    row->ray_o = malloc(m * sizeof *row->ray_o);
+    row->ray_d = malloc(m * sizeof *row->ray_d);
+    row->hit = malloc(m * sizeof *row->hit);
+    row->found = malloc(m * sizeof *row->found);
     if (row->v && row->sp && row->u && row->ub && row->ls && row->pend && row->ok && row->shadow && row->bsdf &&
-        row->light && row->pixel && ray_stream_init(&row->shadow_rays, (int)m, err) &&
-        ray_stream_init(&row->bsdf_rays, (int)m, err))
+        row->light && row->pixel && row->paths && row->ray_o && row->ray_d && row->hit && row->found &&
+        ray_stream_init(&row->shadow_rays, (int)m, err) && ray_stream_init(&row->bsdf_rays, (int)m, err))
         return row;
     integrator_row_destroy(row);
     error_set(err, "out of memory for a row of %d shading points", n);
@@ -221,6 +242,11 @@ void integrator_row_destroy(struct integrator_row *row)
     ray_stream_free(&row->bsdf_rays);
     free(row->light);
     free(row->pixel);
+    free(row->paths);
+    free(row->ray_o);
+    free(row->ray_d);
+    free(row->hit);
+    free(row->found);
     free(row);
 }
 
@@ -281,6 +307,114 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
     }
 }
 
+/* The path integrator a row at a time (a wavefront): each bounce of all the
+   row's live paths is one step, as in direct_row: their vertices and light
+   samples (a strategy_batches strategy draws them together), the shadow
+   rays' set-up in vectorised loops and one Embree stream for them, then
+   each path's BSDF sample, Russian roulette and next ray. Paths that end
+   leave the set, which stays packed. Each path draws its uniforms in the
+   order integrator_radiance_from does and goes through the same
+   arithmetic, so out[x] is the same, bit for bit. As in direct_row, a
+   point's pair distribution lives in the one scratch: a path whose BSDF
+   ray reaches a light prepares its previous vertex again for the pdf. */
+/* The next ray of each of the n live paths of the row, as one stream. */
+static void trace_bounces(const struct scene *sc, struct integrator_row *row, int n)
+{
+    struct path_lane *paths = row->paths;
+    for (int k = 0; k < n; ++k) {
+        row->ray_o[k] = paths[k].o;
+        row->ray_d[k] = paths[k].d;
+        ray_stream_set(&row->bsdf_rays, k, paths[k].o, paths[k].d, INFINITY);
+    }
+    scene_intersect_stream(sc, &row->bsdf_rays, n, row->ray_o, row->ray_d, row->hit, row->found);
+    for (int k = 0; k < n; ++k) {
+        paths[k].found = row->found[k];
+        if (row->found[k]) paths[k].h = row->hit[k];
+    }
+}
+
+static void path_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
+                     struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
+                     struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
+{
+    const struct scene *sc = it->scene;
+    bool batches = strategy_batches(it->strategy);
+    struct path_lane *paths = row->paths;
+    int live = 0;
+    for (int x = 0; x < n; ++x) {
+        out[x] = rgb_make(0.0, 0.0, 0.0);
+        struct path_lane *pl = &paths[live++];
+        pl->pixel = x;
+        pl->beta = rgb_make(1.0, 1.0, 1.0);
+        pl->bsdf_pdf_prev = 0.0;
+        pl->o = o;
+        pl->d = d[x];
+        pl->found = found[x];
+        if (found[x]) pl->h = hits[x];
+    }
+    for (int depth = 0; live > 0; ++depth) {
+        if (depth > 0) trace_bounces(sc, row, live);
+        /* The vertices, packed: vertex k is path k's from here on. */
+        int lanes = 0;
+        for (int k = 0; k < live; ++k) {
+            struct path_lane *pl = &paths[k];
+            ++stats->rays;
+            if (!pl->found) continue;
+            const struct hit *h = &pl->h;
+            if (h->light >= 0) {
+                struct rgb *L = &out[pl->pixel];
+                if (depth == 0) *L = rgb_add(*L, light_emitted(&sc->lights[h->light], vec3_neg(pl->d)));
+                else
+                    *L = rgb_add(*L, rgb_mul(pl->beta, bsdf_hit_light(it, &pl->sp, batches ? NULL : scratch, h->light,
+                                                                      pl->d, pl->bsdf_pdf_prev)));
+                continue;
+            }
+            if (depth >= it->max_depth) continue;
+            struct vertex *v = &row->v[lanes];
+            if (!vertex_init(sc, h->p, h->ng, h->material, vec3_neg(pl->d), v)) continue;
+            strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
+            sampler_light(&smp[pl->pixel], depth, row->u[lanes]);
+            if (!batches)
+                row->ok[lanes] = strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes],
+                                                       &row->pend[lanes]);
+            paths[lanes++] = *pl;
+        }
+        if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
+        else
+            strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
+                                        row->ok);
+        shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, NULL, lanes, stats, row->shadow, &row->shadow_rays,
+                           NULL, NULL);
+        scene_occluded_stream(sc, &row->shadow_rays, lanes);
+        /* Each path's next ray, by BSDF sampling; the paths that go on stay
+           packed. */
+        live = 0;
+        for (int k = 0; k < lanes; ++k) {
+            struct path_lane *pl = &paths[k];
+            const struct vertex *v = &row->v[k];
+            struct rgb *L = &out[pl->pixel];
+            *L = rgb_add(*L, rgb_mul(pl->beta,
+                                     shadow_resolve(&row->shadow[k], ray_stream_blocked(&row->shadow_rays, k), stats)));
+            struct sampler *s = &smp[pl->pixel];
+            struct bsdf_sample bs;
+            double ub[2];
+            sampler_bsdf(s, depth, ub);
+            if (!bsdf_sample(v->m, v->wo_local, ub[0], ub[1], &bs)) continue;
+            pl->beta = rgb_mul(pl->beta, rgb_scale(bs.f, bs.wi.z / bs.pdf));
+            pl->bsdf_pdf_prev = bs.pdf;
+            pl->d = frame_to_world(&v->frame, bs.wi);
+            pl->o = scene_offset_origin(sc, v->p, v->n, pl->d);
+            pl->sp = row->sp[k];
+            if (depth + 1 >= it->rr_depth) {
+                double q = fm_fmax(0.05, 1.0 - rgb_max(pl->beta));
+                if (sampler_roulette(s, depth) < q) continue;
+                pl->beta = rgb_scale(pl->beta, 1.0 / (1.0 - q));
+            }
+            paths[live++] = *pl;
+        }
+    }
+}
+
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                              struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
@@ -289,6 +423,5 @@ void integrator_radiance_row(const struct integrator *it, struct integrator_row 
         direct_row(it, row, scratch, d, hits, found, n, smp, out, stats);
         return;
     }
-    for (int x = 0; x < n; ++x)
-        out[x] = integrator_radiance_from(it, scratch, o, d[x], found[x] ? &hits[x] : NULL, &smp[x], stats);
+    path_row(it, row, scratch, o, d, hits, found, n, smp, out, stats);
 }

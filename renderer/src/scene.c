@@ -351,15 +351,25 @@ static void ray_setup(struct RTCRay *r, struct vec3 o, struct vec3 d, double tma
     r->flags = 0;
 }
 
+/* The hit at distance t of o + t d on primitive prim of geometry geom, with
+   Embree's unnormalised geometric normal (ngx, ngy, ngz). One function for
+   single rays and streams, so that a ray traced either way gives the same
+   hit, bit for bit. */
+static void hit_at(const struct scene *s, struct vec3 o, struct vec3 d, float t, float ngx, float ngy, float ngz,
+                   unsigned geom, unsigned prim, struct hit *h)
+{
+    const struct geometry_info *g = &s->geometries[geom];
+    h->t = t;
+    h->p = vec3_madd(o, d, h->t);
+    h->ng = vec3_normalize(vec3_make(ngx, ngy, ngz));
+    h->material = g->material;
+    h->light = geometry_light(g, prim);
+}
+
 static void hit_from_embree(const struct scene *s, struct vec3 o, struct vec3 d, const struct RTCRayHit *rh,
                             struct hit *h)
 {
-    const struct geometry_info *g = &s->geometries[rh->hit.geomID];
-    h->t = rh->ray.tfar;
-    h->p = vec3_madd(o, d, h->t);
-    h->ng = vec3_normalize(vec3_make(rh->hit.Ng_x, rh->hit.Ng_y, rh->hit.Ng_z));
-    h->material = g->material;
-    h->light = geometry_light(g, rh->hit.primID);
+    hit_at(s, o, d, rh->ray.tfar, rh->hit.Ng_x, rh->hit.Ng_y, rh->hit.Ng_z, rh->hit.geomID, rh->hit.primID, h);
 }
 
 static void rayhit_setup(struct RTCRayHit *rh, struct vec3 o, struct vec3 d, double tmax)
@@ -431,7 +441,8 @@ void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n
     rtcOccludedNp(s->rtc_scene, &ctx, &np, (unsigned)n);
 }
 
-void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light)
+/* Embree's closest-hit view of a stream, its hit fields reset. */
+static struct RTCRayHitNp rayhit_np(struct ray_stream *rays, int n)
 {
     for (int i = 0; i < n; ++i) rays->geom_id[i] = RTC_INVALID_GEOMETRY_ID;
     for (int i = 0; i < n; ++i) rays->inst_id[i] = RTC_INVALID_GEOMETRY_ID;
@@ -439,12 +450,34 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
         ray_np(rays),
         { rays->ng_x, rays->ng_y, rays->ng_z, rays->u, rays->v, rays->prim_id, rays->geom_id, { rays->inst_id } }
     };
+    return np;
+}
+
+void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light)
+{
+    struct RTCRayHitNp np = rayhit_np(rays, n);
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);
     for (int i = 0; i < n; ++i) {
         unsigned g = rays->geom_id[i];
         light[i] = g != RTC_INVALID_GEOMETRY_ID ? geometry_light(&s->geometries[g], rays->prim_id[i]) : -1;
+    }
+}
+
+void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int n, const struct vec3 *o,
+                            const struct vec3 *d, struct hit *hits, bool *found)
+{
+    struct RTCRayHitNp np = rayhit_np(rays, n);
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);
+    for (int i = 0; i < n; ++i) {
+        unsigned g = rays->geom_id[i];
+        found[i] = g != RTC_INVALID_GEOMETRY_ID;
+        if (found[i])
+            hit_at(s, o[i], d[i], rays->tfar[i], rays->ng_x[i], rays->ng_y[i], rays->ng_z[i], g, rays->prim_id[i],
+                   &hits[i]);
     }
 }
 

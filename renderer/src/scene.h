@@ -109,6 +109,12 @@ void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n
    surface first or nothing (scene_first_light for each ray) or is
    inactive. */
 void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light);
+/* Closest hits of the first n rays of a stream, traced incoherently (the
+   bounce rays of a film row's paths): ray i must be o[i] + t d[i] as
+   ray_stream_set stores it, and then found[i] and hits[i] are what
+   scene_intersect(s, o[i], d[i], tmax, ...) gives, bit for bit. */
+void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int n, const struct vec3 *o,
+                            const struct vec3 *d, struct hit *hits, bool *found);
 /* A ray still to trace: o + t d for t in (0, tmax). */
 struct scene_ray {
     struct vec3 o, d;

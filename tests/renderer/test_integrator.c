@@ -159,6 +159,11 @@ static const struct {
     { INTEGRATOR_DIRECT, STRATEGY_LIGHT_AREA, MIS_POWER },
     { INTEGRATOR_DIRECT, STRATEGY_ANTISHADOW_EXACT, MIS_POWER },
     { INTEGRATOR_PATH, STRATEGY_LIGHT, MIS_POWER },
+    /* The wavefront path: portal strategies re-prepare a vertex whose BSDF
+       ray reaches the light; without MIS that light counts nothing. */
+    { INTEGRATOR_PATH, STRATEGY_ANTISHADOW_EXACT, MIS_POWER },
+    { INTEGRATOR_PATH, STRATEGY_PORTAL, MIS_BALANCE },
+    { INTEGRATOR_PATH, STRATEGY_LIGHT, MIS_NONE },
     /* The batched direct path without the BSDF half. */
     { INTEGRATOR_DIRECT, STRATEGY_LIGHT, MIS_NONE },
 };
