@@ -246,6 +246,9 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     s->rtc_scene = rtcNewScene(s->device);
     rtcSetSceneFlags(s->rtc_scene, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(s->rtc_scene, RTC_BUILD_QUALITY_HIGH);
+    s->rtc_lights = rtcNewScene(s->device);
+    rtcSetSceneFlags(s->rtc_lights, RTC_SCENE_FLAG_ROBUST);
+    if (!s->rtc_scene || !s->rtc_lights) goto oom;
 
     s->n_materials = cfg->n_materials;
     s->materials = calloc((size_t)(cfg->n_materials > 0 ? cfg->n_materials : 1), sizeof *s->materials);
@@ -278,6 +281,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     }
     watertight_free(&w);
     if (!build_lights(s, cfg, err)) goto fail;
+    int first_light_geometry = s->n_geometries;
     for (int i = 0; i < s->n_emitters; ++i) {
         const struct emitter *e = &s->emitters[i];
         const struct shape_desc *mesh = &cfg->lights[i].mesh;
@@ -306,6 +310,9 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
         for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
         if (!add_mesh(s, poly->v, poly->n, fan, poly->n - 2, 3, info, err)) goto fail;
     }
+    for (int g = first_light_geometry; g < s->n_geometries; ++g)
+        rtcAttachGeometryByID(s->rtc_lights, rtcGetGeometry(s->rtc_scene, (unsigned)g), (unsigned)g);
+    rtcCommitScene(s->rtc_lights);
     s->bounds_lo = lo;
     s->bounds_hi = hi;
     s->scale = vec3_length(vec3_sub(hi, lo));
@@ -328,6 +335,7 @@ fail:
 void scene_destroy(struct scene *s)
 {
     if (s->rtc_scene) rtcReleaseScene(s->rtc_scene);
+    if (s->rtc_lights) rtcReleaseScene(s->rtc_lights);
     if (s->device) rtcReleaseDevice(s->device);
     free(s->materials);
     free(s->lights);
@@ -419,10 +427,31 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
     }
 }
 
+/* Where the ray o + t d met light geometry geom at distance t: the light,
+   and the end of the segment that must be clear for it to count (0 or less:
+   nothing to test). */
+static int light_met(const struct scene *s, struct vec3 o, struct vec3 d, float t, unsigned geom, unsigned prim,
+                     double *clear_to)
+{
+    int light = geometry_light(&s->geometries[geom], prim);
+    *clear_to = t - scene_offset_step(s, vec3_madd(o, d, t), s->lights[light].target.normal, d);
+    return light;
+}
+
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
-    return trace_closest(s, o, d, tmax, &rh) ? geometry_light(&s->geometries[rh.hit.geomID], rh.hit.primID) : -1;
+    rayhit_setup(&rh, o, d, tmax);
+    rtcIntersect1(s->rtc_lights, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
+    /* The ray as Embree holds it, as the stream form reads it back. */
+    struct vec3 of = vec3_make(rh.ray.org_x, rh.ray.org_y, rh.ray.org_z);
+    struct vec3 df = vec3_make(rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z);
+    double clear_to;
+    int light = light_met(s, of, df, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, &clear_to);
+    return clear_to > 0.0 && scene_occluded(s, o, d, clear_to) ? -1 : light;
 }
 
 /* Embree's view of a stream's arrays. */
@@ -458,11 +487,33 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
     struct RTCRayHitNp np = rayhit_np(rays, n);
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);
+    rtcIntersectNp(s->rtc_lights, &ctx, &np, (unsigned)n);
+    /* The rays that met a light become the segments to test, the others
+       inactive; one occlusion call for them all. */
+    int to_test = 0;
     for (int i = 0; i < n; ++i) {
         unsigned g = rays->geom_id[i];
-        light[i] = g != RTC_INVALID_GEOMETRY_ID ? geometry_light(&s->geometries[g], rays->prim_id[i]) : -1;
+        light[i] = -1;
+        if (g == RTC_INVALID_GEOMETRY_ID) {
+            ray_stream_skip(rays, i);
+            continue;
+        }
+        struct vec3 o = vec3_make(rays->ox[i], rays->oy[i], rays->oz[i]);
+        struct vec3 d = vec3_make(rays->dx[i], rays->dy[i], rays->dz[i]);
+        double clear_to;
+        light[i] = light_met(s, o, d, rays->tfar[i], g, rays->prim_id[i], &clear_to);
+        if (clear_to > 0.0) {
+            rays->tnear[i] = ray_stream_tnear_for(true);
+            rays->tfar[i] = ray_stream_tfar(clear_to);
+            ++to_test;
+        } else {
+            ray_stream_skip(rays, i);
+        }
     }
+    if (to_test == 0) return;
+    rtcOccludedNp(s->rtc_scene, &ctx, &np.ray, (unsigned)n);
+    for (int i = 0; i < n; ++i)
+        if (ray_stream_blocked(rays, i)) light[i] = -1;
 }
 
 void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int n, const struct vec3 *o,

@@ -66,6 +66,9 @@ struct scene {
     double scale;                     /* bounding-box diagonal, for ray offsets */
     void *device;                     /* RTCDevice */
     void *rtc_scene;                  /* RTCScene, committed */
+    /* The lights' geometries alone, under the same geometry IDs (RTCScene):
+       what scene_first_light looks for before it traces anything else. */
+    void *rtc_lights;
 };
 
 struct hit {
@@ -97,8 +100,12 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
 void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n, struct hit *hits,
                               bool *found);
 /* The light that the ray o + t d, t in (0, tmax), hits first; -1 when it
-   hits a surface first or nothing. Cheaper than scene_intersect when only
-   emission matters (the MIS ray of direct lighting). */
+   hits a surface first or nothing (the MIS ray of direct lighting, which
+   counts only where it reaches a light). Most such rays reach no light,
+   so the ray is first traced against the lights alone; only when it meets
+   one, at distance t, is the rest of the scene asked whether anything
+   blocks (0, t - step), the step scene_offset_step takes at a light end,
+   as a shadow ray towards that point would be. */
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax);
 /* The first n rays of a stream, traced incoherently (rays from many
    points, such as the shadow or BSDF rays of a film row), one Embree call

@@ -38,9 +38,9 @@ static struct vec3 light_point(const struct light *l, struct rng *r)
 /* Rays from random points of the scene's box: half towards a point of the
    light (segments ending just before it, or unbounded), half in random
    directions; one in ten inactive. */
-static bool fixture_init(struct fixture *f, uint64_t seed)
+static bool fixture_init_scene(struct fixture *f, const char *scene, uint64_t seed)
 {
-    if (!test_scene_load(SCENE, NULL, 0, &f->cfg, &f->sc)) return false;
+    if (!test_scene_load(scene, NULL, 0, &f->cfg, &f->sc)) return false;
     struct rng r;
     rng_seed(&r, seed, 0, 0);
     struct vec3 lo = f->sc.bounds_lo, hi = f->sc.bounds_hi;
@@ -49,7 +49,7 @@ static bool fixture_init(struct fixture *f, uint64_t seed)
         struct scene_ray *ray = &f->rays[i];
         ray->o = o;
         if (rng_uniform(&r) < 0.5) {
-            const struct light *l = &f->sc.lights[0];
+            const struct light *l = &f->sc.lights[(int)(rng_uniform(&r) * f->sc.n_lights) % f->sc.n_lights];
             struct vec3 lp = light_point(l, &r);
             /* Half of them from near the light's emitting side, where most
                reach it; from the rest of the room the shade blocks most. */
@@ -70,6 +70,11 @@ static bool fixture_init(struct fixture *f, uint64_t seed)
         f->active[i] = rng_uniform(&r) >= 0.1;
     }
     return true;
+}
+
+static bool fixture_init(struct fixture *f, uint64_t seed)
+{
+    return fixture_init_scene(f, SCENE, seed);
 }
 
 static void fixture_free(struct fixture *f)
@@ -168,7 +173,37 @@ static void test_first_light_matches_one(void)
     fixture_free(&f);
 }
 
+/* scene_first_light traces the lights alone and then the segment before
+   the light it met: the same answer as the closest hit of the whole scene
+   (what it stands for), on the lampshade, the room of several lamps and
+   a lamp whose bulb is a mesh light. */
+static void test_first_light_is_closest_hit(void)
+{
+    const char *scenes[] = { SCENE, "configs/scenes/multi_lamp.yaml", "configs/scenes/little_lamp.yaml" };
+    for (int k = 0; k < 3; ++k) {
+        static struct fixture f;
+        if (!fixture_init_scene(&f, scenes[k], 11 + (uint64_t)k)) {
+            CHECK(false);
+            return;
+        }
+        long reach = 0, differ = 0;
+        for (int i = 0; i < N_RAYS; ++i) {
+            const struct scene_ray *ray = &f.rays[i];
+            struct hit h;
+            int want = scene_intersect(&f.sc, ray->o, ray->d, ray->tmax, &h) ? h.light : -1;
+            int got = scene_first_light(&f.sc, ray->o, ray->d, ray->tmax);
+            reach += want >= 0;
+            differ += got != want;
+        }
+        fprintf(stderr, "  %s: %ld of %d rays reach a light first\n", scenes[k], reach, (int)N_RAYS);
+        CHECK_MSG(differ == 0, "%s: %ld rays differ", scenes[k], differ);
+        CHECK(reach > 200);
+        fixture_free(&f);
+    }
+}
+
 static const struct test_case tests[] = {
+    { "first_light_is_closest_hit", test_first_light_is_closest_hit },
     { "occluded_matches_one", test_occluded_matches_one },
     { "first_light_matches_one", test_first_light_matches_one },
 };
