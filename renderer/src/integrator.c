@@ -86,7 +86,8 @@ static struct rgb bsdf_mis(const struct integrator *it, struct strategy_point *s
     double u[2];
     sampler_bsdf(smp, 0, u);
     struct bsdf_query q;
-    bsdf_setup(it->scene, v, u, stats, &q);
+    bsdf_setup(it->scene, v, u, &q);
+    if (q.trace) ++stats->rays;
     return bsdf_resolve(it, sp, NULL, &q, bsdf_trace(it, &q));
 }
 
@@ -141,16 +142,18 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         strategy_prepare(it->strategy, scratch, h.p, v.n, &sp);
         L = rgb_add(L, rgb_mul(beta, sample_direct(it, &sp, &v, depth, smp, stats)));
 
-        /* Continue by BSDF sampling; the same direction gathers direct light
-           at the next vertex, weighted by MIS (or not at all without MIS). */
-        struct bsdf_sample bs;
+        /* Continue by BSDF sampling (the ray direct lighting's MIS would
+           trace); the same direction gathers direct light at the next
+           vertex, weighted by MIS (or not at all without MIS). */
+        struct bsdf_query bq;
         double ub[2];
         sampler_bsdf(smp, depth, ub);
-        if (!bsdf_sample(v.m, v.wo_local, ub[0], ub[1], &bs)) break;
-        beta = rgb_mul(beta, rgb_scale(bs.f, bs.wi.z / bs.pdf));
-        bsdf_pdf_prev = bs.pdf;
-        ray_d = frame_to_world(&v.frame, bs.wi);
-        ray_o = scene_offset_origin(sc, v.p, v.n, ray_d);
+        bsdf_setup(sc, &v, ub, &bq);
+        if (!bq.trace) break;
+        beta = rgb_mul(beta, bq.weight);
+        bsdf_pdf_prev = bq.pdf;
+        ray_d = bq.ray.d;
+        ray_o = bq.ray.o;
 
         if (depth + 1 >= it->rr_depth) {
             double q = fm_fmax(0.05, 1.0 - rgb_max(beta));
@@ -167,10 +170,8 @@ struct path_lane {
     int pixel;
     struct rgb beta;          /* throughput up to the ray o + t d */
     double bsdf_pdf_prev;     /* the density with which d was sampled */
-    struct vec3 o, d;         /* the ray that reaches h */
-    struct strategy_point sp; /* the vertex d left from, for MIS where h is a light */
-    struct hit h;
-    bool found;
+    struct vec3 o, d;         /* the ray to trace next */
+    struct strategy_point sp; /* the vertex d left from, for MIS where it reaches a light */
 };
 
 /* One film row of shading points in flight (direct_row, path_row). */
@@ -188,8 +189,8 @@ struct integrator_row {
     int *light;
     int *pixel;
     struct path_lane *paths;
-    struct vec3 *ray_o, *ray_d; /* path_row's bounce rays, in double */
-    struct hit *hit;
+    struct vec3 *ray_o, *ray_d; /* path_row's bounce rays, in double, */
+    struct hit *hit;            /* and what path k's ray met */
     bool *found;
 };
 
@@ -302,21 +303,14 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
     if (mis) scene_first_light_stream(sc, &row->bsdf_rays, lanes, row->light);
     for (int k = 0; k < lanes; ++k) {
         struct rgb L = shadow_resolve(&row->shadow[k], ray_stream_blocked(&row->shadow_rays, k), stats);
-        if (mis) L = rgb_add(L, bsdf_resolve(it, &row->sp[k], batches ? NULL : scratch, &row->bsdf[k], row->light[k]));
+        if (mis) {
+            stats->rays += row->bsdf[k].trace;
+            L = rgb_add(L, bsdf_resolve(it, &row->sp[k], batches ? NULL : scratch, &row->bsdf[k], row->light[k]));
+        }
         out[row->pixel[k]] = L;
     }
 }
 
-/* The path integrator a row at a time (a wavefront): each bounce of all the
-   row's live paths is one step, as in direct_row: their vertices and light
-   samples (a strategy_batches strategy draws them together), the shadow
-   rays' set-up in vectorised loops and one Embree stream for them, then
-   each path's BSDF sample, Russian roulette and next ray. Paths that end
-   leave the set, which stays packed. Each path draws its uniforms in the
-   order integrator_radiance_from does and goes through the same
-   arithmetic, so out[x] is the same, bit for bit. As in direct_row, a
-   point's pair distribution lives in the one scratch: a path whose BSDF
-   ray reaches a light prepares its previous vertex again for the pdf. */
 /* The next ray of each of the n live paths of the row, as one stream. */
 static void trace_bounces(const struct scene *sc, struct integrator_row *row, int n)
 {
@@ -327,12 +321,19 @@ static void trace_bounces(const struct scene *sc, struct integrator_row *row, in
         ray_stream_set(&row->bsdf_rays, k, paths[k].o, paths[k].d, INFINITY);
     }
     scene_intersect_stream(sc, &row->bsdf_rays, n, row->ray_o, row->ray_d, row->hit, row->found);
-    for (int k = 0; k < n; ++k) {
-        paths[k].found = row->found[k];
-        if (row->found[k]) paths[k].h = row->hit[k];
-    }
 }
 
+/* The path integrator a row at a time (a wavefront): each bounce of all the
+   row's live paths is one step, as in direct_row: their vertices and light
+   samples (a strategy_batches strategy draws them together), the set-up of
+   the shadow rays and of the BSDF samples in vectorised loops
+   (shading_setup_many) and one Embree stream for the shadow rays, then
+   each path's Russian roulette, and one stream for the next rays. Paths
+   that end leave the set, which stays packed. Each path draws its uniforms
+   in the order integrator_radiance_from does and goes through the same
+   arithmetic, so out[x] is the same, bit for bit. As in direct_row, a
+   point's pair distribution lives in the one scratch: a path whose BSDF
+   ray reaches a light prepares its previous vertex again for the pdf. */
 static void path_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
                      struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                      struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
@@ -349,18 +350,24 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
         pl->bsdf_pdf_prev = 0.0;
         pl->o = o;
         pl->d = d[x];
-        pl->found = found[x];
-        if (found[x]) pl->h = hits[x];
     }
     for (int depth = 0; live > 0; ++depth) {
-        if (depth > 0) trace_bounces(sc, row, live);
+        /* What path k's ray met: the camera ray's (path k is pixel k at
+           depth 0), then the bounce's. */
+        const struct hit *hit = hits;
+        const bool *met = found;
+        if (depth > 0) {
+            trace_bounces(sc, row, live);
+            hit = row->hit;
+            met = row->found;
+        }
         /* The vertices, packed: vertex k is path k's from here on. */
         int lanes = 0;
         for (int k = 0; k < live; ++k) {
             struct path_lane *pl = &paths[k];
             ++stats->rays;
-            if (!pl->found) continue;
-            const struct hit *h = &pl->h;
+            if (!met[k]) continue;
+            const struct hit *h = &hit[k];
             if (h->light >= 0) {
                 struct rgb *L = &out[pl->pixel];
                 if (depth == 0) *L = rgb_add(*L, light_emitted(&sc->lights[h->light], vec3_neg(pl->d)));
@@ -371,46 +378,47 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             }
             if (depth >= it->max_depth) continue;
             struct vertex *v = &row->v[lanes];
-            if (!vertex_init(sc, h->p, h->ng, h->material, vec3_neg(pl->d), v)) continue;
+            if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(pl->d), v)) continue;
             strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
             sampler_light(&smp[pl->pixel], depth, row->u[lanes]);
+            sampler_bsdf(&smp[pl->pixel], depth, row->ub[lanes]);
             if (!batches)
                 row->ok[lanes] = strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes],
                                                        &row->pend[lanes]);
-            paths[lanes++] = *pl;
+            if (lanes != k) paths[lanes] = *pl;
+            ++lanes;
         }
         if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
         else
             strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
                                         row->ok);
-        shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, NULL, lanes, stats, row->shadow, &row->shadow_rays,
-                           NULL, NULL);
+        /* The shadow rays and the BSDF samples (the rays in bsdf_rays are
+           traced by trace_bounces, for the paths that go on). */
+        shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, (const double(*)[2])row->ub, lanes, stats,
+                           row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
         scene_occluded_stream(sc, &row->shadow_rays, lanes);
         /* Each path's next ray, by BSDF sampling; the paths that go on stay
            packed. */
         live = 0;
         for (int k = 0; k < lanes; ++k) {
             struct path_lane *pl = &paths[k];
-            const struct vertex *v = &row->v[k];
+            const struct bsdf_query *bq = &row->bsdf[k];
             struct rgb *L = &out[pl->pixel];
             *L = rgb_add(*L, rgb_mul(pl->beta,
                                      shadow_resolve(&row->shadow[k], ray_stream_blocked(&row->shadow_rays, k), stats)));
-            struct sampler *s = &smp[pl->pixel];
-            struct bsdf_sample bs;
-            double ub[2];
-            sampler_bsdf(s, depth, ub);
-            if (!bsdf_sample(v->m, v->wo_local, ub[0], ub[1], &bs)) continue;
-            pl->beta = rgb_mul(pl->beta, rgb_scale(bs.f, bs.wi.z / bs.pdf));
-            pl->bsdf_pdf_prev = bs.pdf;
-            pl->d = frame_to_world(&v->frame, bs.wi);
-            pl->o = scene_offset_origin(sc, v->p, v->n, pl->d);
+            if (!bq->trace) continue;
+            pl->beta = rgb_mul(pl->beta, bq->weight);
+            pl->bsdf_pdf_prev = bq->pdf;
+            pl->d = bq->ray.d;
+            pl->o = bq->ray.o;
             pl->sp = row->sp[k];
             if (depth + 1 >= it->rr_depth) {
                 double q = fm_fmax(0.05, 1.0 - rgb_max(pl->beta));
-                if (sampler_roulette(s, depth) < q) continue;
+                if (sampler_roulette(&smp[pl->pixel], depth) < q) continue;
                 pl->beta = rgb_scale(pl->beta, 1.0 / (1.0 - q));
             }
-            paths[live++] = *pl;
+            if (live != k) paths[live] = *pl;
+            ++live;
         }
     }
 }

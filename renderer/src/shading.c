@@ -120,21 +120,18 @@ FM_INLINE void shadow_from_lane(const struct shadow_lane *l, struct vec3 wi, boo
     q->value = rgb_make(l->r, l->g, l->b);
 }
 
-/* The same for the BSDF ray; its direction is always set (the light it
-   reaches is weighted by the strategy's density in that direction). */
-FM_INLINE void bsdf_from_lane(const struct bsdf_lane *l, const struct material *m, bool with_ray,
-                              struct integrator_stats *stats, struct bsdf_query *q)
+/* The same for the BSDF ray, with the whole ray: the path integrator goes
+   on along it, direct lighting weighs the light it reaches by the
+   strategy's density in its direction. */
+FM_INLINE void bsdf_from_lane(const struct bsdf_lane *l, const struct material *m, struct bsdf_query *q)
 {
     q->trace = l->trace != 0.0;
     if (!q->trace) return;
-    if (with_ray) {
-        q->ray.o = vec3_make(l->ox, l->oy, l->oz);
-        q->ray.tmax = INFINITY;
-    }
+    q->ray.o = vec3_make(l->ox, l->oy, l->oz);
     q->ray.d = vec3_make(l->dx, l->dy, l->dz);
+    q->ray.tmax = INFINITY;
     q->weight = m->albedo;
     q->pdf = l->pdf;
-    ++stats->rays;
 }
 
 /* ---- one point ------------------------------------------------------------ */
@@ -166,12 +163,11 @@ void shadow_setup(const struct scene *sc, enum mis_kind mis, const struct vertex
     shadow_from_lane(&l, ls->wi, true, stats, q);
 }
 
-void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct integrator_stats *stats,
-                struct bsdf_query *q)
+void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct bsdf_query *q)
 {
     if (v->m->kind == MATERIAL_DIFFUSE) {
         struct bsdf_lane l = lambert_bsdf_lane(sc->scale, v->n, v->p, u[0], u[1]);
-        bsdf_from_lane(&l, v->m, true, stats, q);
+        bsdf_from_lane(&l, v->m, q);
         return;
     }
     struct bsdf_sample bs;
@@ -182,7 +178,6 @@ void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2
     q->ray.tmax = INFINITY;
     q->weight = rgb_scale(bs.f, bs.wi.z / bs.pdf);
     q->pdf = bs.pdf;
-    ++stats->rays;
 }
 
 /* ---- a row ---------------------------------------------------------------- */
@@ -380,7 +375,7 @@ void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct 
                 shadow_setup(sc, mis, &v[k], ok[k], &ls[k], stats, &shadow[k]);
                 stream_from_query(shadow_rays, k, shadow[k].trace, &shadow[k].ray);
                 if (ub) {
-                    bsdf_setup(sc, &v[k], ub[k], stats, &bsdf[k]);
+                    bsdf_setup(sc, &v[k], ub[k], &bsdf[k]);
                     stream_from_query(bsdf_rays, k, bsdf[k].trace, &bsdf[k].ray);
                 }
                 continue;
@@ -400,7 +395,7 @@ void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct 
             if (ub) {
                 struct bsdf_lane l = { bo[BO_OX][i], bo[BO_OY][i], bo[BO_OZ][i],  bo[BO_DX][i],
                                        bo[BO_DY][i], bo[BO_DZ][i], bo[BO_PDF][i], bo[BO_TRACE][i] };
-                bsdf_from_lane(&l, v[k].m, false, &c, &bsdf[k]);
+                bsdf_from_lane(&l, v[k].m, &bsdf[k]);
             }
         }
     }

@@ -76,9 +76,12 @@ struct bsdf_query {
     double pdf;
 };
 
-/* Samples v's BSDF with the uniforms u. */
-void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct integrator_stats *stats,
-                struct bsdf_query *q);
+/* Samples v's BSDF with the uniforms u: the ray leaving v (o offset off the
+   surface, tmax infinite), its weight and density. Lambertian points take a
+   cosine-distributed direction in the frame of n alone, whose weight is the
+   albedo itself. It counts no ray: direct lighting traces every such ray,
+   the path integrator only those that survive Russian roulette. */
+void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2], struct bsdf_query *q);
 
 /* shadow_setup for the n points of a row and, unless ub is NULL,
    bsdf_setup with uniforms ub; the same results, bit for bit, and the same
@@ -86,8 +89,9 @@ void bsdf_setup(const struct scene *sc, const struct vertex *v, const double u[2
    time. Point k's rays go to ray k of the streams instead (inactive where
    a query traces nothing), for one Embree call each (scene_occluded_stream,
    scene_first_light_stream); the streams need room for n rays. The queries
-   then hold what resolving needs: trace and value (shadow), trace, weight,
-   pdf and the direction ray.d (BSDF); their other ray fields are unset. */
+   then hold what resolving needs: trace and value (shadow; its ray fields
+   are unset), and all of the BSDF query (with its ray). As bsdf_setup, it
+   counts the shadow rays but not the BSDF rays. */
 void shading_setup_many(const struct scene *sc, enum mis_kind mis, const struct vertex *v, const bool *ok,
                         const struct light_sample *ls, const double (*ub)[2], int n, struct integrator_stats *stats,
                         struct shadow_query *shadow, struct ray_stream *shadow_rays, struct bsdf_query *bsdf,

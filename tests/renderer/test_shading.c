@@ -141,8 +141,8 @@ static bool same_shadow(const struct shadow_query *one, const struct shadow_quer
 static bool same_bsdf(const struct bsdf_query *one, const struct bsdf_query *many, const struct ray_stream *rays, int k)
 {
     if (one->trace != many->trace || !stream_holds(rays, k, one->trace, &one->ray)) return false;
-    return !one->trace ||
-           (same_vec(one->ray.d, many->ray.d) && same_rgb(one->weight, many->weight) && same_bits(one->pdf, many->pdf));
+    return !one->trace || (same_vec(one->ray.o, many->ray.o) && same_vec(one->ray.d, many->ray.d) &&
+                           same_rgb(one->weight, many->weight) && same_bits(one->pdf, many->pdf));
 }
 
 static struct shadow_query shadow_one[N_POINTS], shadow_many[N_POINTS];
@@ -167,7 +167,7 @@ static void test_many_matches_one(void)
                 memset(shadow_many, 0xcd, sizeof shadow_many);
                 for (int k = 0; k < n; ++k) {
                     shadow_setup(&f.sc, kinds[mk], &f.v[k], f.ok[k], &f.ls[k], &s1, &shadow_one[k]);
-                    if (ub) bsdf_setup(&f.sc, &f.v[k], ub[k], &s1, &bsdf_one[k]);
+                    if (ub) bsdf_setup(&f.sc, &f.v[k], ub[k], &bsdf_one[k]);
                 }
                 /* Streams start as garbage: every ray must be written. */
                 stream_scribble(&shadow_rays, N_POINTS);
@@ -215,7 +215,7 @@ static void test_lambert_matches_generic(void)
             /* The segments: those of the one-point queries, which are the
                row's bit for bit (many_matches_one). */
             shadow_setup(&f.sc, kinds[mk], v, f.ok[k], &f.ls[k], &s, &shadow_one[k]);
-            bsdf_setup(&f.sc, v, f.ub[k], &s, &bsdf_one[k]);
+            bsdf_setup(&f.sc, v, f.ub[k], &bsdf_one[k]);
             const struct light_sample *ls = &f.ls[k];
             /* Shadow: the generic estimator f Le cos w / pdf. */
             struct vec3 wi_local = frame_to_local(&v->frame, ls->wi);
