@@ -286,13 +286,17 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         struct vertex *v = &row->v[lanes];
         if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
         strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
-        sampler_light(&smp[x], 0, row->u[lanes]);
-        if (mis) sampler_bsdf(&smp[x], 0, row->ub[lanes]);
-        if (!batches)
+        if (!batches) {
+            sampler_light(&smp[x], 0, row->u[lanes]);
+            if (mis) sampler_bsdf(&smp[x], 0, row->ub[lanes]);
             row->ok[lanes] =
                 strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes], &row->pend[lanes]);
+        }
         row->pixel[lanes++] = x;
     }
+    /* The light-only strategies need their numbers only now: drawn
+       together. */
+    if (batches) sampler_light_bsdf_many(smp, row->pixel, lanes, 0, row->u, mis ? row->ub : NULL);
     if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
     else
         strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
@@ -380,18 +384,23 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             struct vertex *v = &row->v[lanes];
             if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(pl->d), v)) continue;
             strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
-            sampler_light(&smp[pl->pixel], depth, row->u[lanes]);
-            sampler_bsdf(&smp[pl->pixel], depth, row->ub[lanes]);
-            if (!batches)
+            if (!batches) {
+                sampler_light(&smp[pl->pixel], depth, row->u[lanes]);
+                sampler_bsdf(&smp[pl->pixel], depth, row->ub[lanes]);
                 row->ok[lanes] = strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes],
                                                        &row->pend[lanes]);
+            }
+            row->pixel[lanes] = pl->pixel;
             if (lanes != k) paths[lanes] = *pl;
             ++lanes;
         }
-        if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
-        else
+        if (batches) {
+            sampler_light_bsdf_many(smp, row->pixel, lanes, depth, row->u, row->ub);
+            strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
+        } else {
             strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
                                         row->ok);
+        }
         /* The shadow rays and the BSDF samples (the rays in bsdf_rays are
            traced by trace_bounces, for the paths that go on). */
         shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, (const double(*)[2])row->ub, lanes, stats,

@@ -1,6 +1,9 @@
 /* sampler.c: the draws of each sampler (see sampler.h). */
 #include "sampler.h"
 
+#include <stdbool.h>
+
+#include "fastmath.h"
 #include "sobol.h"
 
 /* Block numbers (sampler.h). */
@@ -139,4 +142,52 @@ double sampler_roulette(struct sampler *s, int depth)
     }
     }
     return 0.0;
+}
+
+/* Streams per batch of sampler_light_bsdf_many (stack arrays). */
+#define DRAW_CHUNK 64
+
+/* Each of the n streams (state[k], inc[k]) draws `per` uniforms, into
+   out[j][k]; the states advance. One loop over the streams per draw, so
+   that the chains of multiplies of different streams run side by side. */
+FM_SIMD_CLONES static void draw_streams(uint64_t *restrict state, const uint64_t *restrict inc, int n, int per,
+                                        double out[6][DRAW_CHUNK])
+{
+    for (int j = 0; j < per; ++j) {
+#pragma omp simd
+        for (int k = 0; k < n; ++k) {
+            struct rng_draw d = rng_draw(state[k], inc[k]);
+            state[k] = d.state;
+            out[j][k] = d.u;
+        }
+    }
+}
+
+void sampler_light_bsdf_many(struct sampler *smp, const int *pixel, int n, int depth, double (*u)[4], double (*ub)[2])
+{
+    int per = ub ? 6 : 4;
+    for (int b = 0; b < n; b += DRAW_CHUNK) {
+        int m = n - b < DRAW_CHUNK ? n - b : DRAW_CHUNK;
+        bool independent = true;
+        for (int k = 0; k < m; ++k) independent = independent && smp[pixel[b + k]].kind == SAMPLER_INDEPENDENT;
+        if (!independent) {
+            for (int k = 0; k < m; ++k) {
+                sampler_light(&smp[pixel[b + k]], depth, u[b + k]);
+                if (ub) sampler_bsdf(&smp[pixel[b + k]], depth, ub[b + k]);
+            }
+            continue;
+        }
+        uint64_t state[DRAW_CHUNK], inc[DRAW_CHUNK];
+        for (int k = 0; k < m; ++k) {
+            state[k] = smp[pixel[b + k]].rng.state;
+            inc[k] = smp[pixel[b + k]].rng.inc;
+        }
+        double out[6][DRAW_CHUNK];
+        draw_streams(state, inc, m, per, out);
+        for (int k = 0; k < m; ++k) {
+            smp[pixel[b + k]].rng.state = state[k];
+            for (int j = 0; j < 4; ++j) u[b + k][j] = out[j][k];
+            if (ub) ub[b + k][0] = out[4][k], ub[b + k][1] = out[5][k];
+        }
+    }
 }

@@ -68,6 +68,12 @@ static inline struct sampler sampler_of_rng(struct rng r)
 void sampler_camera(struct sampler *s, double u[2]);
 void sampler_light(struct sampler *s, int depth, double u[4]);
 void sampler_bsdf(struct sampler *s, int depth, double u[2]);
+/* sampler_light(&smp[pixel[k]], depth, u[k]) and then, unless ub is NULL,
+   sampler_bsdf(&smp[pixel[k]], depth, ub[k]) for k < n: the same numbers,
+   bit for bit, and the same sampler states. Independent streams advance
+   together in vectorised loops (a film row's shading points draw this way
+   once they are known). */
+void sampler_light_bsdf_many(struct sampler *smp, const int *pixel, int n, int depth, double (*u)[4], double (*ub)[2]);
 double sampler_roulette(struct sampler *s, int depth);
 
 /* The numbers of Sobol block `block` for sample `index` of the pixel with

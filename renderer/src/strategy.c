@@ -903,17 +903,26 @@ static void finish_sample(const struct strategy *s, const struct strategy_point 
 }
 
 /* The target a portal strategy's sample may leave waiting
-   (strategy_sample_begin), or NULL: a rectangle sampled by solid angle
-   that outlives the point's scratch (the light's own or the portal's, not
-   a visible part), of a pair that is its emitter's only one, so that the
-   sample's density needs no other pair's. */
-static const struct target *waiting_target(const struct strategy *s, const struct strategy_pair *pair, int index,
-                                           enum technique t, const struct target *member_vis)
+   (strategy_sample_begin), or NULL: a rectangle sampled by solid angle, of
+   a pair that is its emitter's only one, so that the sample's density
+   needs no other pair's. The light's own or the portal's outlive the
+   point's scratch; a visible part that is a rectangle (a box pair's,
+   polygon.c) is copied into pend, which is what the wait costs. */
+static const struct target *waiting_target(const struct strategy *s, const struct strategy_point *pt,
+                                           const struct strategy_pair *pair, int index, enum technique t,
+                                           enum region region, const struct target *member_vis,
+                                           struct strategy_pending *pend)
 {
     if (index < 0 || member_vis || s->first_pair[pair->emitter + 1] - s->first_pair[pair->emitter] != 1) return NULL;
     const struct target *target = NULL;
     if (t == TECHNIQUE_LIGHT_SOLID) target = &s->scene->lights[pair->light].target;
     else if (t == TECHNIQUE_PORTAL_SOLID) target = &s->scene->portals[pair->portal].target;
+    else if (t == TECHNIQUE_VISIBLE_SOLID) {
+        const struct target *vis = technique_visible(s, pt, pair, index, region, NULL);
+        if (!vis || !vis->is_rectangle) return NULL;
+        target_copy(&pend->visible, vis);
+        return &pend->visible;
+    }
     return target && target->is_rectangle ? target : NULL;
 }
 
@@ -963,7 +972,7 @@ static bool sample_at(const struct strategy *s, const struct strategy_point *pt,
     }
 
     if (pend) {
-        pend->target = waiting_target(s, pair, index, t, vis);
+        pend->target = waiting_target(s, pt, pair, index, t, region, vis, pend);
         pend->waiting = pend->target != NULL;
         if (pend->waiting) {
             pend->index = index;

@@ -177,12 +177,14 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
 struct strategy_pending {
     bool waiting;
     int index;                   /* the pair */
-    const struct target *target; /* a light's or a portal's own (outlives the scratch) */
+    const struct target *target; /* a light's or a portal's own (outlives the scratch), or `visible` */
     double sel;                  /* the pair's probability at the point */
+    struct target visible;       /* a copy of the point's visible rectangle, which the scratch does not keep */
 };
 
 /* strategy_sample in two steps, so that a row's portal-strategy samples of
-   whole rectangles (the light's or the portal's, which do not live in the
+   rectangles (the light's, the portal's or a visible part that is one,
+   copied into pend; of an emitter with one pair), which do not live in the
    scratch) are drawn together in vectorised batches. begin is called right
    after strategy_prepare: it returns what strategy_sample would, or leaves
    the sample waiting (pend->waiting, return false); then

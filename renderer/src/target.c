@@ -57,6 +57,16 @@ bool target_init(struct target *t, const struct polygon *poly)
     return true;
 }
 
+void target_copy(struct target *dst, const struct target *src)
+{
+    polygon_copy(&dst->polygon, &src->polygon);
+    dst->normal = src->normal;
+    dst->area = src->area;
+    dst->min_height = src->min_height;
+    dst->is_rectangle = src->is_rectangle;
+    dst->frame = src->frame;
+}
+
 /* Uniform point on a convex polygon: a fan triangle chosen by area, then a
    uniform point in it (square-root warp of the barycentrics). */
 static struct vec3 sample_point(const struct target *t, double u_tri, double u, double v)

@@ -26,6 +26,8 @@ struct target {
    vertices, as clipping leaves them, are removed first so that a clipped
    rectangle is recognised as one. False for a degenerate polygon. */
 bool target_init(struct target *t, const struct polygon *poly);
+/* *dst = *src, copying only the polygon's vertices in use. */
+void target_copy(struct target *dst, const struct target *src);
 
 /* A direction towards the target and the point where it meets the target. */
 struct target_point {

@@ -455,7 +455,51 @@ static void test_direct_equals_path_depth1(void)
     }
 }
 
+/* sampler_light_bsdf_many against sampler_light + sampler_bsdf one sampler
+   at a time: the same numbers and states, bit for bit, for both kinds,
+   with and without the BSDF half, over more samplers than one batch and
+   in a shuffled order of pixels (as a row's shading points come). */
+static void test_light_bsdf_many_matches_one(void)
+{
+    enum { N = 150 };
+    const enum sampler_kind kinds[] = { SAMPLER_INDEPENDENT, SAMPLER_SOBOL };
+    int differ = 0, checked = 0;
+    for (int ki = 0; ki < 2; ++ki)
+        for (int with_bsdf = 0; with_bsdf < 2; ++with_bsdf)
+            for (int depth = 0; depth < 3; ++depth) {
+                static struct sampler many[N], one[N];
+                static double u_many[N][4], u_one[N][4], ub_many[N][2], ub_one[N][2];
+                int pixel[N], n = 0;
+                for (int x = 0; x < N; ++x) {
+                    sampler_start(&many[x], kinds[ki], 42, 1000u + (uint64_t)x, 3 + depth);
+                    double cam[2];
+                    sampler_camera(&many[x], cam);
+                    one[x] = many[x];
+                    /* Every third pixel has no shading point; the others
+                       come in a scrambled order. */
+                    if (x % 3 != 2) pixel[n++] = (x * 37) % N;
+                }
+                /* (x * 37) mod N is a permutation (37 and N coprime): no pixel twice. */
+                sampler_light_bsdf_many(many, pixel, n, depth, u_many, with_bsdf ? ub_many : NULL);
+                for (int k = 0; k < n; ++k) {
+                    sampler_light(&one[pixel[k]], depth, u_one[k]);
+                    if (with_bsdf) sampler_bsdf(&one[pixel[k]], depth, ub_one[k]);
+                    differ += memcmp(u_one[k], u_many[k], sizeof u_one[k]) != 0;
+                    if (with_bsdf) differ += memcmp(ub_one[k], ub_many[k], sizeof ub_one[k]) != 0;
+                    ++checked;
+                }
+                for (int x = 0; x < N; ++x)
+                    differ += many[x].rng.state != one[x].rng.state || many[x].rng.inc != one[x].rng.inc;
+                /* What comes next is the same too (the roulette draw). */
+                for (int x = 0; x < N; ++x)
+                    differ += sampler_roulette(&many[x], depth) != sampler_roulette(&one[x], depth);
+            }
+    CHECK_MSG(differ == 0, "%d draws or states differ", differ);
+    CHECK(checked == 2 * 2 * 3 * 100);
+}
+
 static const struct test_case tests[] = {
+    { "light_bsdf_many_matches_one", test_light_bsdf_many_matches_one },
     { "matrices_from_joe_kuo", test_matrices_from_joe_kuo },
     { "owen_scramble_nested", test_owen_scramble_nested },
     { "chi_square_2d", test_chi_square_2d },
