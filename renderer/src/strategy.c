@@ -661,6 +661,15 @@ int strategy_candidates(const struct strategy *s, struct vec3 p, int *out)
     return s->n_pairs;
 }
 
+/* Whether exactly one of the n weights (or scales of weights left to
+   finish) is positive. */
+static bool single_live(const double *w, int n)
+{
+    int live = 0;
+    for (int k = 0; k < n; ++k) live += w[k] > 0.0;
+    return live == 1;
+}
+
 void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
 {
     struct strategy_scratch *scratch = pt->scratch;
@@ -685,6 +694,16 @@ void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
         } else {
             scratch->cdf[k] = t.value;
         }
+    }
+    /* A weight only matters against others: a point with one candidate
+       that can have weight picks it with probability 1 whatever the
+       weight, so its projected solid angle (the costly part: horizon clip
+       and an angle per edge) is left out. Only whether it is zero counts:
+       it is where no vertex of the polygon rises above the horizon (the
+       normal is not zero: irradiance_term defers only then). */
+    if (n_defer == 1 && single_live(scratch->cdf, scratch->n_cand)) {
+        if (!above_horizon(scratch->defer_poly[0], p, pt->n)) scratch->cdf[scratch->defer_cand[0]] = 0.0;
+        n_defer = 0;
     }
     if (n_defer > 0) {
         polygon_projected_solid_angle_many(scratch->defer_poly, n_defer, p, pt->n, scratch->defer_value);
