@@ -403,6 +403,32 @@ double polygon_solid_angle(const struct polygon *poly, struct vec3 o)
    a x (v_{i+1} - v_i). The unit normal is taken as b x a (note the order):
    for a polygon wound counter-clockwise as seen from o, i.e. whose winding
    normal points back towards o, Phi then points towards the polygon. */
+/* The edge angles of m edges (a_k, b_k) seen from o: the plane normal
+   c_k = a x (b - a), as vec3_cross forms it, and its weight
+   w_k = -theta_k / |c_k| (0 for an edge through o). The one-polygon and
+   the many-polygon forms both use it, so that they agree bit for bit.
+   The a and b arrays may overlap (a polygon's b is its a shifted by one):
+   they are only read. */
+FM_SIMD_CLONES static void edge_terms(const double *restrict xa, const double *restrict ya, const double *restrict za,
+                                      const double *restrict xb, const double *restrict yb, const double *restrict zb,
+                                      struct vec3 o, int m, double *restrict cx, double *restrict cy,
+                                      double *restrict cz, double *restrict w)
+{
+#pragma omp simd
+    for (int k = 0; k < m; ++k) {
+        double ax = xa[k] - o.x, ay = ya[k] - o.y, az = za[k] - o.z;
+        double bx = xb[k] - o.x, by = yb[k] - o.y, bz = zb[k] - o.z;
+        double ex = xb[k] - xa[k], ey = yb[k] - ya[k], ez = zb[k] - za[k];
+        double px = ay * ez - az * ey, py = az * ex - ax * ez, pz = ax * ey - ay * ex;
+        double len = sqrt(px * px + py * py + pz * pz);
+        double theta = fm_atan2(len, ax * bx + ay * by + az * bz);
+        cx[k] = px;
+        cy[k] = py;
+        cz[k] = pz;
+        w[k] = len > 0.0 ? -theta / len : 0.0;
+    }
+}
+
 /* Edges per vectorised block of polygon_vector_irradiance. */
 #define IRRADIANCE_BLOCK 8
 
@@ -426,20 +452,7 @@ FM_SIMD_CLONES struct vec3 polygon_vector_irradiance(const struct polygon *poly,
             z[k] = v.z;
         }
         double cx[IRRADIANCE_BLOCK], cy[IRRADIANCE_BLOCK], cz[IRRADIANCE_BLOCK], w[IRRADIANCE_BLOCK];
-#pragma omp simd
-        for (int k = 0; k < m; ++k) {
-            double ax = x[k] - o.x, ay = y[k] - o.y, az = z[k] - o.z;
-            double bx = x[k + 1] - o.x, by = y[k + 1] - o.y, bz = z[k + 1] - o.z;
-            double ex = x[k + 1] - x[k], ey = y[k + 1] - y[k], ez = z[k + 1] - z[k];
-            /* a x (v_j - v_i), as vec3_cross forms it. */
-            double px = ay * ez - az * ey, py = az * ex - ax * ez, pz = ax * ey - ay * ex;
-            double len = sqrt(px * px + py * py + pz * pz);
-            double theta = fm_atan2(len, ax * bx + ay * by + az * bz);
-            cx[k] = px;
-            cy[k] = py;
-            cz[k] = pz;
-            w[k] = len > 0.0 ? -theta / len : 0.0;
-        }
+        edge_terms(x, y, z, x + 1, y + 1, z + 1, o, m, cx, cy, cz, w);
         for (int k = 0; k < m; ++k)
             if (w[k] != 0.0) phi = vec3_madd(phi, vec3_make(cx[k], cy[k], cz[k]), w[k]);
     }
@@ -464,30 +477,6 @@ double polygon_projected_solid_angle(const struct polygon *poly, struct vec3 o, 
 /* Edges per vectorised pass of polygon_projected_solid_angle_many; a
    polygon with more edges than this goes the one-polygon way. */
 #define IRRADIANCE_MANY_EDGES 64
-
-/* The edge angles of polygon_vector_irradiance for m edges (a_k, b_k) seen
-   from o, with the same arithmetic edge for edge: the plane normal c_k and
-   its weight w_k (0 for an edge through o). m is padded to whole vectors
-   by the caller. */
-FM_SIMD_CLONES static void edge_terms(const double *restrict xa, const double *restrict ya, const double *restrict za,
-                                      const double *restrict xb, const double *restrict yb, const double *restrict zb,
-                                      struct vec3 o, int m, double *restrict cx, double *restrict cy,
-                                      double *restrict cz, double *restrict w)
-{
-#pragma omp simd
-    for (int k = 0; k < m; ++k) {
-        double ax = xa[k] - o.x, ay = ya[k] - o.y, az = za[k] - o.z;
-        double bx = xb[k] - o.x, by = yb[k] - o.y, bz = zb[k] - o.z;
-        double ex = xb[k] - xa[k], ey = yb[k] - ya[k], ez = zb[k] - za[k];
-        double px = ay * ez - az * ey, py = az * ex - ax * ez, pz = ax * ey - ay * ex;
-        double len = sqrt(px * px + py * py + pz * pz);
-        double theta = fm_atan2(len, ax * bx + ay * by + az * bz);
-        cx[k] = px;
-        cy[k] = py;
-        cz[k] = pz;
-        w[k] = len > 0.0 ? -theta / len : 0.0;
-    }
-}
 
 /* The edges gathered for one pass, and which polygon owns which run. */
 struct edge_batch {

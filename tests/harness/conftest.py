@@ -82,6 +82,26 @@ def results(tmp_path: Path) -> Path:
     return tmp_path / "results"
 
 
+def tiny_experiment(name: str = "tiny") -> dict[str, Any]:
+    """The small default experiment over ../scenes/tiny.yaml (tiny_scene_tree):
+    two ratios, light and portal, 0.2 s runs."""
+    return {
+        "name": name,
+        "scene": "../scenes/tiny.yaml",
+        "integrator": "direct",
+        "strategies": ["light", "portal"],
+        "sweep": {"params.s_L": [0.15, 0.6]},
+        "fixed": {"params.s_P": 0.3},
+        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
+        "reference": {"strategy": "light", "spp": 2000, "seed": 99},
+        "insets": [
+            {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
+            {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5},
+        ],
+        "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
+    }
+
+
 def tiny_scene_tree() -> dict[str, Any]:
     """The lampshade at 16x16 with light sampling: the scene of the small sweeps."""
     tree: dict[str, Any] = yaml.safe_load((REPO / "configs" / "scenes" / "lampshade.yaml").read_text())
@@ -115,21 +135,7 @@ def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
     replace top-level sections of a small default."""
 
     def write(name: str = "tiny", **sections: Any) -> Path:
-        doc: dict[str, Any] = {
-            "name": name,
-            "scene": "../scenes/tiny.yaml",
-            "integrator": "direct",
-            "strategies": ["light", "portal"],
-            "sweep": {"params.s_L": [0.15, 0.6]},
-            "fixed": {"params.s_P": 0.3},
-            "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
-            "reference": {"strategy": "light", "spp": 2000, "seed": 99},
-            "insets": [
-                {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
-                {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5},
-            ],
-            "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
-        }
+        doc = tiny_experiment(name)
         for key, value in sections.items():
             if value is None:
                 doc.pop(key, None)

@@ -6,11 +6,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import pytest
 import yaml
-from conftest import tiny_scene_tree
+from conftest import tiny_experiment, tiny_scene_tree
 
 REPO = Path(__file__).resolve().parent.parent.parent
 
@@ -26,21 +25,8 @@ def write_experiment(folder: Path, name: str = "tiny", replicates: int = 2) -> P
     tree = tiny_scene_tree()
     (folder / "scenes").mkdir(parents=True, exist_ok=True)
     (folder / "scenes" / "tiny.yaml").write_text(yaml.safe_dump(tree, sort_keys=False))
-    doc: dict[str, Any] = {
-        "name": name,
-        "scene": "../scenes/tiny.yaml",
-        "integrator": "direct",
-        "strategies": ["light", "portal"],
-        "sweep": {"params.s_L": [0.15, 0.6]},
-        "fixed": {"params.s_P": 0.3},
-        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "replicates": replicates, "snapshots": {"every": 0.05}},
-        "reference": {"strategy": "light", "spp": 2000, "seed": 99},
-        "insets": [
-            {"name": "left", "x": 0, "y": 4, "width": 4, "height": 6},
-            {"name": "right", "x": 10, "y": 2, "width": 5, "height": 5},
-        ],
-        "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
-    }
+    doc = tiny_experiment(name)
+    doc["budget"]["replicates"] = replicates
     (folder / "experiments").mkdir(exist_ok=True)
     path = folder / "experiments" / f"{name}.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
