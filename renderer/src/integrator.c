@@ -91,6 +91,28 @@ static struct rgb bsdf_mis(const struct integrator *it, struct strategy_point *s
     return bsdf_resolve(it, sp, NULL, &q, bsdf_trace(it, &q));
 }
 
+/* What a path's ray that reached light `light` along d adds, before its
+   throughput: the emission itself for the camera ray (depth 0), else the
+   emission weighted against the strategy (bsdf_hit_light). */
+static struct rgb light_reached(const struct integrator *it, struct strategy_point *sp,
+                                struct strategy_scratch *reprepare, int depth, int light, struct vec3 d,
+                                double bsdf_pdf_prev)
+{
+    if (depth == 0) return light_emitted(&it->scene->lights[light], vec3_neg(d));
+    return bsdf_hit_light(it, sp, reprepare, light, d, bsdf_pdf_prev);
+}
+
+/* Russian roulette after the BSDF sample of bounce `depth`: false when the
+   path ends, else beta is rescaled for the survivors. */
+static bool roulette_survives(const struct integrator *it, struct rgb *beta, struct sampler *smp, int depth)
+{
+    if (depth + 1 < it->rr_depth) return true;
+    double q = fm_fmax(0.05, 1.0 - rgb_max(*beta));
+    if (sampler_roulette(smp, depth) < q) return false;
+    *beta = rgb_scale(*beta, 1.0 / (1.0 - q));
+    return true;
+}
+
 struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scratch *scratch, struct vec3 p,
                                 struct vec3 ng, int material, struct vec3 wo, struct sampler *smp,
                                 struct integrator_stats *stats)
@@ -127,8 +149,7 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         if (h.light >= 0) {
             /* Lights emit and reflect nothing. Seen directly: full weight;
                reached by BSDF sampling: weighted against the strategy. */
-            if (depth == 0) L = rgb_add(L, light_emitted(&sc->lights[h.light], vec3_neg(ray_d)));
-            else L = rgb_add(L, rgb_mul(beta, bsdf_hit_light(it, &sp, NULL, h.light, ray_d, bsdf_pdf_prev)));
+            L = rgb_add(L, rgb_mul(beta, light_reached(it, &sp, NULL, depth, h.light, ray_d, bsdf_pdf_prev)));
             break;
         }
         if (depth >= it->max_depth) break;
@@ -154,12 +175,7 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
         bsdf_pdf_prev = bq.pdf;
         ray_d = bq.ray.d;
         ray_o = bq.ray.o;
-
-        if (depth + 1 >= it->rr_depth) {
-            double q = fm_fmax(0.05, 1.0 - rgb_max(beta));
-            if (sampler_roulette(smp, depth) < q) break;
-            beta = rgb_scale(beta, 1.0 / (1.0 - q));
-        }
+        if (!roulette_survives(it, &beta, smp, depth)) break;
     }
     return L;
 }
@@ -294,13 +310,15 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         }
         row->pixel[lanes++] = x;
     }
-    /* The light-only strategies need their numbers only now: drawn
-       together. */
-    if (batches) sampler_light_bsdf_many(smp, row->pixel, lanes, 0, row->u, mis ? row->ub : NULL);
-    if (batches) strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
-    else
+    if (batches) {
+        /* The light-only strategies need their numbers only now: drawn
+           together. */
+        sampler_light_bsdf_many(smp, row->pixel, lanes, 0, row->u, mis ? row->ub : NULL);
+        strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
+    } else {
         strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
                                     row->ok);
+    }
     shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, mis ? (const double(*)[2])row->ub : NULL, lanes, stats,
                        row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
     scene_occluded_stream(sc, &row->shadow_rays, lanes);
@@ -374,10 +392,8 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             const struct hit *h = &hit[k];
             if (h->light >= 0) {
                 struct rgb *L = &out[pl->pixel];
-                if (depth == 0) *L = rgb_add(*L, light_emitted(&sc->lights[h->light], vec3_neg(pl->d)));
-                else
-                    *L = rgb_add(*L, rgb_mul(pl->beta, bsdf_hit_light(it, &pl->sp, batches ? NULL : scratch, h->light,
-                                                                      pl->d, pl->bsdf_pdf_prev)));
+                *L = rgb_add(*L, rgb_mul(pl->beta, light_reached(it, &pl->sp, batches ? NULL : scratch, depth, h->light,
+                                                                 pl->d, pl->bsdf_pdf_prev)));
                 continue;
             }
             if (depth >= it->max_depth) continue;
@@ -421,11 +437,7 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             pl->d = bq->ray.d;
             pl->o = bq->ray.o;
             pl->sp = row->sp[k];
-            if (depth + 1 >= it->rr_depth) {
-                double q = fm_fmax(0.05, 1.0 - rgb_max(pl->beta));
-                if (sampler_roulette(&smp[pl->pixel], depth) < q) continue;
-                pl->beta = rgb_scale(pl->beta, 1.0 / (1.0 - q));
-            }
+            if (!roulette_survives(it, &pl->beta, &smp[pl->pixel], depth)) continue;
             if (live != k) paths[live] = *pl;
             ++live;
         }

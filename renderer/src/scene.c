@@ -387,20 +387,21 @@ static void rayhit_setup(struct RTCRayHit *rh, struct vec3 o, struct vec3 d, dou
     rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
 }
 
-/* Closest hit of one ray; false on a miss. */
-static bool trace_closest(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct RTCRayHit *rh)
+/* Closest hit of one ray in `scene` (the whole scene or the lights'
+   alone); false on a miss. */
+static bool trace_closest(RTCScene scene, struct vec3 o, struct vec3 d, double tmax, struct RTCRayHit *rh)
 {
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     rayhit_setup(rh, o, d, tmax);
-    rtcIntersect1(s->rtc_scene, &ctx, rh);
+    rtcIntersect1(scene, &ctx, rh);
     return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
 }
 
 bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h)
 {
     struct RTCRayHit rh;
-    if (!trace_closest(s, o, d, tmax, &rh)) return false;
+    if (!trace_closest(s->rtc_scene, o, d, tmax, &rh)) return false;
     hit_from_embree(s, o, d, &rh, h);
     return true;
 }
@@ -440,12 +441,8 @@ static int light_met(const struct scene *s, struct vec3 o, struct vec3 d, float 
 
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
-    rayhit_setup(&rh, o, d, tmax);
-    rtcIntersect1(s->rtc_lights, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
+    if (!trace_closest(s->rtc_lights, o, d, tmax, &rh)) return -1;
     /* The ray as Embree holds it, as the stream form reads it back. */
     struct vec3 of = vec3_make(rh.ray.org_x, rh.ray.org_y, rh.ray.org_z);
     struct vec3 df = vec3_make(rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z);
@@ -470,8 +467,9 @@ void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n
     rtcOccludedNp(s->rtc_scene, &ctx, &np, (unsigned)n);
 }
 
-/* Embree's closest-hit view of a stream, its hit fields reset. */
-static struct RTCRayHitNp rayhit_np(struct ray_stream *rays, int n)
+/* Closest hits of the first n rays of a stream in `scene` (the whole
+   scene or the lights' alone), its hit fields reset first. */
+static void trace_closest_stream(RTCScene scene, struct ray_stream *rays, int n)
 {
     for (int i = 0; i < n; ++i) rays->geom_id[i] = RTC_INVALID_GEOMETRY_ID;
     for (int i = 0; i < n; ++i) rays->inst_id[i] = RTC_INVALID_GEOMETRY_ID;
@@ -479,15 +477,14 @@ static struct RTCRayHitNp rayhit_np(struct ray_stream *rays, int n)
         ray_np(rays),
         { rays->ng_x, rays->ng_y, rays->ng_z, rays->u, rays->v, rays->prim_id, rays->geom_id, { rays->inst_id } }
     };
-    return np;
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersectNp(scene, &ctx, &np, (unsigned)n);
 }
 
 void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light)
 {
-    struct RTCRayHitNp np = rayhit_np(rays, n);
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcIntersectNp(s->rtc_lights, &ctx, &np, (unsigned)n);
+    trace_closest_stream(s->rtc_lights, rays, n);
     /* The rays that met a light become the segments to test, the others
        inactive; one occlusion call for them all. */
     int to_test = 0;
@@ -511,7 +508,7 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
         }
     }
     if (to_test == 0) return;
-    rtcOccludedNp(s->rtc_scene, &ctx, &np.ray, (unsigned)n);
+    scene_occluded_stream(s, rays, n);
     for (int i = 0; i < n; ++i)
         if (ray_stream_blocked(rays, i)) light[i] = -1;
 }
@@ -519,10 +516,7 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
 void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int n, const struct vec3 *o,
                             const struct vec3 *d, struct hit *hits, bool *found)
 {
-    struct RTCRayHitNp np = rayhit_np(rays, n);
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)n);
+    trace_closest_stream(s->rtc_scene, rays, n);
     for (int i = 0; i < n; ++i) {
         unsigned g = rays->geom_id[i];
         found[i] = g != RTC_INVALID_GEOMETRY_ID;
