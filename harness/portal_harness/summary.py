@@ -5,7 +5,8 @@ For each row, over the K replicates j (independent seeds) of the strategy
 at the point, with F the reference's noise in the region (noise_check.py)
 and relMSE_j, t_j the final image's error and render time:
 
-- rel_mse = mean_j (relMSE_j - F): the reference's noise removed;
+- rel_mse = mean_j (relMSE_j - F): the reference's noise removed (not
+  where the reference does not resolve the error: see bound below);
   rel_mse_stderr = sd_j / sqrt(K) (Celarek et al. 2019, "Quantifying the
   error of light transport algorithms": errors of independent runs, their
   mean and its standard error);
@@ -176,7 +177,9 @@ def rows_for_point(
             ratio = floor / measured if measured > 0 else (math.nan if floor == 0 else math.inf)
             resolved = not (ratio > noise_ratio) and not info.fireflies
             cost = _mean_se([_cost(r, floor, resolved) for r in mine])
-            rel, rel_se = _mean_se([r.rel_mse - floor for r in mine])
+            # Unresolved: the floor is not subtracted (it may exceed the error it
+            # would be taken from), so rel_mse is the measured error, an upper bound.
+            rel, rel_se = _mean_se([r.rel_mse - (floor if resolved else 0.0) for r in mine])
             eff = 1.0 / cost[0] if cost[0] > 0 else math.nan
             eff_se = eff * cost[1] / cost[0] if cost[0] > 0 else math.nan
             vs, vs_se = _ratio_se(base_cost, cost)

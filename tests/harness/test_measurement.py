@@ -277,6 +277,12 @@ def test_08_summary_rows_efficiency_standard_errors_speedup_and_bounds() -> None
     portal = {r["strategy"]: r for r in rows}["portal"]
     assert portal["bound"] == "lower"
     assert portal["efficiency_vs_light"] == pytest.approx((0.1 * 4) / ((0.005 + 0.004) * 4))
+    # its error is the measured one (an upper bound), never the floor taken from it
+    assert portal["rel_mse"] == pytest.approx(0.005 + 0.004) == portal["rel_mse_measured"]
+    # a floor larger than the measured error (the runs outsampled the reference) stays positive
+    info = {"lit": summary.RegionInfo("lit", 100, 0.02)}
+    rows = summary.rows_for_point("p", 1.0, ("light", "portal"), reps, info, 0.1, {"light": "done", "portal": "done"})
+    assert all(r["bound"] == "lower" and r["rel_mse"] > 0 for r in rows)
 
 
 def test_09_speedup_is_read_off_the_curves() -> None:
