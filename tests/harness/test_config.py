@@ -75,7 +75,9 @@ def test_02b_every_shipped_experiment_and_its_full_version_load(real_renderer: P
 
 
 @pytest.mark.parametrize("full", [False, True])
-def test_02c_make_figures_sweeps_and_draws_each_file_in_order(tmp_path: Path, real_renderer: Path, full: bool) -> None:
+def test_02c_make_figures_sweeps_all_then_measures_and_draws_each(
+    tmp_path: Path, real_renderer: Path, full: bool
+) -> None:
     # The Makefile's loop itself, with a fake portal-harness that logs its arguments: FULL=1 once
     # swept files named "configs/experiments/.yaml" (the shell read $e_full as one variable).
     venv = tmp_path / "venv"
@@ -90,7 +92,9 @@ def test_02c_make_figures_sweeps_and_draws_each_file_in_order(tmp_path: Path, re
     assert done.returncode == 0, done.stderr
     suffix = "_full" if full else ""
     files = [f"configs/experiments/{name}{suffix}.yaml" for name in figure_experiments()]
-    expected = [f"{command} {file}" for file in files for command in ("sweep", "figures")]
+    # every sweep first, then each measured again against the final references and drawn
+    expected = [f"sweep {file}" for file in files]
+    expected += [f"{command} {file}" for file in files for command in ("sweep --no-progress", "figures")]
     assert log.read_text().splitlines() == expected
 
 

@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 import yaml
+from conftest import tiny_experiment
 from fastapi.testclient import TestClient
 
 from portal_harness.paths import ResultsLayout
@@ -33,17 +34,8 @@ def root(tmp_path: Path, fake_scene: Path) -> Path:
 
 
 def experiment_text(**sections: Any) -> str:
-    doc: dict[str, Any] = {
-        "name": "svc_tiny",
-        "scene": "scenes/tiny.yaml",
-        "integrator": "direct",
-        "strategies": ["light", "portal"],
-        "sweep": {"params.s_L": [0.15, 0.6]},
-        "fixed": {"params.s_P": 0.3},
-        "budget": {"time_s": 0.2, "threads": 1, "seed": 1, "snapshots": {"every": 0.05}},
-        "reference": {"strategy": "light", "spp": 500, "seed": 99},
-        "axis": {"param": "params.s_L", "divide_by": "params.s_P"},
-    }
+    """The shared tiny experiment, over the service root's scenes/tiny.yaml."""
+    doc = {**tiny_experiment("svc_tiny"), "scene": "scenes/tiny.yaml"}
     for key, value in sections.items():
         if value is None:
             doc.pop(key, None)
