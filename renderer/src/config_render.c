@@ -159,7 +159,7 @@ bool config_load_render(struct loader *L, const yaml_node_t *root, struct config
         r->mis = (enum mis_kind)e;
     }
     if ((n = config_map_get(L, map, "portal_weight"))) {
-        if (!config_get_enum(L, n, "portal_weight", portal_weight_names, 3, &e)) return false;
+        if (!config_get_enum(L, n, "portal_weight", portal_weight_names, PORTAL_WEIGHT_COUNT, &e)) return false;
         r->portal_weight = (enum portal_weight_kind)e;
     }
     if ((n = config_map_get(L, map, "sampler"))) {

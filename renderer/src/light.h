@@ -12,6 +12,7 @@
 
 struct light {
     struct target target; /* polygon, normal (emitting side), area */
+    struct vec3 centroid; /* of the polygon: the per-point weights measure from it */
     struct rgb radiance;  /* W / (m^2 sr) per channel */
     bool two_sided;
     double power;                /* luminance flux: pi * area * Y(radiance) * sides */

@@ -422,6 +422,36 @@ static bool above_horizon(const struct polygon *poly, struct vec3 p, struct vec3
     return false;
 }
 
+/* The solid angle of a planar polygon (area, unit normal, centroid c) from
+   p as a small polygon's, area |cos| / d^2 from its centroid, capped at a
+   hemisphere: O(1) in its vertices, and close where the polygon is small
+   against its distance, which is where most of a room's points see a lamp. */
+static double small_solid_angle(const struct target *t, struct vec3 c, struct vec3 p)
+{
+    struct vec3 d = vec3_sub(c, p);
+    double d2 = fm_fmax(vec3_length2(d), 1e-12);
+    double sa = t->area * fabs(vec3_dot(d, t->normal)) / (d2 * sqrt(d2));
+    return fm_fmin(sa, 2.0 * M_PI);
+}
+
+/* The lowest receiver cosine an `irradiance_estimate` uses: the cosine is
+   taken at the polygon's centroid, which may lie below the horizon while
+   part of the polygon rises above it. Any positive weight keeps the
+   estimator unbiased; zero is only for a polygon wholly below. */
+#define ESTIMATE_MIN_COSINE 0.05
+
+/* small_solid_angle times the receiver's cosine towards the centroid
+   (with n set; clamped below by ESTIMATE_MIN_COSINE), 0 when the polygon
+   is wholly below the horizon. */
+static double small_projected_solid_angle(const struct target *t, struct vec3 c, struct vec3 p, struct vec3 n)
+{
+    if (!above_horizon(&t->polygon, p, n)) return 0.0;
+    double sa = small_solid_angle(t, c, p);
+    if (vec3_length2(n) == 0.0) return sa;
+    double cos_r = vec3_dot(n, vec3_normalize(vec3_sub(c, p)));
+    return sa * fm_fmax(cos_r, ESTIMATE_MIN_COSINE);
+}
+
 /* Weight of a light sampled by itself (no portal): facing test, then the
    heuristic on the light's own polygon. */
 static struct weight_term light_weight_term(const struct light *l, enum portal_weight_kind heuristic, struct vec3 p,
@@ -438,6 +468,8 @@ static struct weight_term light_weight_term(const struct light *l, enum portal_w
     }
     case PORTAL_WEIGHT_IRRADIANCE:
         return irradiance_term(rgb_luminance(l->radiance), &l->target.polygon, p, n);
+    case PORTAL_WEIGHT_IRRADIANCE_ESTIMATE:
+        return weight_value(rgb_luminance(l->radiance) * small_projected_solid_angle(&l->target, l->centroid, p, n));
     }
     return weight_value(0.0);
 }
@@ -464,6 +496,7 @@ static struct weight_term emitter_weight_term(const struct strategy *s, int emit
     case PORTAL_WEIGHT_DISTANCE:
         return weight_value(e->power / d2);
     case PORTAL_WEIGHT_IRRADIANCE:
+    case PORTAL_WEIGHT_IRRADIANCE_ESTIMATE:
         return weight_value(e->power / (M_PI * d2));
     }
     return weight_value(0.0);
@@ -521,16 +554,33 @@ static enum region mesh_pair_region(const struct strategy *s, const struct strat
 }
 
 /* The `irradiance` weight of a mesh light's portal pair: the radiance
-   times the portal's solid angle as a small polygon's, area |cos| / d^2
-   (capped at a hemisphere), as if the light filled the portal (pair_weight
-   says why). */
+   times the portal's solid angle as a small polygon's (small_solid_angle),
+   as if the light filled the portal (pair_weight says why). */
 static double mesh_portal_irradiance(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
 {
     const struct portal *pt = &s->scene->portals[pair->portal];
-    struct vec3 d = vec3_sub(pt->centroid, p);
-    double d2 = fm_fmax(vec3_length2(d), 1e-12);
-    double sa = pt->target.area * fabs(vec3_dot(d, pt->target.normal)) / (d2 * sqrt(d2));
-    return rgb_luminance(s->scene->lights[pair->light].radiance) * fm_fmin(sa, 2.0 * M_PI);
+    return rgb_luminance(s->scene->lights[pair->light].radiance) * small_solid_angle(&pt->target, pt->centroid, p);
+}
+
+/* The `irradiance_estimate` weight of a polygon light's portal pair in a
+   known region: what the `irradiance` weight computes exactly from the
+   clipped visible polygon, estimated in O(1) from the light (anti-umbra:
+   all of it is seen), the portal (anti-antumbra: all of it is filled) or
+   the smaller of the two (anti-penumbra: the visible part is within both).
+   A point then clips and prepares only the pair it samples, instead of
+   every candidate: on multi_lamp those were a third of antishadow_exact's
+   time. */
+static double pair_irradiance_estimate(const struct strategy *s, const struct strategy_pair *pair, enum region region,
+                                       struct vec3 p, struct vec3 n)
+{
+    const struct scene *sc = s->scene;
+    const struct light *l = &sc->lights[pair->light];
+    const struct portal *pt = &sc->portals[pair->portal];
+    double light =
+        region == REGION_ANTI_ANTUMBRA ? INFINITY : small_projected_solid_angle(&l->target, l->centroid, p, n);
+    double portal =
+        region == REGION_ANTI_UMBRA ? INFINITY : small_projected_solid_angle(&pt->target, pt->centroid, p, n);
+    return rgb_luminance(l->radiance) * fm_fmin(light, portal);
 }
 
 /* Weight of pair i at the point under the strategy's heuristic; sets the
@@ -601,6 +651,9 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
         const struct target *vis = visible_target(s, ptp, i);
         return vis ? irradiance_term(rgb_luminance(l->radiance), &vis->polygon, p, n) : weight_value(0.0);
     }
+    case PORTAL_WEIGHT_IRRADIANCE_ESTIMATE:
+        if (mesh) return weight_value(mesh_portal_irradiance(s, pair, p));
+        return weight_value(pair_irradiance_estimate(s, pair, (enum region) * region, p, n));
     }
     return weight_value(0.0);
 }

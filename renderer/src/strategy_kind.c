@@ -6,4 +6,5 @@
 const char *const strategy_names[STRATEGY_COUNT] = { "light_area", "light",      "portal",
                                                      "projection", "antishadow", "antishadow_exact" };
 const char *const mis_names[3] = { "none", "balance", "power" };
-const char *const portal_weight_names[3] = { "area", "distance", "irradiance" };
+const char *const portal_weight_names[PORTAL_WEIGHT_COUNT] = { "area", "distance", "irradiance",
+                                                               "irradiance_estimate" };

@@ -20,11 +20,17 @@ enum strategy_kind {
 enum mis_kind { MIS_NONE, MIS_BALANCE, MIS_POWER };
 
 /* How a shading point distributes light samples over (light, portal) pairs. */
-enum portal_weight_kind { PORTAL_WEIGHT_AREA, PORTAL_WEIGHT_DISTANCE, PORTAL_WEIGHT_IRRADIANCE };
+enum portal_weight_kind {
+    PORTAL_WEIGHT_AREA,
+    PORTAL_WEIGHT_DISTANCE,
+    PORTAL_WEIGHT_IRRADIANCE,
+    PORTAL_WEIGHT_IRRADIANCE_ESTIMATE
+};
+#define PORTAL_WEIGHT_COUNT 4
 
 /* Names as written in configs, indexed by the enums above. */
 extern const char *const strategy_names[STRATEGY_COUNT];
 extern const char *const mis_names[3];
-extern const char *const portal_weight_names[3];
+extern const char *const portal_weight_names[PORTAL_WEIGHT_COUNT];
 
 #endif

@@ -214,6 +214,11 @@ static void test_multi_lamp_brute_force(void)
         /* Midpoint with a visibility edge: error ~ 1/g; twice the fine/coarse
            gap bounds it comfortably. */
         check_estimates(&sc, &cfg, white, points[i], vec3_make(0, 1, 0), fine, 2.0 * fabs(fine - coarse), "multi_lamp");
+        /* The O(1) weight picks pairs otherwise, never where they give nothing. */
+        struct config estimate = cfg;
+        estimate.render.portal_weight = PORTAL_WEIGHT_IRRADIANCE_ESTIMATE;
+        check_estimates(&sc, &estimate, white, points[i], vec3_make(0, 1, 0), fine, 2.0 * fabs(fine - coarse),
+                        "multi_lamp irradiance_estimate");
     }
     scene_destroy(&sc);
     config_free(&cfg);
