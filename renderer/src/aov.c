@@ -45,7 +45,7 @@ enum aov_region aov_classify_point(const struct aov_classifier *c, struct aov_sc
     const struct strategy *s = &c->pairs;
     /* Pairs outside the BVH's candidates light nothing at p (their boxes
        bound everything they light), so they cannot win. */
-    int n_cand = s->n_pairs > 0 ? strategy_candidates(s, p, scratch->cand) : 0;
+    int n_cand = s->n_pairs > 0 ? strategy_candidates(s, strategy_sided_point(s, p, n), scratch->cand) : 0;
     double best = 0.0;
     int best_pair = -1;
     enum aov_region cls = AOV_REGION_OUTSIDE;

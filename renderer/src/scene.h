@@ -146,11 +146,20 @@ bool scene_occluded(const struct scene *s, struct vec3 o, struct vec3 d, double 
    distant opening and clips it against the opening's rim. The step is
    chosen so the height above the surface is at least eps. Inline, with
    selects, so that the vectorised set-up loops (shading.c) can use it. */
+FM_INLINE double scene_offset_height_scaled(double scale, struct vec3 p)
+{
+    return 1e-5 * scale + 1e-6 * vec3_max_abs(p);
+}
 FM_INLINE double scene_offset_step_scaled(double scale, struct vec3 p, struct vec3 ng, struct vec3 d)
 {
-    double eps = 1e-5 * scale + 1e-6 * vec3_max_abs(p);
+    double eps = scene_offset_height_scaled(scale, p);
     double cos_n = fabs(vec3_dot(ng, d));
     return eps / (cos_n > 1e-3 ? cos_n : 1e-3);
+}
+/* The height above its surface at p that scene_offset_step clears. */
+static inline double scene_offset_height(const struct scene *s, struct vec3 p)
+{
+    return scene_offset_height_scaled(s->scale, p);
 }
 static inline double scene_offset_step(const struct scene *s, struct vec3 p, struct vec3 ng, struct vec3 d)
 {

@@ -592,7 +592,7 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
 {
     const struct scene *sc = s->scene;
     const struct strategy_pair *pair = &s->pairs[i];
-    struct vec3 p = ptp->p, n = ptp->n;
+    struct vec3 p = ptp->p, n = ptp->n, sided = ptp->sided;
     unsigned char *region = &ptp->scratch->region[i];
     const struct light *l = &sc->lights[pair->light];
     const struct emitter *e = &sc->emitters[pair->emitter];
@@ -606,7 +606,7 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
 
     const struct portal *pt = &sc->portals[pair->portal];
     if (classify) {
-        if (on_light_side(s, pair->emitter, p)) {
+        if (on_light_side(s, pair->emitter, sided)) {
             /* Only the light's first pair samples it there, and only if some
                of the light is above the receiver's horizon: the outside of
                the shade and the underside of its opening face away. (A mesh
@@ -617,7 +617,7 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
                 return weight_value(0.0);
             return s->n_pairs == 1 ? weight_value(1.0) : emitter_weight_term(s, pair->emitter, heuristic, p, n);
         }
-        *region = (unsigned char)(mesh ? mesh_pair_bound(s, pair, p) : antishadow_classify(&pt->antishadow, p));
+        *region = (unsigned char)(mesh ? mesh_pair_bound(s, pair, sided) : antishadow_classify(&pt->antishadow, sided));
         if (*region == REGION_OUTSIDE) return weight_value(0.0);
         /* A lone pair needs no weight beyond "can light p". */
         if (s->n_pairs == 1) return weight_value(1.0);
@@ -671,13 +671,14 @@ static double member_irradiance(const struct strategy *s, const struct strategy_
     }
     /* The same cases as pair_weight's, in the same order, minus its lone-pair
        shortcut (weight 1): a caller comparing pairs needs the irradiance. */
-    if (on_light_side(s, m->emitter, p)) {
+    struct vec3 sided = strategy_sided_point(s, p, n);
+    if (on_light_side(s, m->emitter, sided)) {
         *region = REGION_INSIDE;
         if (m->portal != l->first_portal || !above_horizon(&l->target.polygon, p, n)) return 0.0;
         return light_weight(l, PORTAL_WEIGHT_IRRADIANCE, p, n);
     }
     const struct antishadow *a = &sc->portals[m->portal].antishadow;
-    enum region r = antishadow_classify(a, p);
+    enum region r = antishadow_classify(a, sided);
     *region = r;
     if (r == REGION_OUTSIDE) return 0.0;
     struct polygon vis;
@@ -699,11 +700,12 @@ double strategy_pair_irradiance(const struct strategy *s, int i, struct vec3 p, 
         return emitter_weight(s, pair->emitter, PORTAL_WEIGHT_IRRADIANCE, p, n);
     }
     const struct light *l = &s->scene->lights[pair->light];
-    if (on_light_side(s, pair->emitter, p)) {
+    struct vec3 sided = strategy_sided_point(s, p, n);
+    if (on_light_side(s, pair->emitter, sided)) {
         *region = REGION_INSIDE;
         return pair->portal == l->first_portal ? emitter_weight(s, pair->emitter, PORTAL_WEIGHT_IRRADIANCE, p, n) : 0.0;
     }
-    *region = mesh_pair_region(s, pair, p);
+    *region = mesh_pair_region(s, pair, sided);
     return *region == REGION_OUTSIDE ? 0.0 : mesh_portal_irradiance(s, pair, p);
 }
 
@@ -723,16 +725,22 @@ static bool single_live(const double *w, int n)
     return live == 1;
 }
 
+struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct vec3 n)
+{
+    return vec3_madd(p, n, scene_offset_height(s->scene, p));
+}
+
 void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
 {
     struct strategy_scratch *scratch = pt->scratch;
     struct vec3 p = pt->p;
+    pt->sided = strategy_sided_point(s, p, pt->n);
     /* Forget the previous point's candidates (only those were touched). */
     for (int k = 0; k < scratch->n_cand; ++k) {
         scratch->cand_pos[scratch->cand[k]] = -1;
         scratch->vis_state[scratch->cand[k]] = VIS_UNKNOWN;
     }
-    scratch->n_cand = strategy_candidates(s, p, scratch->cand);
+    scratch->n_cand = strategy_candidates(s, pt->sided, scratch->cand);
     /* cdf holds each candidate's weight first, or the scale of a weight
        left to finish; those finish together. */
     int n_defer = 0;
@@ -857,7 +865,7 @@ static enum region member_region(const struct strategy *s, const struct strategy
     enum region r = region_of(pt, pair_index);
     /* REGION_ANTI_UMBRA here is mesh_pair_bound's: every triangle's too. */
     if (r == REGION_INSIDE || r == REGION_ANTI_UMBRA || !classifies(s->kind) || member->portal < 0) return r;
-    return antishadow_classify(&s->scene->portals[member->portal].antishadow, pt->p);
+    return antishadow_classify(&s->scene->portals[member->portal].antishadow, pt->sided);
 }
 
 static double pair_probability(const struct strategy_point *pt, int i)

@@ -87,9 +87,10 @@ void strategy_scratch_free(struct strategy_scratch *scratch);
 /* A shading point with its pair distribution, prepared once and used for
    both sampling and pdf evaluation there. */
 struct strategy_point {
-    struct vec3 p; /* world position (offset origin for rays) */
-    struct vec3 n; /* unit normal of the receiving side, or zero */
-    double total;  /* sum of pair weights (portal strategies) */
+    struct vec3 p;     /* world position (offset origin for rays) */
+    struct vec3 n;     /* unit normal of the receiving side, or zero */
+    struct vec3 sided; /* where its regions are decided (portal strategies: strategy_sided_point) */
+    double total;      /* sum of pair weights (portal strategies) */
     struct strategy_scratch *scratch;
 };
 
@@ -117,6 +118,18 @@ static inline bool strategy_batches(const struct strategy *s)
 {
     return !strategy_kind_uses_portals(s->kind);
 }
+
+/* The point at which the portal strategies decide the regions of a
+   shading point p with normal n (unit on the side the path arrives from,
+   or zero): p lifted off its surface along n by the height a ray leaving p
+   clears (scene_offset_height). A surface in a portal's plane, as a shade's
+   bottom plate around its opening, is hit up to ~1e-7 above or below that
+   plane (Embree's distances are floats): decided at p, the plate's inner
+   face was outside the shade half the time, its lamp never sampled there,
+   and every BSDF ray from it that reached the lamp counted with MIS weight
+   1, a firefly of the lamp's whole radiance under path tracing. A zero
+   normal keeps p. Directions and densities are still those from p. */
+struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct vec3 n);
 
 /* The portal strategies' part of strategy_prepare: the candidate pairs of
    pt->p and their weights, into pt->scratch. */

@@ -480,6 +480,57 @@ static void test_sample_begin_matches_one(void)
     }
 }
 
+/* A path inside the lampshade meets the inner face of the shade's bottom
+   plate, which lies in the portal's plane (y = 2.2). The hit point is
+   computed from Embree's float distance, so it lands up to ~1e-7 above or
+   below that plane. Seen from either, the point is inside the shade (its
+   normal faces the lamp), and every portal strategy must be able to sample
+   the lamp there: a zero density makes every BSDF ray that reaches the lamp
+   count with MIS weight 1, the lamp's whole radiance (the fireflies of
+   lampshade_ratio_path at ratio 0.25). */
+static void test_point_on_portal_plane_inside(void)
+{
+    struct config cfg;
+    struct scene sc;
+    struct config_override ov[] = { { "params.s_L", "0.075" } };
+    if (!test_scene_load("configs/scenes/lampshade.yaml", ov, 1, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    const enum strategy_kind kinds[] = { STRATEGY_ANTISHADOW_EXACT, STRATEGY_ANTISHADOW, STRATEGY_PORTAL,
+                                         STRATEGY_PROJECTION };
+    const struct vec3 up = { 0, 1, 0 }, lamp = { 0, 2.6, 0 };
+    const double dy[] = { -2e-7, -1e-12, 0.0, 1e-12, 2e-7 };
+    for (int k = 0; k < 4; ++k) {
+        struct render_desc rd = cfg.render;
+        rd.strategy = kinds[k];
+        struct strategy s;
+        struct strategy_scratch scratch;
+        struct error err;
+        if (!strategy_init(&s, &sc, &rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
+            CHECK_MSG(false, "%s", err.message);
+            continue;
+        }
+        for (int i = 0; i < 5; ++i) {
+            /* On the plate between the opening (|x| < 0.15) and the wall (0.2). */
+            struct vec3 p = { 0.17, 2.2 + dy[i], 0.03 };
+            struct strategy_point pt;
+            strategy_prepare(&s, &scratch, p, up, &pt);
+            struct vec3 wi = vec3_normalize(vec3_sub(lamp, p));
+            double pdf = strategy_pdf(&s, &pt, 0, wi);
+            printf("  %s dy %.0e: pdf %.4g\n", strategy_names[kinds[k]], dy[i], pdf);
+            bool classifies = kinds[k] == STRATEGY_ANTISHADOW_EXACT || kinds[k] == STRATEGY_ANTISHADOW;
+            if (classifies)
+                CHECK_MSG(pdf > 0.0, "%s, %.0e off the plane: density 0 towards the lamp", strategy_names[kinds[k]],
+                          dy[i]);
+        }
+        strategy_scratch_free(&scratch);
+        strategy_free(&s);
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
 static const struct test_case tests[] = {
     { "mesh_pair_region", test_mesh_pair_region },
     { "mesh_light", test_mesh_light },
@@ -490,5 +541,6 @@ static const struct test_case tests[] = {
     { "outside_returns_nothing", test_outside_returns_nothing },
     { "sample_many_matches_one", test_sample_many_matches_one },
     { "sample_begin_matches_one", test_sample_begin_matches_one },
+    { "point_on_portal_plane_inside", test_point_on_portal_plane_inside },
 };
 TEST_MAIN(tests)
