@@ -149,11 +149,14 @@ def build(experiment: Experiment, layout: ResultsLayout) -> Figure | None:
             ax.set_ylabel(f"{strategy}\nefficiency relative to light", fontsize=7)
         ax.tick_params(which="both", labelsize=6)
         ax.grid(True, which="both", alpha=0.2)
-    axes[0, 0].legend(fontsize=6, loc="best", frameon=True, framealpha=0.8)
-    fig.text(0.01, 0.0, text, fontsize=6.5, family="monospace", va="top", ha="left", transform=fig.transFigure)
     title = f"{experiment.name}: how much of {strategy}'s gain over light survives with indirect light"
     t, size = figure_layout.fit_text(title, figure_layout.PAGE_WIDTH_IN * 72 * 0.95, 9, max_lines=2)
     fig.suptitle(t, fontsize=size)
+    # Legend and caption below the canvas (the figure is saved with a tight
+    # box), out of the layout: inside a panel the legend covered its curves.
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncols=2, fontsize=7, frameon=False)
+    fig.text(0.01, -0.07, text, fontsize=6.5, family="monospace", va="top", ha="left", transform=fig.transFigure)
     return fig
 
 
