@@ -145,6 +145,30 @@ static inline double strategy_chi2_pdf(void *ctx, struct vec3 dir)
 
 /* Runs the chi-square test of strategy `kind` at p (normal n) with the cap
    fitted around `aim` (directions of the vertices to cover). */
+/* strategy_init and strategy_scratch_init of rd on sc, or a failed check
+   naming the error (and nothing left to free). */
+static inline bool ts_open_strategy(const struct scene *sc, const struct render_desc *rd, struct strategy *s,
+                                    struct strategy_scratch *scratch)
+{
+    struct error err;
+    if (!strategy_init(s, sc, rd, &err)) {
+        CHECK_MSG(false, "%s", err.message);
+        return false;
+    }
+    if (!strategy_scratch_init(s, scratch, &err)) {
+        CHECK_MSG(false, "%s", err.message);
+        strategy_free(s);
+        return false;
+    }
+    return true;
+}
+
+static inline void ts_close_strategy(struct strategy *s, struct strategy_scratch *scratch)
+{
+    strategy_scratch_free(scratch);
+    strategy_free(s);
+}
+
 static inline bool strategy_chi2_run(const struct test_scene *ts, enum strategy_kind kind, double defensive,
                                      enum portal_weight_kind weight, struct vec3 p, struct vec3 n,
                                      const struct vec3 *aim, int n_aim, double significance, uint64_t seed,

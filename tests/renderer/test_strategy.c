@@ -145,8 +145,7 @@ static void test_power_selection(void)
     /* Binomial(n, 2/3): 5 sigma. */
     double sigma = sqrt(n * (2.0 / 3.0) * (1.0 / 3.0));
     CHECK_NEAR(second, n * 2.0 / 3.0, 5 * sigma);
-    strategy_scratch_free(&scratch);
-    strategy_free(&s);
+    ts_close_strategy(&s, &scratch);
 }
 
 /* Outside the antishadow the antishadow strategies produce nothing (no ray
@@ -170,8 +169,7 @@ static void test_outside_returns_nothing(void)
         struct light_sample ls;
         CHECK(!strategy_sample(&s, &pt, u, &ls));
         CHECK(strategy_pdf(&s, &pt, 0, vec3_normalize(vec3_sub(vec3_make(0, 2.6, 0), p))) == 0.0);
-        strategy_scratch_free(&scratch);
-        strategy_free(&s);
+        ts_close_strategy(&s, &scratch);
     }
 }
 
@@ -227,11 +225,7 @@ static void test_sample_many_matches_one(void)
         rd.strategy = kinds[k];
         struct strategy s;
         struct strategy_scratch scratch;
-        struct error err;
-        if (!strategy_init(&s, &sc, &rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
-            CHECK_MSG(false, "%s", err.message);
-            continue;
-        }
+        if (!ts_open_strategy(&sc, &rd, &s, &scratch)) continue;
         CHECK(strategy_batches(&s));
         struct rng r;
         rng_seed(&r, 4242, (uint64_t)k, 0);
@@ -299,8 +293,7 @@ static void test_sample_many_matches_one(void)
             CHECK_MSG(lights_hit[l] > 0, "%s: light %d never sampled", strategy_names[kinds[k]], l);
         CHECK(n_ok > 0);
         printf("  %s: %ld samples, %ld failures, as strategy_sample\n", strategy_names[kinds[k]], n_ok, n_fail);
-        strategy_scratch_free(&scratch);
-        strategy_free(&s);
+        ts_close_strategy(&s, &scratch);
     }
     /* The strategies that keep per-point state in the scratch must not be
        batched (strategy_sample_many does not read the scratch). */
@@ -426,11 +419,7 @@ static void test_sample_begin_matches_one(void)
                 rd.defensive = d ? 0.1 : 0.0;
                 struct strategy s;
                 struct strategy_scratch scratch;
-                struct error err;
-                if (!strategy_init(&s, &sc, &rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
-                    CHECK_MSG(false, "%s", err.message);
-                    continue;
-                }
+                if (!ts_open_strategy(&sc, &rd, &s, &scratch)) continue;
                 struct rng r;
                 rng_seed(&r, 777, (uint64_t)(8 * c + 2 * k + d), 0);
                 long waiting = 0, visible = 0, bad = 0, n_ok = 0;
@@ -471,8 +460,7 @@ static void test_sample_begin_matches_one(void)
                     CHECK_MSG(visible > 0, "%s: no visible rectangle waited", scenes[c]);
                 printf("  %s %s defensive %.1f: %ld of %d samples waited (%ld of a visible rectangle)\n", scenes[c],
                        strategy_names[kinds[k]], rd.defensive, waiting, 5 * MANY_POINTS, visible);
-                strategy_scratch_free(&scratch);
-                strategy_free(&s);
+                ts_close_strategy(&s, &scratch);
             }
         }
         scene_destroy(&sc);
@@ -506,11 +494,7 @@ static void test_point_on_portal_plane_inside(void)
         rd.strategy = kinds[k];
         struct strategy s;
         struct strategy_scratch scratch;
-        struct error err;
-        if (!strategy_init(&s, &sc, &rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
-            CHECK_MSG(false, "%s", err.message);
-            continue;
-        }
+        if (!ts_open_strategy(&sc, &rd, &s, &scratch)) continue;
         for (int i = 0; i < 5; ++i) {
             /* On the plate between the opening (|x| < 0.15) and the wall (0.2). */
             struct vec3 p = { 0.17, 2.2 + dy[i], 0.03 };
@@ -523,8 +507,7 @@ static void test_point_on_portal_plane_inside(void)
                 CHECK_MSG(pdf > 0.0, "%s, %.0e off the plane: density 0 towards the lamp", strategy_names[kinds[k]],
                           dy[i]);
         }
-        strategy_scratch_free(&scratch);
-        strategy_free(&s);
+        ts_close_strategy(&s, &scratch);
     }
     printf(
         "  lamp density from the inner face of the shade's plate: 4 strategies x 5 heights about the portal plane\n");
