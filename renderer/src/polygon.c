@@ -398,17 +398,16 @@ double polygon_solid_angle(const struct polygon *poly, struct vec3 o)
     return fabs(sum);
 }
 
-/* Edge i runs from a = v_i - o to b = v_{i+1} - o. theta_i = atan2(|a x b|,
-   a . b) is accurate for short and long edges alike, and a x b is formed as
-   a x (v_{i+1} - v_i). The unit normal is taken as b x a (note the order):
-   for a polygon wound counter-clockwise as seen from o, i.e. whose winding
-   normal points back towards o, Phi then points towards the polygon. */
-/* The edge angles of m edges (a_k, b_k) seen from o: the plane normal
-   c_k = a x (b - a), as vec3_cross forms it, and its weight
-   w_k = -theta_k / |c_k| (0 for an edge through o). The one-polygon and
-   the many-polygon forms both use it, so that they agree bit for bit.
-   The a and b arrays may overlap (a polygon's b is its a shifted by one):
-   they are only read. */
+/* The edge angles of m edges seen from o, edge k running from a = v_k - o
+   to b = v_{k+1} - o: theta_k = atan2(|a x b|, a . b), accurate for short
+   and long edges alike, with a x b formed as c_k = a x (v_{k+1} - v_k), as
+   vec3_cross forms it, and the weight w_k = -theta_k / |c_k| (0 for an
+   edge through o). The minus sign takes the unit normal as b x a: for a
+   polygon wound counter-clockwise as seen from o (its winding normal
+   pointing back towards o), the vector irradiance Phi then points towards
+   the polygon. The one-polygon and the many-polygon forms both use it, so
+   that they agree bit for bit. The a and b arrays may overlap (a polygon's
+   b is its a shifted by one): they are only read. */
 FM_SIMD_CLONES static void edge_terms(const double *restrict xa, const double *restrict ya, const double *restrict za,
                                       const double *restrict xb, const double *restrict yb, const double *restrict zb,
                                       struct vec3 o, int m, double *restrict cx, double *restrict cy,

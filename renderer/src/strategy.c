@@ -163,9 +163,9 @@ static bool build_emitters(struct strategy *s, struct error *err)
         struct vec3 c = vec3_make(0.0, 0.0, 0.0);
         double area = 0.0;
         for (int k = 0; k < e->n_lights; ++k) {
-            const struct target *t = &sc->lights[e->first_light + k].target;
-            c = vec3_madd(c, polygon_centroid(&t->polygon), t->area);
-            area += t->area;
+            const struct light *l = &sc->lights[e->first_light + k];
+            c = vec3_madd(c, l->centroid, l->target.area);
+            area += l->target.area;
         }
         s->centre[i] = vec3_scale(c, 1.0 / area);
         for (int k = 0; k < e->n_lights; ++k) {

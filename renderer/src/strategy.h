@@ -131,8 +131,9 @@ static inline bool strategy_batches(const struct strategy *s)
    normal keeps p. Directions and densities are still those from p. */
 struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct vec3 n);
 
-/* The portal strategies' part of strategy_prepare: the candidate pairs of
-   pt->p and their weights, into pt->scratch. */
+/* The portal strategies' part of strategy_prepare: pt->sided, and the
+   candidate pairs found there with their weights at pt->p, into
+   pt->scratch. */
 void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt);
 
 /* The pairs that may light p, into out (room for s->n_pairs): those the
