@@ -82,10 +82,11 @@ def results(tmp_path: Path) -> Path:
     return tmp_path / "results"
 
 
-def tiny_experiment(name: str = "tiny") -> dict[str, Any]:
+def tiny_experiment(name: str = "tiny", sections: dict[str, Any] | None = None) -> dict[str, Any]:
     """The small default experiment over ../scenes/tiny.yaml (tiny_scene_tree):
-    two ratios, light and portal, 0.2 s runs."""
-    return {
+    two ratios, light and portal, 0.2 s runs; `sections` replace its
+    top-level sections (None removes one)."""
+    doc: dict[str, Any] = {
         "name": name,
         "scene": "../scenes/tiny.yaml",
         "integrator": "direct",
@@ -100,6 +101,12 @@ def tiny_experiment(name: str = "tiny") -> dict[str, Any]:
         ],
         "axis": {"param": "params.s_L", "divide_by": "params.s_P", "label": "light/portal ratio"},
     }
+    for key, value in (sections or {}).items():
+        if value is None:
+            doc.pop(key, None)
+        else:
+            doc[key] = value
+    return doc
 
 
 def tiny_scene_tree() -> dict[str, Any]:
@@ -135,12 +142,7 @@ def write_experiment(tmp_path: Path, fake_scene: Path) -> Callable[..., Path]:
     replace top-level sections of a small default."""
 
     def write(name: str = "tiny", **sections: Any) -> Path:
-        doc = tiny_experiment(name)
-        for key, value in sections.items():
-            if value is None:
-                doc.pop(key, None)
-            else:
-                doc[key] = value
+        doc = tiny_experiment(name, sections)
         path = tmp_path / "experiments" / f"{name}.yaml"
         path.parent.mkdir(exist_ok=True)
         path.write_text(yaml.safe_dump(doc, sort_keys=False))

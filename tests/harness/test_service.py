@@ -35,12 +35,7 @@ def root(tmp_path: Path, fake_scene: Path) -> Path:
 
 def experiment_text(**sections: Any) -> str:
     """The shared tiny experiment, over the service root's scenes/tiny.yaml."""
-    doc = {**tiny_experiment("svc_tiny"), "scene": "scenes/tiny.yaml"}
-    for key, value in sections.items():
-        if value is None:
-            doc.pop(key, None)
-        else:
-            doc[key] = value
+    doc = tiny_experiment("svc_tiny", {"scene": "scenes/tiny.yaml", **sections})
     return yaml.safe_dump(doc, sort_keys=False)
 
 
