@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "config.h"
+#include "light_hit.h"
 #include "watertight.h"
 
 /* Embree reports device errors through a callback; the first one is kept in
@@ -236,6 +237,21 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
     return true;
 }
 
+/* The lights as planes for scene_first_light, when they are all polygons
+   and few enough (light_hit.h); false only when out of memory. */
+static bool build_light_hits(struct scene *s)
+{
+    for (int i = 0; i < s->n_emitters; ++i)
+        if (s->emitters[i].rtc_scene) return true;
+    s->light_hits = malloc(sizeof *s->light_hits);
+    if (!s->light_hits) return false;
+    if (!light_hit_set_init(s->light_hits, s->lights, s->n_lights)) {
+        free(s->light_hits);
+        s->light_hits = NULL;
+    }
+    return true;
+}
+
 bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
 {
     memset(s, 0, sizeof *s);
@@ -313,6 +329,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     for (int g = first_light_geometry; g < s->n_geometries; ++g)
         rtcAttachGeometryByID(s->rtc_lights, rtcGetGeometry(s->rtc_scene, (unsigned)g), (unsigned)g);
     rtcCommitScene(s->rtc_lights);
+    if (!build_light_hits(s)) goto oom;
     s->bounds_lo = lo;
     s->bounds_hi = hi;
     s->scale = vec3_length(vec3_sub(hi, lo));
@@ -336,6 +353,7 @@ void scene_destroy(struct scene *s)
 {
     if (s->rtc_scene) rtcReleaseScene(s->rtc_scene);
     if (s->rtc_lights) rtcReleaseScene(s->rtc_lights);
+    free(s->light_hits);
     if (s->device) rtcReleaseDevice(s->device);
     free(s->materials);
     free(s->lights);
@@ -428,26 +446,37 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
     }
 }
 
-/* Where the ray o + t d met light geometry geom at distance t: the light,
-   and the end of the segment that must be clear for it to count (0 or less:
-   nothing to test). */
-static int light_met(const struct scene *s, struct vec3 o, struct vec3 d, float t, unsigned geom, unsigned prim,
-                     double *clear_to)
+/* The end of the segment o + t d that must be clear for light `light`,
+   met at distance t, to count (0 or less: nothing to test). */
+static double light_clear_to(const struct scene *s, struct vec3 o, struct vec3 d, double t, int light)
 {
-    int light = geometry_light(&s->geometries[geom], prim);
-    *clear_to = t - scene_offset_step(s, vec3_madd(o, d, t), s->lights[light].target.normal, d);
-    return light;
+    return t - scene_offset_step(s, vec3_madd(o, d, t), s->lights[light].target.normal, d);
+}
+
+/* The ray as Embree holds it, in floats: both ways of finding the first
+   light read it so, and the stream form can read nothing else. */
+static struct vec3 vec3_as_float(struct vec3 v)
+{
+    return vec3_make((float)v.x, (float)v.y, (float)v.z);
 }
 
 int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, double tmax)
 {
-    struct RTCRayHit rh;
-    if (!trace_closest(s->rtc_lights, o, d, tmax, &rh)) return -1;
-    /* The ray as Embree holds it, as the stream form reads it back. */
-    struct vec3 of = vec3_make(rh.ray.org_x, rh.ray.org_y, rh.ray.org_z);
-    struct vec3 df = vec3_make(rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z);
-    double clear_to;
-    int light = light_met(s, of, df, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, &clear_to);
+    struct vec3 of = vec3_as_float(o), df = vec3_as_float(d);
+    int light;
+    double t;
+    if (s->light_hits) {
+        float ox = (float)of.x, oy = (float)of.y, oz = (float)of.z, dx = (float)df.x, dy = (float)df.y,
+              dz = (float)df.z, tnear = 0.0f, tfar = ray_stream_tfar(tmax);
+        light_hit_many(s->light_hits, &ox, &oy, &oz, &dx, &dy, &dz, &tnear, &tfar, 1, &light, &t);
+        if (light < 0) return -1;
+    } else {
+        struct RTCRayHit rh;
+        if (!trace_closest(s->rtc_lights, o, d, tmax, &rh)) return -1;
+        light = geometry_light(&s->geometries[rh.hit.geomID], rh.hit.primID);
+        t = rh.ray.tfar;
+    }
+    double clear_to = light_clear_to(s, of, df, t, light);
     return clear_to > 0.0 && scene_occluded(s, o, d, clear_to) ? -1 : light;
 }
 
@@ -482,29 +511,45 @@ static void trace_closest_stream(RTCScene scene, struct ray_stream *rays, int n)
     rtcIntersectNp(scene, &ctx, &np, (unsigned)n);
 }
 
+/* Rays whose light distances scene_first_light_stream keeps at a time. */
+#define FIRST_LIGHT_BLOCK 64
+
 void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light)
 {
-    trace_closest_stream(s->rtc_lights, rays, n);
+    if (!s->light_hits) trace_closest_stream(s->rtc_lights, rays, n);
     /* The rays that met a light become the segments to test, the others
        inactive; one occlusion call for them all. */
     int to_test = 0;
-    for (int i = 0; i < n; ++i) {
-        unsigned g = rays->geom_id[i];
-        light[i] = -1;
-        if (g == RTC_INVALID_GEOMETRY_ID) {
-            ray_stream_skip(rays, i);
-            continue;
-        }
-        struct vec3 o = vec3_make(rays->ox[i], rays->oy[i], rays->oz[i]);
-        struct vec3 d = vec3_make(rays->dx[i], rays->dy[i], rays->dz[i]);
-        double clear_to;
-        light[i] = light_met(s, o, d, rays->tfar[i], g, rays->prim_id[i], &clear_to);
-        if (clear_to > 0.0) {
-            rays->tnear[i] = ray_stream_tnear_for(true);
-            rays->tfar[i] = ray_stream_tfar(clear_to);
-            ++to_test;
+    for (int i0 = 0; i0 < n; i0 += FIRST_LIGHT_BLOCK) {
+        int m = n - i0 < FIRST_LIGHT_BLOCK ? n - i0 : FIRST_LIGHT_BLOCK;
+        double t[FIRST_LIGHT_BLOCK];
+        if (s->light_hits) {
+            light_hit_many(s->light_hits, rays->ox + i0, rays->oy + i0, rays->oz + i0, rays->dx + i0, rays->dy + i0,
+                           rays->dz + i0, rays->tnear + i0, rays->tfar + i0, m, light + i0, t);
         } else {
-            ray_stream_skip(rays, i);
+            for (int k = 0; k < m; ++k) {
+                unsigned g = rays->geom_id[i0 + k];
+                light[i0 + k] =
+                    g == RTC_INVALID_GEOMETRY_ID ? -1 : geometry_light(&s->geometries[g], rays->prim_id[i0 + k]);
+                t[k] = rays->tfar[i0 + k];
+            }
+        }
+        for (int k = 0; k < m; ++k) {
+            int i = i0 + k;
+            if (light[i] < 0) {
+                ray_stream_skip(rays, i);
+                continue;
+            }
+            struct vec3 o = vec3_make(rays->ox[i], rays->oy[i], rays->oz[i]);
+            struct vec3 d = vec3_make(rays->dx[i], rays->dy[i], rays->dz[i]);
+            double clear_to = light_clear_to(s, o, d, t[k], light[i]);
+            if (clear_to > 0.0) {
+                rays->tnear[i] = ray_stream_tnear_for(true);
+                rays->tfar[i] = ray_stream_tfar(clear_to);
+                ++to_test;
+            } else {
+                ray_stream_skip(rays, i);
+            }
         }
     }
     if (to_test == 0) return;

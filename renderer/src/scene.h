@@ -69,6 +69,9 @@ struct scene {
     /* The lights' geometries alone, under the same geometry IDs (RTCScene):
        what scene_first_light looks for before it traces anything else. */
     void *rtc_lights;
+    /* The same lights as planes (light_hit.h), which scene_first_light
+       tests instead when they are a few polygons; NULL otherwise. */
+    struct light_hit_set *light_hits;
 };
 
 struct hit {
@@ -102,7 +105,9 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
 /* The light that the ray o + t d, t in (0, tmax), hits first; -1 when it
    hits a surface first or nothing (the MIS ray of direct lighting, which
    counts only where it reaches a light). Most such rays reach no light,
-   so the ray is first traced against the lights alone; only when it meets
+   so the ray is first tested against the lights alone (as planes,
+   light_hit.h, where they are a few polygons; else through their own
+   Embree scene); only when it meets
    one, at distance t, is the rest of the scene asked whether anything
    blocks (0, t - step), the step scene_offset_step takes at a light end,
    as a shadow ray towards that point would be. */

@@ -4,6 +4,9 @@
    scene: the same answer for every ray, inactive rays left out (clear, no
    light), rays of every kind among them (blocked and clear segments, rays
    that reach the light, hit a surface first or leave the scene). */
+#include <math.h>
+
+#include "polygon.h"
 #include "rng.h"
 #include "scene.h"
 #include "scene_util.h"
@@ -173,10 +176,43 @@ static void test_first_light_matches_one(void)
     fixture_free(&f);
 }
 
-/* scene_first_light traces the lights alone and then the segment before
-   the light it met: the same answer as the closest hit of the whole scene
-   (what it stands for), on the lampshade, the room of several lamps and
-   a lamp whose bulb is a mesh light. */
+/* Whether Embree's float arithmetic may decide ray o + t d, t in
+   (0, tmax), either way at light l: its exact (double) crossing of the
+   light's plane lies within float rounding of the segment's end or of the
+   polygon's rim. A float coordinate of the ray is off by up to ~2e-7 here
+   (6e-8 relative, coordinates below 4), which moves the crossing by that
+   over the cosine with the plane; 1e-6 leaves five times that. */
+static bool ambiguous_at(const struct light *l, struct vec3 o, struct vec3 d, double tmax)
+{
+    double t, cos = fabs(vec3_dot(d, l->target.normal));
+    if (!polygon_intersect_ray(&l->target.polygon, o, d, &t)) {
+        /* Missed: ambiguous only if the plane is crossed near the rim. */
+        double den = vec3_dot(d, l->target.normal);
+        if (den == 0.0) return false;
+        t = vec3_dot(vec3_sub(l->target.polygon.v[0], o), l->target.normal) / den;
+        if (!(t > 0.0)) return false;
+    }
+    double tol = 1e-6 / (cos > 1e-6 ? cos : 1e-6);
+    if (fabs(t - tmax) <= tol) return true;
+    struct vec3 x = vec3_madd(o, d, t);
+    const struct polygon *poly = &l->target.polygon;
+    for (int k = 0; k < poly->n; ++k) {
+        struct vec3 a = poly->v[k], e = vec3_sub(poly->v[(k + 1) % poly->n], a);
+        double along = vec3_dot(vec3_sub(x, a), e) / vec3_length2(e);
+        along = along < 0.0 ? 0.0 : along > 1.0 ? 1.0 : along;
+        if (vec3_length(vec3_sub(x, vec3_madd(a, e, along))) <= tol) return true;
+    }
+    return false;
+}
+
+/* scene_first_light looks at the lights alone (as planes, light_hit.h, or
+   through their own Embree scene for a mesh light) and then traces the
+   segment before the light it met: the same answer as the closest hit of
+   the whole scene (what it stands for), on the lampshade, the room of
+   several lamps and a lamp whose bulb is a mesh light. The planes are
+   exact where Embree rounds the ray to floats: only rays that float
+   rounding may decide either way (ambiguous_at) may differ, and they are
+   rare. */
 static void test_first_light_is_closest_hit(void)
 {
     const char *scenes[] = { SCENE, "configs/scenes/multi_lamp.yaml", "configs/scenes/little_lamp.yaml" };
@@ -186,17 +222,24 @@ static void test_first_light_is_closest_hit(void)
             CHECK(false);
             return;
         }
-        long reach = 0, differ = 0;
+        long reach = 0, differ = 0, unexplained = 0;
         for (int i = 0; i < N_RAYS; ++i) {
             const struct scene_ray *ray = &f.rays[i];
             struct hit h;
             int want = scene_intersect(&f.sc, ray->o, ray->d, ray->tmax, &h) ? h.light : -1;
             int got = scene_first_light(&f.sc, ray->o, ray->d, ray->tmax);
             reach += want >= 0;
-            differ += got != want;
+            if (got == want) continue;
+            ++differ;
+            bool explained = false;
+            for (int l = 0; l < f.sc.n_lights && !explained; ++l)
+                explained = (l == got || l == want) && ambiguous_at(&f.sc.lights[l], ray->o, ray->d, ray->tmax);
+            unexplained += !explained;
         }
-        fprintf(stderr, "  %s: %ld of %d rays reach a light first\n", scenes[k], reach, (int)N_RAYS);
-        CHECK_MSG(differ == 0, "%s: %ld rays differ", scenes[k], differ);
+        fprintf(stderr, "  %s: %ld of %d rays reach a light first, %ld decided within float rounding differ\n",
+                scenes[k], reach, (int)N_RAYS, differ);
+        CHECK_MSG(unexplained == 0, "%s: %ld rays differ beyond float rounding", scenes[k], unexplained);
+        CHECK_MSG(differ <= N_RAYS / 1000, "%s: %ld rays differ", scenes[k], differ);
         CHECK(reach > 200);
         fixture_free(&f);
     }
