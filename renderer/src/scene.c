@@ -27,21 +27,21 @@ static bool grow_geometries(struct scene *s, struct error *err)
     return true;
 }
 
-/* A committed Embree geometry of an indexed mesh of triangles (k = 3) or
-   quads (k = 4); NULL with a message on failure. */
+/* A committed Embree geometry of an indexed triangle mesh; NULL with a
+   message on failure. */
 static RTCGeometry new_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces,
-                            int k, struct error *err)
+                            struct error *err)
 {
     RTCDevice dev = s->device;
-    RTCGeometry g = rtcNewGeometry(dev, k == 4 ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
+    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
     if (!g) {
         error_set(err, "Embree could not create a geometry");
         return NULL;
     }
     float *vb =
         rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), (size_t)n_verts);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, k == 4 ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
-                                           (size_t)k * sizeof(unsigned), (size_t)n_faces);
+    unsigned *ib =
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), (size_t)n_faces);
     if (!vb || !ib) {
         rtcReleaseGeometry(g);
         error_set(err, "out of memory for Embree buffers");
@@ -52,16 +52,16 @@ static RTCGeometry new_mesh(struct scene *s, const struct vec3 *verts, int n_ver
         vb[3 * i + 1] = (float)verts[i].y;
         vb[3 * i + 2] = (float)verts[i].z;
     }
-    for (int i = 0; i < k * n_faces; ++i) ib[i] = (unsigned)indices[i];
+    for (int i = 0; i < 3 * n_faces; ++i) ib[i] = (unsigned)indices[i];
     rtcCommitGeometry(g);
     return g;
 }
 
-/* Attaches an indexed mesh of triangles (k = 3) or quads (k = 4). */
-static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces, int k,
+/* Attaches an indexed triangle mesh. */
+static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, const int *indices, int n_faces,
                      struct geometry_info info, struct error *err)
 {
-    RTCGeometry g = new_mesh(s, verts, n_verts, indices, n_faces, k, err);
+    RTCGeometry g = new_mesh(s, verts, n_verts, indices, n_faces, err);
     if (!g) return false;
     if (!grow_geometries(s, err)) {
         rtcReleaseGeometry(g);
@@ -101,37 +101,37 @@ bool scene_collect_faces(const struct config *cfg, struct watertight_face **out,
 }
 
 /* Attaches one shape, its faces being w's faces face0.. (scene_collect_faces'
-   order): the quads that gained no vertex stay one quad geometry (quads
-   trace ~25% faster than two triangles), the triangles that stay and the
-   fans of the faces that changed are one triangle geometry, with the fans'
-   vertices appended to the shape's. Both carry the shape's info, so hits
-   map back to its material. */
+   order), as one triangle geometry: the triangles and quads that gained no
+   vertex keep the shape's vertices, the fans of the faces that changed get
+   their vertices appended. A quad goes in as Embree would split it
+   ((v0, v1, v3) and (v2, v3, v1)), so the surface is the same as a quad
+   geometry's, but traced as triangles: Embree 3.13's high-quality builder
+   splits triangles spatially and not quads, and camera rays into the
+   lampshade's large floor and wall quads traced 1.8x faster as triangles
+   (results/bench/README.md, "Sixth pass"). The geometry carries the shape's
+   info, so hits map back to its material. */
 static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct watertight *w, int face0,
                       struct geometry_info info, struct error *err)
 {
-    int n_quads = 0, n_tris = 0, n_fan = 0;
-    for (int q = 0; q < sh->n_quads; ++q) {
-        if (watertight_changed(w, face0 + q)) n_fan += w->first[face0 + q + 1] - w->first[face0 + q];
-        else ++n_quads;
-    }
-    for (int t = 0; t < sh->n_triangles; ++t) {
-        int f = face0 + sh->n_quads + t;
+    int n_tris = 0, n_fan = 0;
+    for (int f = face0; f < face0 + sh->n_quads + sh->n_triangles; ++f) {
         if (watertight_changed(w, f)) n_fan += w->first[f + 1] - w->first[f];
-        else ++n_tris;
+        else n_tris += f < face0 + sh->n_quads ? 2 : 1;
     }
     int n_verts = sh->n_vertices + 3 * n_fan;
-    int *quads = malloc(sizeof *quads * (size_t)(4 * n_quads + 1));
     int *tris = malloc(sizeof *tris * (size_t)(3 * (n_tris + n_fan) + 1));
     struct vec3 *verts = malloc(sizeof *verts * (size_t)(n_verts > 0 ? n_verts : 1));
-    bool ok = quads && tris && verts;
+    bool ok = tris && verts;
     if (!ok) error_set(err, "out of memory for the faces of a shape");
     if (ok) {
         memcpy(verts, sh->vertices, sizeof *verts * (size_t)sh->n_vertices);
-        int nq = 0, nt = 0, nv = sh->n_vertices;
+        int nt = 0, nv = sh->n_vertices;
         for (int q = 0; q < sh->n_quads; ++q) {
             if (watertight_changed(w, face0 + q)) continue;
-            for (int v = 0; v < 4; ++v) quads[4 * nq + v] = sh->quads[q][v];
-            ++nq;
+            const int *v = sh->quads[q];
+            const int split[6] = { v[0], v[1], v[3], v[2], v[3], v[1] };
+            for (int k = 0; k < 6; ++k) tris[3 * nt + k] = split[k];
+            nt += 2;
         }
         for (int t = 0; t < sh->n_triangles; ++t) {
             if (watertight_changed(w, face0 + sh->n_quads + t)) continue;
@@ -144,10 +144,8 @@ static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct
                     verts[nv] = w->tris[k].v[v];
                     tris[3 * nt + v] = nv++;
                 }
-        if (nq > 0) ok = add_mesh(s, verts, sh->n_vertices, quads, nq, 4, info, err);
-        if (ok && nt > 0) ok = add_mesh(s, verts, nv, tris, nt, 3, info, err);
+        if (nt > 0) ok = add_mesh(s, verts, nv, tris, nt, info, err);
     }
-    free(quads);
     free(tris);
     free(verts);
     return ok;
@@ -305,11 +303,11 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
             /* One geometry for the whole mesh: its primitive k is light k. */
             struct geometry_info info = { -1, e->first_light, true };
             for (int v = 0; v < mesh->n_vertices; ++v) bounds_add(&lo, &hi, mesh->vertices[v]);
-            if (!add_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, 3, info, err))
+            if (!add_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, info, err))
                 goto fail;
             /* And alone, for scene_emitter_hit. */
             RTCGeometry g =
-                new_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, 3, err);
+                new_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, err);
             if (!g) goto fail;
             RTCScene own = rtcNewScene(s->device);
             rtcSetSceneFlags(own, RTC_SCENE_FLAG_ROBUST);
@@ -324,7 +322,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
         int fan[3 * (POLYGON_MAX - 2)];
         for (int k = 0; k + 2 < poly->n; ++k) fan[3 * k] = 0, fan[3 * k + 1] = k + 1, fan[3 * k + 2] = k + 2;
         for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
-        if (!add_mesh(s, poly->v, poly->n, fan, poly->n - 2, 3, info, err)) goto fail;
+        if (!add_mesh(s, poly->v, poly->n, fan, poly->n - 2, info, err)) goto fail;
     }
     for (int g = first_light_geometry; g < s->n_geometries; ++g)
         rtcAttachGeometryByID(s->rtc_lights, rtcGetGeometry(s->rtc_scene, (unsigned)g), (unsigned)g);
