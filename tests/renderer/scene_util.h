@@ -8,6 +8,18 @@
 #include "config.h"
 #include "scene.h"
 
+/* The scene of a loaded config; on failure the config is freed. */
+static inline bool test_scene_build(struct config *cfg, struct scene *sc)
+{
+    struct error err;
+    if (!scene_create(cfg, sc, &err)) {
+        fprintf(stderr, "  %s\n", err.message);
+        config_free(cfg);
+        return false;
+    }
+    return true;
+}
+
 static inline bool test_scene_load(const char *path, const struct config_override *ov, int n_ov, struct config *cfg,
                                    struct scene *sc)
 {
@@ -16,12 +28,19 @@ static inline bool test_scene_load(const char *path, const struct config_overrid
         fprintf(stderr, "  %s\n", err.message);
         return false;
     }
-    if (!scene_create(cfg, sc, &err)) {
+    return test_scene_build(cfg, sc);
+}
+
+/* test_scene_load for a config given as text (name: what messages call it). */
+static inline bool test_scene_load_string(const char *text, size_t length, const char *name, struct config *cfg,
+                                          struct scene *sc)
+{
+    struct error err;
+    if (!config_load_string(text, length, name, NULL, 0, cfg, &err)) {
         fprintf(stderr, "  %s\n", err.message);
-        config_free(cfg);
         return false;
     }
-    return true;
+    return test_scene_build(cfg, sc);
 }
 
 /* True when anything blocks the segment from `from` to `to` (scene_occluded

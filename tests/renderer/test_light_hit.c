@@ -6,6 +6,7 @@
 
 #include "light_hit.h"
 #include "polygon.h"
+#include "polygon_util.h"
 #include "rng.h"
 #include "scene_util.h"
 #include "testlib.h"
@@ -49,20 +50,6 @@ static void random_lights(struct rng *r, struct light *lights)
         bool ok = light_init(&lights[l], &p, rgb_make(1, 1, 1), false);
         CHECK(ok);
     }
-}
-
-/* The distance from x to the polygon's rim. */
-static double rim_distance(const struct polygon *poly, struct vec3 x)
-{
-    double best = INFINITY;
-    for (int k = 0; k < poly->n; ++k) {
-        struct vec3 a = poly->v[k], e = vec3_sub(poly->v[(k + 1) % poly->n], a);
-        double along = vec3_dot(vec3_sub(x, a), e) / vec3_length2(e);
-        along = along < 0.0 ? 0.0 : along > 1.0 ? 1.0 : along;
-        double dd = vec3_length(vec3_sub(x, vec3_madd(a, e, along)));
-        best = dd < best ? dd : best;
-    }
-    return best;
 }
 
 /* Rays from random points towards random points of the box or of a light
@@ -109,7 +96,7 @@ static void test_matches_polygon_test(void)
             /* Any crossing of a plane near its rim may go either way. */
             double den = vec3_dot(d, lights[l].target.normal);
             double tp = vec3_dot(vec3_sub(lights[l].target.polygon.v[0], o), lights[l].target.normal) / den;
-            if (tp > 0.0 && rim_distance(&lights[l].target.polygon, vec3_madd(o, d, tp)) < 1e-9) at_rim = true;
+            if (tp > 0.0 && test_rim_distance(&lights[l].target.polygon, vec3_madd(o, d, tp)) < 1e-9) at_rim = true;
         }
         hits += want >= 0;
         if (at_rim) {

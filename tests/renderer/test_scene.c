@@ -2,9 +2,8 @@
    are traced as two triangles each (scene.c, add_shape): the faces must
    still cover exactly their polygons, at the right distance, with the
    winding's normal. */
-#include "config.h"
-#include "polygon.h"
-#include "scene.h"
+#include "polygon_util.h"
+#include "scene_util.h"
 #include "testlib.h"
 
 /* A mesh of two planar, convex, non-rectangular quads sharing an edge and
@@ -40,21 +39,6 @@ static int mesh_faces(struct polygon faces[3])
     return 3;
 }
 
-/* Distance of x from the boundary of a convex polygon, within its plane
-   (x is taken to lie in it). */
-static double boundary_distance(const struct polygon *p, struct vec3 x)
-{
-    double best = INFINITY;
-    for (int k = 0; k < p->n; ++k) {
-        struct vec3 a = p->v[k], e = vec3_sub(p->v[(k + 1) % p->n], a);
-        double along = vec3_dot(vec3_sub(x, a), e) / vec3_length2(e);
-        along = along < 0.0 ? 0.0 : along > 1.0 ? 1.0 : along;
-        double d = vec3_length(vec3_sub(x, vec3_madd(a, e, along)));
-        best = d < best ? d : best;
-    }
-    return best;
-}
-
 /* Rays straight down the plane's normal onto a 61 x 61 grid over the mesh's
    extent: every one whose foot lies inside a face (clear of its rim by
    1e-6) hits at the plane's distance with the face's winding normal, every
@@ -63,15 +47,7 @@ static void test_quads_cover_their_polygons(void)
 {
     struct config cfg;
     struct scene sc;
-    struct error err;
-    if (!config_load_string(mesh_yaml, sizeof mesh_yaml - 1, "mesh.yaml", NULL, 0, &cfg, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        CHECK(false);
-        return;
-    }
-    if (!scene_create(&cfg, &sc, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
-        config_free(&cfg);
+    if (!test_scene_load_string(mesh_yaml, sizeof mesh_yaml - 1, "mesh.yaml", &cfg, &sc)) {
         CHECK(false);
         return;
     }
@@ -92,7 +68,7 @@ static void test_quads_cover_their_polygons(void)
             bool inside = false, near_rim = false;
             for (int f = 0; f < n_faces; ++f) {
                 inside |= polygon_contains(&faces[f], foot);
-                near_rim |= boundary_distance(&faces[f], foot) < 1e-6;
+                near_rim |= test_rim_distance(&faces[f], foot) < 1e-6;
             }
             if (near_rim) continue;
             struct vec3 o = vec3_madd(foot, n, 2.0);

@@ -213,13 +213,10 @@ static void test_stitched_face_keeps_material(void)
         "render: {spp: 1}\n";
     struct config cfg;
     struct scene sc;
-    struct error err;
-    if (!config_load_string(yaml, sizeof yaml - 1, "stitch.yaml", NULL, 0, &cfg, &err)) {
-        fprintf(stderr, "  %s\n", err.message);
+    if (!test_scene_load_string(yaml, sizeof yaml - 1, "stitch.yaml", &cfg, &sc)) {
         CHECK(false);
         return;
     }
-    CHECK(scene_create(&cfg, &sc, &err));
     int red = -1;
     for (int i = 0; i < cfg.n_materials; ++i)
         if (cfg.materials[i].albedo.r > 0.55) red = i;
