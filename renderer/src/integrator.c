@@ -201,7 +201,8 @@ struct integrator_row {
     bool *ok;
     struct shadow_query *shadow;
     struct bsdf_query *bsdf;
-    struct ray_stream shadow_rays, bsdf_rays;
+    struct ray_stream shadow_rays, bsdf_rays, packed_rays;
+    int *group, *order; /* scene_occluded_grouped's keys and scratch */
     int *light;
     int *pixel;
     struct path_lane *paths;
@@ -234,9 +235,12 @@ struct integrator_row *integrator_row_create(int n, struct error *err)
     row->ray_d = malloc(m * sizeof *row->ray_d);
     row->hit = malloc(m * sizeof *row->hit);
     row->found = malloc(m * sizeof *row->found);
+    row->group = malloc(m * sizeof *row->group);
+    row->order = malloc(m * sizeof *row->order);
     if (row->v && row->sp && row->u && row->ub && row->ls && row->pend && row->ok && row->shadow && row->bsdf &&
-        row->light && row->pixel && row->paths && row->ray_o && row->ray_d && row->hit && row->found &&
-        ray_stream_init(&row->shadow_rays, (int)m, err) && ray_stream_init(&row->bsdf_rays, (int)m, err))
+        row->light && row->pixel && row->paths && row->ray_o && row->ray_d && row->hit && row->found && row->group &&
+        row->order && ray_stream_init(&row->shadow_rays, (int)m, err) &&
+        ray_stream_init(&row->bsdf_rays, (int)m, err) && ray_stream_init(&row->packed_rays, (int)m, err))
         return row;
     integrator_row_destroy(row);
     error_set(err, "out of memory for a row of %d shading points", n);
@@ -257,6 +261,9 @@ void integrator_row_destroy(struct integrator_row *row)
     free(row->bsdf);
     ray_stream_free(&row->shadow_rays);
     ray_stream_free(&row->bsdf_rays);
+    ray_stream_free(&row->packed_rays);
+    free(row->group);
+    free(row->order);
     free(row->light);
     free(row->pixel);
     free(row->paths);
@@ -265,6 +272,22 @@ void integrator_row_destroy(struct integrator_row *row)
     free(row->hit);
     free(row->found);
     free(row);
+}
+
+/* The row's shadow rays, one Embree call. Those of camera vertices (a
+   film row's neighbouring points) converge on the lights they sample:
+   grouped by emitter, they are traced as a coherent stream (Embree's
+   packets); those of later bounces start from scattered points and go as
+   they are. */
+static void trace_shadows(const struct scene *sc, struct integrator_row *row, int lanes, bool converge)
+{
+    if (!converge) {
+        scene_occluded_stream(sc, &row->shadow_rays, lanes, false);
+        return;
+    }
+    for (int k = 0; k < lanes; ++k)
+        row->group[k] = row->ok[k] && row->ls[k].light >= 0 ? sc->lights[row->ls[k].light].emitter : 0;
+    scene_occluded_grouped(sc, &row->shadow_rays, lanes, row->group, &row->packed_rays, row->order);
 }
 
 /* Direct lighting a row at a time, one step for every shading point before
@@ -321,7 +344,7 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
     }
     shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, mis ? (const double(*)[2])row->ub : NULL, lanes, stats,
                        row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
-    scene_occluded_stream(sc, &row->shadow_rays, lanes);
+    trace_shadows(sc, row, lanes, true);
     if (mis) scene_first_light_stream(sc, &row->bsdf_rays, lanes, row->light);
     for (int k = 0; k < lanes; ++k) {
         struct rgb L = shadow_resolve(&row->shadow[k], ray_stream_blocked(&row->shadow_rays, k), stats);
@@ -421,7 +444,7 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
            traced by trace_bounces, for the paths that go on). */
         shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, (const double(*)[2])row->ub, lanes, stats,
                            row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
-        scene_occluded_stream(sc, &row->shadow_rays, lanes);
+        trace_shadows(sc, row, lanes, depth == 0);
         /* Each path's next ray, by BSDF sampling; the paths that go on stay
            packed. */
         live = 0;

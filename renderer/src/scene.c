@@ -486,12 +486,53 @@ static struct RTCRayNp ray_np(struct ray_stream *r)
     return np;
 }
 
-void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n)
+void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n, bool coherent)
 {
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
+    if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     struct RTCRayNp np = ray_np(rays);
     rtcOccludedNp(s->rtc_scene, &ctx, &np, (unsigned)n);
+}
+
+/* Groups of scene_occluded_grouped: rays are ordered by group modulo this. */
+#define OCCLUDED_GROUPS 16
+
+void scene_occluded_grouped(const struct scene *s, struct ray_stream *rays, int n, const int *group,
+                            struct ray_stream *packed, int *order)
+{
+    int start[OCCLUDED_GROUPS + 1] = { 0 }, last = 0;
+    bool in_order = true;
+    for (int i = 0; i < n; ++i) {
+        if (!(rays->tnear[i] <= rays->tfar[i])) continue;
+        int g = group[i] & (OCCLUDED_GROUPS - 1);
+        ++start[g + 1];
+        in_order &= g >= last;
+        last = g;
+    }
+    /* One light (or rays already in order, inactive ones among them): as
+       they are. */
+    if (in_order) {
+        scene_occluded_stream(s, rays, n, true);
+        return;
+    }
+    for (int g = 0; g < OCCLUDED_GROUPS; ++g) start[g + 1] += start[g];
+    int m = start[OCCLUDED_GROUPS];
+    for (int i = 0; i < n; ++i) {
+        if (!(rays->tnear[i] <= rays->tfar[i])) continue;
+        int j = start[group[i] & (OCCLUDED_GROUPS - 1)]++;
+        packed->ox[j] = rays->ox[i];
+        packed->oy[j] = rays->oy[i];
+        packed->oz[j] = rays->oz[i];
+        packed->dx[j] = rays->dx[i];
+        packed->dy[j] = rays->dy[i];
+        packed->dz[j] = rays->dz[i];
+        packed->tnear[j] = rays->tnear[i];
+        packed->tfar[j] = rays->tfar[i];
+        order[j] = i;
+    }
+    scene_occluded_stream(s, packed, m, true);
+    for (int j = 0; j < m; ++j) rays->tfar[order[j]] = packed->tfar[j];
 }
 
 /* Closest hits of the first n rays of a stream in `scene` (the whole
@@ -551,7 +592,7 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
         }
     }
     if (to_test == 0) return;
-    scene_occluded_stream(s, rays, n);
+    scene_occluded_stream(s, rays, n, false);
     for (int i = 0; i < n; ++i)
         if (ray_stream_blocked(rays, i)) light[i] = -1;
 }

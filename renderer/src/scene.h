@@ -116,7 +116,13 @@ int scene_first_light(const struct scene *s, struct vec3 o, struct vec3 d, doubl
    points, such as the shadow or BSDF rays of a film row), one Embree call
    for all. Occlusion: afterwards ray_stream_blocked(s, i) tells whether an
    active ray i was blocked. */
-void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n);
+void scene_occluded_stream(const struct scene *s, struct ray_stream *rays, int n, bool coherent);
+/* scene_occluded_stream for rays that converge on a few lights: the active
+   ones, ordered by group (the emitter they go to), are copied into packed
+   and traced as a coherent stream, and each one's result is written back
+   into rays. order (n ints) is scratch. */
+void scene_occluded_grouped(const struct scene *s, struct ray_stream *rays, int n, const int *group,
+                            struct ray_stream *packed, int *order);
 /* Closest hits: light[i] = the light ray i hits first, -1 when it hits a
    surface first or nothing (scene_first_light for each ray) or is
    inactive. */

@@ -109,7 +109,7 @@ static void test_occluded_matches_one(void)
     for (int si = 0; si < 3; ++si) {
         int n = sizes[si];
         fill(&s, &f, n);
-        scene_occluded_stream(&f.sc, &s, n);
+        scene_occluded_stream(&f.sc, &s, n, false);
         for (int i = 0; i < n; ++i) {
             const struct scene_ray *ray = &f.rays[i];
             bool want = f.active[i] && scene_occluded(&f.sc, ray->o, ray->d, ray->tmax);
@@ -123,6 +123,53 @@ static void test_occluded_matches_one(void)
     fprintf(stderr, "  %ld blocked, %ld clear\n", blocked, clear);
     CHECK_MSG(differ == 0, "%ld rays differ", differ);
     CHECK(blocked > 500 && clear > 500);
+    ray_stream_free(&s);
+    fixture_free(&f);
+}
+
+/* scene_occluded_grouped (the rays ordered by group, traced as a coherent
+   stream, results written back in place) gives each ray the answer of the
+   one-ray query: with many groups (more than the function folds them
+   into, so that groups share a slot), with rays already in group order,
+   and with no rays. Inactive rays stay unblocked and untouched. */
+static void test_occluded_grouped_matches_one(void)
+{
+    static struct fixture f;
+    if (!fixture_init(&f, 7)) {
+        CHECK(false);
+        return;
+    }
+    struct ray_stream s, packed;
+    CHECK(ray_stream_init(&s, N_RAYS, NULL));
+    CHECK(ray_stream_init(&packed, N_RAYS, NULL));
+    static int group[N_RAYS], order[N_RAYS];
+    struct rng r;
+    rng_seed(&r, 9, 0, 0);
+    long differ = 0, blocked = 0;
+    /* Shuffled groups 0..39; the same sorted (the in-order path); a single
+       group; a stream shorter than one vector; none. */
+    const int sizes[] = { N_RAYS, N_RAYS, N_RAYS, 5, 0 };
+    for (int si = 0; si < 5; ++si) {
+        int n = sizes[si];
+        for (int i = 0; i < n; ++i)
+            group[i] = si == 1 ? i * 16 / N_RAYS : si == 2 ? 3 : (int)(rng_uniform(&r) * 40.0) % 40;
+        fill(&s, &f, n);
+        scene_occluded_grouped(&f.sc, &s, n, group, &packed, order);
+        for (int i = 0; i < n; ++i) {
+            const struct scene_ray *ray = &f.rays[i];
+            bool want = f.active[i] && scene_occluded(&f.sc, ray->o, ray->d, ray->tmax);
+            differ += ray_stream_blocked(&s, i) != want;
+            if (n == N_RAYS) blocked += want;
+            /* The ray itself is unchanged but for tfar (blocked: -inf). */
+            if (f.active[i])
+                differ += s.ox[i] != (float)ray->o.x || s.dz[i] != (float)ray->d.z ||
+                          (!want && s.tfar[i] != ray_stream_tfar(ray->tmax));
+        }
+    }
+    fprintf(stderr, "  %ld blocked over the three full streams\n", blocked);
+    CHECK_MSG(differ == 0, "%ld rays differ", differ);
+    CHECK(blocked > 1500);
+    ray_stream_free(&packed);
     ray_stream_free(&s);
     fixture_free(&f);
 }
@@ -248,6 +295,7 @@ static void test_first_light_is_closest_hit(void)
 static const struct test_case tests[] = {
     { "first_light_is_closest_hit", test_first_light_is_closest_hit },
     { "occluded_matches_one", test_occluded_matches_one },
+    { "occluded_grouped_matches_one", test_occluded_grouped_matches_one },
     { "first_light_matches_one", test_first_light_matches_one },
 };
 
