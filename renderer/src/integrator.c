@@ -290,6 +290,18 @@ static void trace_shadows(const struct scene *sc, struct integrator_row *row, in
     scene_occluded_grouped(sc, &row->shadow_rays, lanes, row->group, &row->packed_rays, row->order);
 }
 
+/* The portal strategies keep a point's pair distribution in the one
+   scratch: each point is prepared and its sample begun before the next
+   point is prepared (its uniforms are drawn already). */
+static void begin_samples(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
+                          int lanes)
+{
+    for (int k = 0; k < lanes; ++k) {
+        strategy_prepare(it->strategy, scratch, row->v[k].p, row->v[k].n, &row->sp[k]);
+        row->ok[k] = strategy_sample_begin(it->strategy, &row->sp[k], row->u[k], &row->ls[k], &row->pend[k]);
+    }
+}
+
 /* Direct lighting a row at a time, one step for every shading point before
    the next: shading points and their uniforms; all light samples at once
    (vectorised); shadow and BSDF ray set-up, into ray streams; the streams,
@@ -324,21 +336,16 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         if (it->max_depth < 1) continue;
         struct vertex *v = &row->v[lanes];
         if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
-        strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
-        if (!batches) {
-            sampler_light(&smp[x], 0, row->u[lanes]);
-            if (mis) sampler_bsdf(&smp[x], 0, row->ub[lanes]);
-            row->ok[lanes] =
-                strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes], &row->pend[lanes]);
-        }
+        if (batches) strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
         row->pixel[lanes++] = x;
     }
+    /* Every point's numbers, drawn together (each pixel its own stream, in
+       the order of integrator_direct_at). */
+    sampler_light_bsdf_many(smp, row->pixel, lanes, 0, row->u, mis ? row->ub : NULL);
     if (batches) {
-        /* The light-only strategies need their numbers only now: drawn
-           together. */
-        sampler_light_bsdf_many(smp, row->pixel, lanes, 0, row->u, mis ? row->ub : NULL);
         strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
     } else {
+        begin_samples(it, row, scratch, lanes);
         strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
                                     row->ok);
     }
@@ -422,21 +429,16 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             if (depth >= it->max_depth) continue;
             struct vertex *v = &row->v[lanes];
             if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(pl->d), v)) continue;
-            strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
-            if (!batches) {
-                sampler_light(&smp[pl->pixel], depth, row->u[lanes]);
-                sampler_bsdf(&smp[pl->pixel], depth, row->ub[lanes]);
-                row->ok[lanes] = strategy_sample_begin(it->strategy, &row->sp[lanes], row->u[lanes], &row->ls[lanes],
-                                                       &row->pend[lanes]);
-            }
+            if (batches) strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
             row->pixel[lanes] = pl->pixel;
             if (lanes != k) paths[lanes] = *pl;
             ++lanes;
         }
+        sampler_light_bsdf_many(smp, row->pixel, lanes, depth, row->u, row->ub);
         if (batches) {
-            sampler_light_bsdf_many(smp, row->pixel, lanes, depth, row->u, row->ub);
             strategy_sample_many(it->strategy, row->sp, (const double(*)[4])row->u, lanes, row->ls, row->ok);
         } else {
+            begin_samples(it, row, scratch, lanes);
             strategy_sample_finish_many(it->strategy, row->sp, (const double(*)[4])row->u, row->pend, lanes, row->ls,
                                         row->ok);
         }
