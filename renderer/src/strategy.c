@@ -737,11 +737,10 @@ struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct
     return vec3_madd(p, n, scene_offset_height(s->scene, p));
 }
 
-void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
+void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt, struct vec3 p, struct vec3 n)
 {
     struct strategy_scratch *scratch = pt->scratch;
-    struct vec3 p = pt->p;
-    pt->sided = strategy_sided_point(s, p, pt->n);
+    pt->sided = strategy_sided_point(s, p, n);
     /* Forget the previous point's candidates (only those were touched). */
     for (int k = 0; k < scratch->n_cand; ++k) {
         scratch->cand_pos[scratch->cand[k]] = -1;
@@ -770,11 +769,11 @@ void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt)
        it is where no vertex of the polygon rises above the horizon (the
        normal is not zero: irradiance_term defers only then). */
     if (n_defer == 1 && single_live(scratch->cdf, scratch->n_cand)) {
-        if (!above_horizon(scratch->defer_poly[0], p, pt->n)) scratch->cdf[scratch->defer_cand[0]] = 0.0;
+        if (!above_horizon(scratch->defer_poly[0], p, n)) scratch->cdf[scratch->defer_cand[0]] = 0.0;
         n_defer = 0;
     }
     if (n_defer > 0) {
-        polygon_projected_solid_angle_many(scratch->defer_poly, n_defer, p, pt->n, scratch->defer_value);
+        polygon_projected_solid_angle_many(scratch->defer_poly, n_defer, p, n, scratch->defer_value);
         for (int j = 0; j < n_defer; ++j) scratch->cdf[scratch->defer_cand[j]] *= scratch->defer_value[j];
     }
     double acc = 0.0;
