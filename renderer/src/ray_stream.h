@@ -72,6 +72,21 @@ static inline void ray_stream_skip(struct ray_stream *s, int i)
     s->tfar[i] = ray_stream_tfar_for(false, 0.0);
 }
 
+/* Whether ray i is to be traced (ray_stream_skip makes tnear > tfar). */
+static inline bool ray_stream_active(const struct ray_stream *s, int i)
+{
+    return s->tnear[i] <= s->tfar[i];
+}
+
+/* Ray i of src into slot j of dst, as it is. */
+static inline void ray_stream_copy(struct ray_stream *dst, int j, const struct ray_stream *src, int i)
+{
+    dst->ox[j] = src->ox[i], dst->oy[j] = src->oy[i], dst->oz[j] = src->oz[i];
+    dst->dx[j] = src->dx[i], dst->dy[j] = src->dy[i], dst->dz[j] = src->dz[i];
+    dst->tnear[j] = src->tnear[i];
+    dst->tfar[j] = src->tfar[i];
+}
+
 /* After scene_occluded_stream: whether ray i was blocked. */
 static inline bool ray_stream_blocked(const struct ray_stream *s, int i)
 {

@@ -504,7 +504,7 @@ void scene_occluded_grouped(const struct scene *s, struct ray_stream *rays, int 
     int start[OCCLUDED_GROUPS + 1] = { 0 }, last = 0;
     bool in_order = true;
     for (int i = 0; i < n; ++i) {
-        if (!(rays->tnear[i] <= rays->tfar[i])) continue;
+        if (!ray_stream_active(rays, i)) continue;
         int g = group[i] & (OCCLUDED_GROUPS - 1);
         ++start[g + 1];
         in_order &= g >= last;
@@ -519,16 +519,9 @@ void scene_occluded_grouped(const struct scene *s, struct ray_stream *rays, int 
     for (int g = 0; g < OCCLUDED_GROUPS; ++g) start[g + 1] += start[g];
     int m = start[OCCLUDED_GROUPS];
     for (int i = 0; i < n; ++i) {
-        if (!(rays->tnear[i] <= rays->tfar[i])) continue;
+        if (!ray_stream_active(rays, i)) continue;
         int j = start[group[i] & (OCCLUDED_GROUPS - 1)]++;
-        packed->ox[j] = rays->ox[i];
-        packed->oy[j] = rays->oy[i];
-        packed->oz[j] = rays->oz[i];
-        packed->dx[j] = rays->dx[i];
-        packed->dy[j] = rays->dy[i];
-        packed->dz[j] = rays->dz[i];
-        packed->tnear[j] = rays->tnear[i];
-        packed->tfar[j] = rays->tfar[i];
+        ray_stream_copy(packed, j, rays, i);
         order[j] = i;
     }
     scene_occluded_stream(s, packed, m, true);

@@ -131,7 +131,7 @@ static void test_occluded_matches_one(void)
    stream, results written back in place) gives each ray the answer of the
    one-ray query: with many groups (more than the function folds them
    into, so that groups share a slot), with rays already in group order,
-   and with no rays. Inactive rays stay unblocked and untouched. */
+   and with no rays. Inactive rays stay unblocked. */
 static void test_occluded_grouped_matches_one(void)
 {
     static struct fixture f;
