@@ -508,6 +508,23 @@ static double emitter_weight(const struct strategy *s, int emitter, enum portal_
     return weight_finish(emitter_weight_term(s, emitter, heuristic, p, n), p, n);
 }
 
+/* What the plane through p and the edge from a to b (offsets from p) says
+   about a sphere about p + pc of radius^2 r2, with pq towards the portal's
+   inside: 2 that it lies wholly outside the plane (so outside the portal's
+   antishadow), 0 wholly inside or that the edge says nothing (p on its
+   line), 1 that the plane cuts it. m = a x b as vec3_cross forms it,
+   written out: the vectoriser takes no struct values. */
+FM_INLINE double edge_verdict(double ax, double ay, double az, double bx, double by, double bz, struct vec3 pc,
+                              struct vec3 pq, double r2)
+{
+    double mx = ay * bz - az * by, my = az * bx - ax * bz, mz = ax * by - ay * bx;
+    double len2 = mx * mx + my * my + mz * mz;
+    double dc = mx * pc.x + my * pc.y + mz * pc.z;
+    double sd = mx * pq.x + my * pq.y + mz * pq.z < 0.0 ? -dc : dc, rl2 = r2 * len2;
+    bool beyond = sd * sd >= rl2; /* |d| >= r */
+    return !(len2 > 0.0) ? 0.0 : beyond ? (sd <= 0.0 ? 2.0 : 0.0) : 1.0;
+}
+
 /* What the bounding sphere of a mesh light tells of its pair at p (beyond
    the portal's plane): REGION_OUTSIDE when the sphere lies wholly outside
    one edge plane of the portal as seen from p (no triangle can be seen
@@ -520,25 +537,27 @@ static double emitter_weight(const struct strategy *s, int emitter, enum portal_
    plane with normal m is compared with the radius r as s against r |m|,
    squared, with no square root or division (it was 23% of
    antishadow_exact's time there). */
-static enum region mesh_pair_bound(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
+FM_SIMD_CLONES static enum region mesh_pair_bound(const struct strategy *s, const struct strategy_pair *pair,
+                                                  struct vec3 p)
 {
     const struct portal *pt = &s->scene->portals[pair->portal];
     if (plane_distance(&pt->antishadow.portal_plane, p) <= 0.0) return REGION_OUTSIDE;
     struct vec3 pc = vec3_sub(s->centre[pair->emitter], p), pq = vec3_sub(pt->centroid, p);
     double r2 = s->reach[pair->emitter] * s->reach[pair->emitter];
-    bool umbra = true;
-    const struct polygon *q = &pt->target.polygon;
-    for (int k = 0; k < q->n; ++k) {
-        /* The plane through p and edge k, positive towards the portal's inside. */
-        struct vec3 m = vec3_cross(vec3_sub(q->v[k], p), vec3_sub(q->v[(k + 1) % q->n], p));
-        double len2 = vec3_length2(m);
-        if (!(len2 > 0.0)) continue; /* p on the edge's line: the edge says nothing */
-        double sd = vec3_dot(m, pq) < 0.0 ? -vec3_dot(m, pc) : vec3_dot(m, pc), rl2 = r2 * len2;
-        bool beyond = sd * sd >= rl2; /* |d| >= r */
-        if (sd <= 0.0 && beyond) return REGION_OUTSIDE;
-        umbra = umbra && beyond; /* and sd > 0, or it returned */
-    }
-    return umbra ? REGION_ANTI_UMBRA : REGION_ANTI_PENUMBRA;
+    const struct vec3 *v = pt->target.polygon.v;
+    int n = pt->target.polygon.n;
+    /* Every edge's verdict in one vectorised loop, with no early exit:
+       which edge finds p outside does not matter, only whether one does.
+       The closing edge goes alone (a wrapped index stops the vectoriser). */
+    double verdict[POLYGON_MAX];
+#pragma omp simd
+    for (int k = 0; k < n - 1; ++k)
+        verdict[k] = edge_verdict(v[k].x - p.x, v[k].y - p.y, v[k].z - p.z, v[k + 1].x - p.x, v[k + 1].y - p.y,
+                                  v[k + 1].z - p.z, pc, pq, r2);
+    double worst = edge_verdict(v[n - 1].x - p.x, v[n - 1].y - p.y, v[n - 1].z - p.z, v[0].x - p.x, v[0].y - p.y,
+                                v[0].z - p.z, pc, pq, r2);
+    for (int k = 0; k < n - 1; ++k) worst = fm_fmax(worst, verdict[k]);
+    return worst == 2.0 ? REGION_OUTSIDE : worst == 1.0 ? REGION_ANTI_PENUMBRA : REGION_ANTI_UMBRA;
 }
 
 /* The region of a mesh light's pair at p, exactly: mesh_pair_bound where
