@@ -259,7 +259,7 @@ void strategy_free(struct strategy *s)
     s->bvh = (struct pair_bvh){ 0, NULL, NULL, NULL };
 }
 
-enum { VIS_UNKNOWN, VIS_EMPTY, VIS_READY };
+enum { VIS_UNKNOWN, VIS_EMPTY, VIS_POLYGON, VIS_READY };
 
 bool strategy_scratch_init(const struct strategy *s, struct strategy_scratch *scratch, struct error *err)
 {
@@ -338,8 +338,9 @@ enum technique strategy_technique(const struct strategy *s, const struct strateg
 }
 
 /* The visible part of pair i's light through its portal from the prepared
-   point, as a target; NULL when nothing is visible. Cached per point. */
-static const struct target *visible_target(const struct strategy *s, const struct strategy_point *pt, int i)
+   point, as a simplified polygon; NULL when nothing is visible. Cached per
+   point: a weight needs only this, a sample or a pdf its target. */
+static const struct polygon *visible_polygon(const struct strategy *s, const struct strategy_point *pt, int i)
 {
     struct strategy_scratch *sc = pt->scratch;
     if (sc->vis_state[i] == VIS_UNKNOWN) {
@@ -349,9 +350,20 @@ static const struct target *visible_target(const struct strategy *s, const struc
         /* Once classified, the anti-umbra and anti-antumbra need no clipping. */
         int n = classifies(s->kind) ? antishadow_visible_polygon_in(a, pt->p, (enum region)sc->region[i], &vis)
                                     : antishadow_visible_polygon(a, pt->p, &vis);
-        bool ok = n >= 3 && target_init(&sc->vis[i], &vis);
-        sc->vis_state[i] = ok ? VIS_READY : VIS_EMPTY;
+        bool ok = n >= 3 && target_init_polygon(&sc->vis[i], &vis);
+        sc->vis_state[i] = ok ? VIS_POLYGON : VIS_EMPTY;
     }
+    return sc->vis_state[i] == VIS_EMPTY ? NULL : &sc->vis[i].polygon;
+}
+
+/* The same as a target, finished when first asked for: at a point with
+   several candidates most are only weighed (its normal, area and
+   rectangle frame were a third of the cost of making the target). */
+static const struct target *visible_target(const struct strategy *s, const struct strategy_point *pt, int i)
+{
+    struct strategy_scratch *sc = pt->scratch;
+    if (!visible_polygon(s, pt, i)) return NULL;
+    if (sc->vis_state[i] == VIS_POLYGON) sc->vis_state[i] = target_finish(&sc->vis[i]) ? VIS_READY : VIS_EMPTY;
     return sc->vis_state[i] == VIS_READY ? &sc->vis[i] : NULL;
 }
 
@@ -674,8 +686,8 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
            Lamp at 16 spp: antishadow_exact 2.4-2.7x the CPU time of light,
            1.3-1.4x with this). */
         if (mesh) return weight_value(mesh_portal_irradiance(s, pair, p));
-        const struct target *vis = visible_target(s, ptp, i);
-        return vis ? irradiance_term(rgb_luminance(l->radiance), &vis->polygon, p, n) : weight_value(0.0);
+        const struct polygon *vis = visible_polygon(s, ptp, i);
+        return vis ? irradiance_term(rgb_luminance(l->radiance), vis, p, n) : weight_value(0.0);
     }
     case PORTAL_WEIGHT_IRRADIANCE_ESTIMATE:
         if (mesh) return weight_value(mesh_portal_irradiance(s, pair, p));

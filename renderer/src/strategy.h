@@ -73,8 +73,8 @@ struct strategy_scratch {
     int *cand_pos;            /* per pair: position in cand, or -1 */
     double *cdf;              /* cumulative weights of the candidates */
     unsigned char *region;    /* enum region per pair (candidates only) */
-    unsigned char *vis_state; /* VIS_UNKNOWN, VIS_EMPTY or VIS_READY */
-    struct target *vis;       /* the clipped projection, when VIS_READY */
+    unsigned char *vis_state; /* VIS_UNKNOWN, VIS_EMPTY, VIS_POLYGON or VIS_READY */
+    struct target *vis;       /* the clipped projection: its polygon from VIS_POLYGON, all of it when VIS_READY */
     /* strategy_prepare_pairs' weights left to finish together: the polygon,
        the candidate's position, the projected solid angle. */
     const struct polygon **defer_poly;

@@ -39,10 +39,19 @@ static void simplify(const struct polygon *in, struct polygon *out)
     out->n = n;
 }
 
-bool target_init(struct target *t, const struct polygon *poly)
+bool target_init_polygon(struct target *t, const struct polygon *poly)
 {
     simplify(poly, &t->polygon);
-    if (t->polygon.n < 3) return false;
+    return t->polygon.n >= 3;
+}
+
+bool target_init(struct target *t, const struct polygon *poly)
+{
+    return target_init_polygon(t, poly) && target_finish(t);
+}
+
+bool target_finish(struct target *t)
+{
     polygon_normal_area(&t->polygon, &t->normal, &t->area);
     if (!(t->area > 0.0)) return false;
     t->min_height = TARGET_MIN_REL_HEIGHT * sqrt(t->area);

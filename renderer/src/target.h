@@ -26,6 +26,14 @@ struct target {
    vertices, as clipping leaves them, are removed first so that a clipped
    rectangle is recognised as one. False for a degenerate polygon. */
 bool target_init(struct target *t, const struct polygon *poly);
+/* target_init in two steps, for a caller that needs only the simplified
+   polygon of most targets it makes (a portal strategy's pair weights) and
+   prepares the others for sampling: target_init_polygon simplifies poly
+   into t->polygon (false with fewer than 3 vertices left); target_finish
+   then does the rest (false for a degenerate polygon). Together they are
+   target_init. */
+bool target_init_polygon(struct target *t, const struct polygon *poly);
+bool target_finish(struct target *t);
 /* *dst = *src, copying only the polygon's vertices in use. */
 void target_copy(struct target *dst, const struct target *src);
 

@@ -6,6 +6,7 @@
    Set CHI2_VERBOSE=1 to print every chi-square report. */
 #include <float.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "chi2.h"
 #include "polygon.h"
@@ -821,6 +822,48 @@ static struct vec3 random_target_view(struct rng *r, const struct target *t, int
     }
 }
 
+/* target_init_polygon then target_finish (a portal strategy's deferred
+   target) must make the same target as target_init, field for field, and
+   refuse the same polygons: the kinds of random_convex, with a repeated
+   and a collinear vertex inserted as clipping leaves them, and degenerate
+   ones (a segment, three points on a line, two points). */
+static void test_target_two_steps_match_init(void)
+{
+    struct rng r;
+    rng_seed(&r, 71, 3, 0);
+    int checked = 0;
+    for (int i = 0; i < 200; ++i) {
+        struct polygon p = random_convex(&r, i % 4);
+        if (i % 3 == 1) { /* a repeated vertex */
+            for (int k = p.n; k > 1; --k) p.v[k] = p.v[k - 1];
+            ++p.n;
+        } else if (i % 3 == 2) { /* a vertex on the first edge */
+            for (int k = p.n; k > 1; --k) p.v[k] = p.v[k - 1];
+            p.v[1] = vec3_madd(p.v[0], vec3_sub(p.v[2], p.v[0]), 0.25);
+            ++p.n;
+        }
+        if (i % 10 == 9) { /* degenerate: all on the first edge's line */
+            struct vec3 a = p.v[0], d = vec3_sub(p.v[1], p.v[0]);
+            p.n = 2 + i % 3;
+            for (int k = 0; k < p.n; ++k) p.v[k] = vec3_madd(a, d, (double)k);
+        }
+        struct target one, two;
+        memset(&one, 0, sizeof one);
+        memset(&two, 0, sizeof two);
+        bool ok_one = target_init(&one, &p);
+        bool ok_two = target_init_polygon(&two, &p) && target_finish(&two);
+        CHECK_MSG(ok_one == ok_two, "polygon %d: target_init %d, two steps %d", i, ok_one, ok_two);
+        if (!ok_one || !ok_two) continue;
+        ++checked;
+        CHECK(one.polygon.n == two.polygon.n &&
+              memcmp(one.polygon.v, two.polygon.v, sizeof one.polygon.v[0] * (size_t)one.polygon.n) == 0);
+        CHECK(memcmp(&one.normal, &two.normal, sizeof one.normal) == 0 && one.area == two.area &&
+              one.min_height == two.min_height && one.is_rectangle == two.is_rectangle);
+        CHECK(!one.is_rectangle || memcmp(&one.frame, &two.frame, sizeof one.frame) == 0);
+    }
+    CHECK(checked >= 170); /* all but the 20 degenerate ones */
+}
+
 static void test_target_many_matches_one(void)
 {
     struct rng r;
@@ -908,6 +951,7 @@ static const struct test_case spherical_tests[] = {
     { "chi2_rejects_wrong", test_chi2_rejects_wrong },
     { "sphrect_many_matches_one", test_sphrect_many_matches_one },
     { "target_many_matches_one", test_target_many_matches_one },
+    { "target_two_steps_match_init", test_target_two_steps_match_init },
 };
 
 TEST_MAIN(spherical_tests)
