@@ -109,13 +109,40 @@ static void build_node(struct build_ctx *c, int node, int first, int count)
     build_node(c, left + 1, first + half, count - half);
 }
 
+/* The tree's items in the order pair_bvh_query's traversal visits them
+   (depth first, the right child popped first), for the flat search: a node
+   whose box misses p holds no item whose box contains p (its box is their
+   union), so the flat search over this order, keeping the boxes that
+   contain p, finds what the traversal finds, in the same order. */
+static void flatten(struct pair_bvh *b)
+{
+    int stack[64], top = 0;
+    b->n_flat = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const struct pair_bvh_node *nd = &b->nodes[stack[--top]];
+        if (nd->count > 0) {
+            for (int i = nd->first; i < nd->first + nd->count; ++i) {
+                b->flat_items[b->n_flat] = b->items[i];
+                b->flat_boxes[b->n_flat++] = b->boxes[b->items[i]];
+            }
+            continue;
+        }
+        stack[top++] = nd->first;
+        stack[top++] = nd->first + 1;
+    }
+}
+
 bool pair_bvh_build(struct pair_bvh *b, const struct aabb *boxes, int n, struct error *err)
 {
     b->n_nodes = 0;
+    b->n_flat = 0;
     b->nodes = malloc(sizeof *b->nodes * (size_t)(2 * (n > 0 ? n : 1)));
     b->items = malloc(sizeof *b->items * (size_t)(n > 0 ? n : 1));
     b->boxes = malloc(sizeof *b->boxes * (size_t)(n > 0 ? n : 1));
-    if (!b->nodes || !b->items || !b->boxes) {
+    b->flat_items = malloc(sizeof *b->flat_items * (size_t)(n > 0 ? n : 1));
+    b->flat_boxes = malloc(sizeof *b->flat_boxes * (size_t)(n > 0 ? n : 1));
+    if (!b->nodes || !b->items || !b->boxes || !b->flat_items || !b->flat_boxes) {
         pair_bvh_free(b);
         return error_set(err, "out of memory for a hierarchy of %d light/portal pairs", n);
     }
@@ -133,6 +160,7 @@ bool pair_bvh_build(struct pair_bvh *b, const struct aabb *boxes, int n, struct 
     }
     struct build_ctx c = { b, boxes };
     build_node(&c, 0, 0, m);
+    if (m <= PAIR_BVH_FLAT_MAX) flatten(b);
     return true;
 }
 
@@ -141,15 +169,25 @@ void pair_bvh_free(struct pair_bvh *b)
     free(b->nodes);
     free(b->items);
     free(b->boxes);
+    free(b->flat_items);
+    free(b->flat_boxes);
     b->nodes = NULL;
     b->items = NULL;
     b->boxes = NULL;
+    b->flat_items = NULL;
+    b->flat_boxes = NULL;
     b->n_nodes = 0;
+    b->n_flat = 0;
 }
 
 int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out)
 {
     int stack[64], top = 0, found = 0;
+    if (b->n_flat > 0) {
+        for (int i = 0; i < b->n_flat; ++i)
+            if (aabb_contains(&b->flat_boxes[i], p)) out[found++] = b->flat_items[i];
+        return found;
+    }
     if (b->n_nodes == 0 || !aabb_contains(&b->nodes[0].box, p)) return 0;
     stack[top++] = 0;
     while (top > 0) {

@@ -34,11 +34,22 @@ struct pair_bvh_node {
     int count; /* leaf: number of items; inner: 0 */
 };
 
+/* At most this many items are searched as a flat list rather than the
+   tree: the traversal's stack and node tests cost more than testing a few
+   boxes (multi_lamp's 6 pairs: 240 instructions a query down to ~60). */
+#define PAIR_BVH_FLAT_MAX 16
+
 struct pair_bvh {
     int n_nodes;
     struct pair_bvh_node *nodes;
     int *items;         /* pair indices, grouped by leaf */
     struct aabb *boxes; /* each item's own box, by item index */
+    /* With at most PAIR_BVH_FLAT_MAX items: the items in the order the
+       tree's traversal meets them, and their boxes (n_flat = 0 otherwise),
+       so that the flat search returns what the tree's would, in its order. */
+    int n_flat;
+    int *flat_items;
+    struct aabb *flat_boxes;
 };
 
 /* Builds over n boxes (item i has box boxes[i]; an empty box, lo > hi, is

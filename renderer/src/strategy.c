@@ -198,7 +198,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
     s->n_pairs = 0;
     s->use_bvh = false;
     s->shade = NULL;
-    s->bvh = (struct pair_bvh){ 0, NULL, NULL, NULL };
+    s->bvh = (struct pair_bvh){ 0 };
     double *power = malloc(sizeof *power * (size_t)scene->n_lights);
     if (!power) return error_set(err, "out of memory for %d lights", scene->n_lights);
     for (int i = 0; i < scene->n_lights; ++i) power[i] = scene->lights[i].power;
@@ -256,7 +256,7 @@ void strategy_free(struct strategy *s)
     s->first_pair = NULL;
     s->n_pairs = 0;
     s->use_bvh = false;
-    s->bvh = (struct pair_bvh){ 0, NULL, NULL, NULL };
+    s->bvh = (struct pair_bvh){ 0 };
 }
 
 enum { VIS_UNKNOWN, VIS_EMPTY, VIS_POLYGON, VIS_READY };
