@@ -258,13 +258,16 @@ static int clip_split(const struct polygon *in, const double *d, double size, st
 /* Sutherland-Hodgman for one plane. Distances within the snap tolerance
    count as exactly zero, so a vertex on the plane is emitted once as itself
    and an edge is split only where its end points lie strictly on opposite
-   sides. `in` and `out` may be the same polygon. */
-int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out)
+   sides. Returns `in` itself when no vertex is below the plane (nothing to
+   clip), else the clipped polygon written into *out (possibly empty); a
+   caller that only reads the result is spared the copy. `in` and `out` may
+   be the same polygon. */
+static const struct polygon *clip_plane_view(const struct polygon *in, const struct plane *pl, struct polygon *out)
 {
     int n = in->n;
     if (n < 3 || n > POLYGON_MAX) {
         out->n = 0;
-        return 0;
+        return out;
     }
     /* Snapping only moves distances within eps to zero, so a polygon with
        no vertex below the plane is kept whole whatever eps is: the common
@@ -285,9 +288,18 @@ int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct 
             if (fabs(d[i]) <= eps) d[i] = 0.0;
             if (d[i] < 0.0) all_in = false;
         }
-        if (!all_in) return clip_split(in, d, size, out);
+        if (!all_in) {
+            clip_split(in, d, size, out);
+            return out;
+        }
     }
-    polygon_copy(out, in);
+    return in;
+}
+
+int polygon_clip_plane(const struct polygon *in, const struct plane *pl, struct polygon *out)
+{
+    const struct polygon *r = clip_plane_view(in, pl, out);
+    if (r == in) polygon_copy(out, in);
     return out->n;
 }
 
@@ -522,14 +534,16 @@ void polygon_projected_solid_angle_many(const struct polygon *const *polys, int 
     eb.n_edges = 0;
     eb.n_polys = 0;
     for (int i = 0; i < count; ++i) {
-        struct polygon above;
-        int m = polygon_clip_plane(polys[i], &horizon, &above);
+        /* Most polygons are wholly above the horizon: read in place. */
+        struct polygon clipped;
+        const struct polygon *above = clip_plane_view(polys[i], &horizon, &clipped);
+        int m = above->n;
         if (m == 0) {
             out[i] = 0.0;
             continue;
         }
         if (m > IRRADIANCE_MANY_EDGES - 8) {
-            out[i] = M_PI * fabs(vec3_dot(n, polygon_vector_irradiance(&above, o)));
+            out[i] = M_PI * fabs(vec3_dot(n, polygon_vector_irradiance(above, o)));
             continue;
         }
         /* Room for m edges and the padding to a whole vector of 8. */
@@ -537,7 +551,7 @@ void polygon_projected_solid_angle_many(const struct polygon *const *polys, int 
         eb.out_index[eb.n_polys] = i;
         eb.first[eb.n_polys++] = eb.n_edges;
         for (int k = 0; k < m; ++k) {
-            struct vec3 a = above.v[k], b = above.v[k + 1 < m ? k + 1 : 0];
+            struct vec3 a = above->v[k], b = above->v[k + 1 < m ? k + 1 : 0];
             eb.xa[eb.n_edges] = a.x;
             eb.ya[eb.n_edges] = a.y;
             eb.za[eb.n_edges] = a.z;
