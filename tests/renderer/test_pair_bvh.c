@@ -81,8 +81,8 @@ static void test_query_finds_exactly_the_boxes(void)
                   b.n_flat, nonempty);
         int wrong = 0, order = 0, hits = 0;
         for (int t = 0; t < 2000; ++t) {
-            struct vec3 p = vec3_make(2.4 * rng_uniform(&r) - 1.2, 2.4 * rng_uniform(&r) - 1.2,
-                                      2.4 * rng_uniform(&r) - 1.2);
+            struct vec3 p =
+                vec3_make(2.4 * rng_uniform(&r) - 1.2, 2.4 * rng_uniform(&r) - 1.2, 2.4 * rng_uniform(&r) - 1.2);
             int got[MAX_ITEMS], want[MAX_ITEMS];
             int n_got = pair_bvh_query(&b, p, got), n_want = tree_query(&b, p, want);
             hits += n_got;
