@@ -44,6 +44,16 @@ struct strategy_pair {
     int emitter;
 };
 
+/* A portal's outline as arrays, for a vectorised loop over its edges:
+   vertices 0..n-1, then vertex 0 repeated up to index n_edges (a whole
+   number of SIMD blocks), so that edge k runs from k to k + 1 for every
+   k < n_edges, the closing edge included, and the padding edges are of
+   zero length. */
+struct portal_outline {
+    int n_edges;
+    double *x, *y, *z; /* n_edges + 1 each */
+};
+
 struct strategy {
     enum strategy_kind kind;
     enum portal_weight_kind weight;
@@ -52,13 +62,14 @@ struct strategy {
     struct alias_table power; /* lights by power */
     int n_pairs;
     struct strategy_pair *pairs;
-    int *first_pair;             /* per emitter: index of its first pair */
-    struct alias_table *members; /* per emitter: its lights by power (n = 0 for a polygon light) */
-    struct vec3 *centre;         /* per emitter: area-weighted centroid (the distance heuristic) */
-    double *reach;               /* per emitter: radius of the sphere about centre that holds it */
-    bool use_bvh;                /* antishadow strategies: candidates from the BVH */
-    struct aabb *shade;          /* per emitter: where a point counts as inside its shade */
-    struct pair_bvh bvh;         /* over the pairs' lit regions */
+    int *first_pair;                /* per emitter: index of its first pair */
+    struct alias_table *members;    /* per emitter: its lights by power (n = 0 for a polygon light) */
+    struct vec3 *centre;            /* per emitter: area-weighted centroid (the distance heuristic) */
+    double *reach;                  /* per emitter: radius of the sphere about centre that holds it */
+    bool use_bvh;                   /* antishadow strategies: candidates from the BVH */
+    struct aabb *shade;             /* per emitter: where a point counts as inside its shade */
+    struct pair_bvh bvh;            /* over the pairs' lit regions */
+    struct portal_outline *outline; /* per pair: its portal's, for a mesh light's portal pairs (else empty) */
 };
 
 bool strategy_init(struct strategy *s, const struct scene *scene, const struct render_desc *rd, struct error *err);
