@@ -235,10 +235,19 @@ $(LIBLLVM):
 bench: $(BUILD)/render $(BENCH_BINS) $(XCHECK_BENCH_STAMP) $(LIBLLVM)
 	@DRJIT_LIBLLVM_PATH="$${DRJIT_LIBLLVM_PATH:-$(LIBLLVM)}" renderer/bench/run.sh $(BUILD)
 
+VALGRIND := /usr/bin/valgrind
 # Same-run A/B throughput against another build: make bench-ab BASE=old/render
-bench-ab: $(BUILD)/render
+# (INSTRUCTIONS=1: instructions of the render passes under callgrind instead
+# of timings; it installs valgrind with apt-get when missing).
+bench-ab: $(BUILD)/render $(if $(INSTRUCTIONS),$(VALGRIND))
 	@test -x "$(BASE)" || { echo "bench-ab: give BASE=path/to/another/render" >&2; exit 2; }
-	@python3 renderer/bench/ab.py $(BASE) $(BUILD)/render $(if $(ROUNDS),--rounds $(ROUNDS),)
+	@python3 renderer/bench/ab.py $(BASE) $(BUILD)/render $(if $(ROUNDS),--rounds $(ROUNDS),) \
+		$(if $(INSTRUCTIONS),--instructions $(if $(SPP),--spp $(SPP),),)
+
+$(VALGRIND):
+	@echo "installing valgrind with apt-get (make bench-ab INSTRUCTIONS=1)" >&2
+	@apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq valgrind >/dev/null
+	@test -x $@ || { echo "bench-ab: valgrind did not install $@" >&2; exit 1; }
 
 fuzz:
 	@renderer/fuzz/run.sh $(or $(FUZZ_SECONDS),60)
