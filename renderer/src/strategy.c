@@ -265,7 +265,11 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
         return false;
     }
     s->use_bvh = classifies(s->kind);
-    return s->use_bvh ? build_bvh(s, err) : true;
+    if (s->use_bvh && !build_bvh(s, err)) {
+        strategy_free(s); /* on failure nothing is left to free, as above */
+        return false;
+    }
+    return true;
 }
 
 void strategy_free(struct strategy *s)
