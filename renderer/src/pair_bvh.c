@@ -109,7 +109,7 @@ static void build_node(struct build_ctx *c, int node, int first, int count)
     build_node(c, left + 1, first + half, count - half);
 }
 
-/* The tree's items in the order pair_bvh_query's traversal visits them
+/* The tree's items in the order pair_bvh_query_tree's traversal visits them
    (depth first, the right child popped first), for the flat search: a node
    whose box misses p holds no item whose box contains p (its box is their
    union), so the flat search over this order, keeping the boxes that
@@ -180,14 +180,9 @@ void pair_bvh_free(struct pair_bvh *b)
     b->n_flat = 0;
 }
 
-int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out)
+int pair_bvh_query_tree(const struct pair_bvh *b, struct vec3 p, int *out)
 {
     int stack[64], top = 0, found = 0;
-    if (b->n_flat > 0) {
-        for (int i = 0; i < b->n_flat; ++i)
-            if (aabb_contains(&b->flat_boxes[i], p)) out[found++] = b->flat_items[i];
-        return found;
-    }
     if (b->n_nodes == 0 || !aabb_contains(&b->nodes[0].box, p)) return 0;
     stack[top++] = 0;
     while (top > 0) {
@@ -200,5 +195,14 @@ int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out)
         for (int c = nd->first; c <= nd->first + 1; ++c)
             if (aabb_contains(&b->nodes[c].box, p) && top < 64) stack[top++] = c;
     }
+    return found;
+}
+
+int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out)
+{
+    if (b->n_flat == 0) return pair_bvh_query_tree(b, p, out);
+    int found = 0;
+    for (int i = 0; i < b->n_flat; ++i)
+        if (aabb_contains(&b->flat_boxes[i], p)) out[found++] = b->flat_items[i];
     return found;
 }

@@ -57,7 +57,11 @@ struct pair_bvh {
 bool pair_bvh_build(struct pair_bvh *b, const struct aabb *boxes, int n, struct error *err);
 void pair_bvh_free(struct pair_bvh *b);
 /* Writes the items whose box contains p into out (capacity: n items) and
-   returns how many. */
+   returns how many: by the flat search when there is one, else by
+   pair_bvh_query_tree, which finds the same items in the same order. */
 int pair_bvh_query(const struct pair_bvh *b, struct vec3 p, int *out);
+/* The same by traversing the tree, whatever the number of items (the flat
+   search's reference). */
+int pair_bvh_query_tree(const struct pair_bvh *b, struct vec3 p, int *out);
 
 #endif

@@ -564,8 +564,9 @@ static double emitter_weight(const struct strategy *s, int emitter, enum portal_
    the portal's antishadow), 0 wholly inside or that the edge says nothing
    (p on its line), 1 that the plane cuts it. The verdicts are summed, and
    sums of these small integers are exact in any order: a sum of at least
-   EDGE_OUTSIDE means some edge put the sphere outside. m = a x b as vec3_cross forms it,
-   written out: the vectoriser takes no struct values. */
+   EDGE_OUTSIDE means some edge put the sphere outside. m = a x b as
+   vec3_cross forms it, written out: the vectoriser takes no struct
+   values. */
 #define EDGE_OUTSIDE (2.0 * POLYGON_MAX)
 
 FM_INLINE double edge_verdict(double ax, double ay, double az, double bx, double by, double bz, struct vec3 pc,

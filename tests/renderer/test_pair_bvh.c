@@ -28,26 +28,6 @@ static void random_boxes(struct rng *r, int n, struct aabb *boxes)
     }
 }
 
-/* The tree's own traversal, as pair_bvh_query ran it before the flat
-   search existed: depth first, the right child popped first. */
-static int tree_query(const struct pair_bvh *b, struct vec3 p, int *out)
-{
-    int stack[64], top = 0, found = 0;
-    if (b->n_nodes == 0 || !aabb_contains(&b->nodes[0].box, p)) return 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const struct pair_bvh_node *nd = &b->nodes[stack[--top]];
-        if (nd->count > 0) {
-            for (int i = nd->first; i < nd->first + nd->count; ++i)
-                if (aabb_contains(&b->boxes[b->items[i]], p)) out[found++] = b->items[i];
-            continue;
-        }
-        for (int c = nd->first; c <= nd->first + 1; ++c)
-            if (aabb_contains(&b->nodes[c].box, p)) stack[top++] = c;
-    }
-    return found;
-}
-
 static void check_counts(int n, const struct aabb *boxes, struct vec3 p, const int *got, int n_got, int *missing)
 {
     int seen[MAX_ITEMS] = { 0 };
@@ -84,7 +64,7 @@ static void test_query_finds_exactly_the_boxes(void)
             struct vec3 p =
                 vec3_make(2.4 * rng_uniform(&r) - 1.2, 2.4 * rng_uniform(&r) - 1.2, 2.4 * rng_uniform(&r) - 1.2);
             int got[MAX_ITEMS], want[MAX_ITEMS];
-            int n_got = pair_bvh_query(&b, p, got), n_want = tree_query(&b, p, want);
+            int n_got = pair_bvh_query(&b, p, got), n_want = pair_bvh_query_tree(&b, p, want);
             hits += n_got;
             check_counts(n, boxes, p, got, n_got, &wrong);
             if (n_got != n_want || memcmp(got, want, sizeof got[0] * (size_t)n_got) != 0) ++order;
