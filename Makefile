@@ -232,7 +232,14 @@ $(LIBLLVM):
 	@apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
 	@test -f $@ || { echo "bench: libllvm19 did not install $@" >&2; exit 1; }
 
-bench: $(BUILD)/render $(BENCH_BINS) $(XCHECK_BENCH_STAMP) $(LIBLLVM)
+# perf for the `time_split` section (renderer/bench/time_split.py).
+PERF := /usr/bin/perf
+$(PERF):
+	@echo "installing linux-perf with apt-get (the bench's time_split section)" >&2
+	@apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq linux-perf >/dev/null
+	@test -x $@ || { echo "bench: linux-perf did not install $@" >&2; exit 1; }
+
+bench: $(BUILD)/render $(BENCH_BINS) $(XCHECK_BENCH_STAMP) $(LIBLLVM) $(PERF)
 	@DRJIT_LIBLLVM_PATH="$${DRJIT_LIBLLVM_PATH:-$(LIBLLVM)}" renderer/bench/run.sh $(BUILD)
 
 VALGRIND := /usr/bin/valgrind

@@ -24,6 +24,10 @@ summary.py turns them into results/bench/summary.md. Sections:
                   the lampshade with a 16- and a 1,000-triangle bulb behind
                   its opening: the per-sample cost must not grow with the
                   triangles
+  mitsuba         `light` against Mitsuba 3 (llvm_ad_rgb) on the lampshade,
+                  and antishadow_exact's cost per sample against `light`'s
+  time_split      the same two renderers under perf, one thread: CPU time
+                  per sample inside Embree and in the renderer's own code
 
 usage: bench.py BUILD_DIR [--quick] [--only SECTION[,SECTION...]]
 """
@@ -47,6 +51,7 @@ from typing import Any
 
 import benchlib as bl
 import numpy as np
+import time_split as ts
 from benchlib import LAMPSHADE, MULTI_LAMP, TMP, Context, log, median
 
 SWEEP_S_L = (0.075, 0.15, 0.3, 0.6, 1.2)
@@ -1014,15 +1019,26 @@ def mitsuba_env() -> tuple[Path, dict[str, str]]:
 
 
 def mitsuba_time(
-    python: Path, env: dict[str, str], config: Path, integrator: str, spp: int, passes: int, seed: int, folder: Path
+    python: Path,
+    env: dict[str, str],
+    config: Path,
+    integrator: str,
+    spp: int,
+    passes: int,
+    seed: int,
+    folder: Path,
+    threads: int = 2,
+    prefix: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """One mitsuba_time.py process: `passes` passes of `spp`, the first one
-    compiling its kernels into an empty cache (a new user's first render)."""
+    compiling its kernels into an empty cache (a new user's first render).
+    `prefix` runs it under another program (perf record ... --)."""
     cache = folder / f"drjit_cache_{integrator}_{seed}"
     if cache.exists():
         shutil.rmtree(cache)
     cache.mkdir(parents=True)
     cmd = [
+        *prefix,
         str(python),
         str(bl.BENCH_DIR / "mitsuba_time.py"),
         str(config),
@@ -1035,7 +1051,7 @@ def mitsuba_time(
         "--seed",
         str(seed),
         "--threads",
-        "2",
+        str(threads),
         "--variant",
         MITSUBA_VARIANT,
         "--mesh-dir",
@@ -1081,21 +1097,11 @@ def ours_steady(short: dict[str, Any], long: dict[str, Any], px: int) -> dict[st
     return {"samples_per_s": extra / wall, "samples_per_cpu_s": extra / cpu, "cores": cpu / wall}
 
 
-def section_mitsuba(ctx: Context) -> dict[str, Any]:
-    q = ctx.quick
-    rounds = 2 if q else 5
-    ours_spp = {"direct": 16 if q else 64, "path": 8 if q else 32}
-    mits_spp = dict(ours_spp)
-    mits_passes = 3 if q else 4  # the first (compiling) one and the steady ones
-    # 64 spp everywhere: at 16, the multi-lamp and Little Lamp renders took
-    # 0.1-0.25 s on 2 threads, where the machine's slow first 0.1 s spread
-    # the cost ratio's rounds by 0.3-0.9 (results/bench/README.md, "Sixth pass").
-    cost_spp = {"lampshade": 16 if q else 64, "multi_lamp": 4 if q else 64, "little_lamp": 4 if q else 64}
-    max_depth = 8
-    python, env = mitsuba_env()
-    folder = TMP / "mitsuba"
+def mitsuba_scene(ctx: Context, folder: Path, max_depth: int) -> Path:
+    """The lampshade as Mitsuba gets it: our effective config (render
+    --print-config), which the cross-check's converter turns into Mitsuba's
+    scene, written into `folder`."""
     folder.mkdir(parents=True, exist_ok=True)
-    # Mitsuba's scene is our effective config, as the cross-check converts it.
     eff = folder / "lampshade.yaml"
     p = subprocess.run(
         [
@@ -1113,6 +1119,23 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
     if p.returncode != 0:
         raise RuntimeError(f"render --print-config failed: {p.stderr.strip()}")
     eff.write_text(p.stdout)
+    return eff
+
+
+def section_mitsuba(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    rounds = 2 if q else 5
+    ours_spp = {"direct": 16 if q else 64, "path": 8 if q else 32}
+    mits_spp = dict(ours_spp)
+    mits_passes = 3 if q else 4  # the first (compiling) one and the steady ones
+    # 64 spp everywhere: at 16, the multi-lamp and Little Lamp renders took
+    # 0.1-0.25 s on 2 threads, where the machine's slow first 0.1 s spread
+    # the cost ratio's rounds by 0.3-0.9 (results/bench/README.md, "Sixth pass").
+    cost_spp = {"lampshade": 16 if q else 64, "multi_lamp": 4 if q else 64, "little_lamp": 4 if q else 64}
+    max_depth = 8
+    python, env = mitsuba_env()
+    folder = TMP / "mitsuba"
+    eff = mitsuba_scene(ctx, folder, max_depth)
     params = {
         "config": str(LAMPSHADE.relative_to(bl.ROOT)),
         "rounds": rounds,
@@ -1236,6 +1259,94 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
     return results
 
 
+# ---- 15. where the time goes: Embree vs the rest ----------------------------------
+
+
+def time_split_run(perf: str, data: Path, run: Callable[[tuple[str, ...]], float], binary: str) -> dict[str, Any]:
+    """One profiled run: `run` renders under the perf prefix it is given and
+    returns its CPU ns per sample; the profile splits that time."""
+    ns = run(ts.record_prefix(perf, data))
+    shares = ts.report(perf, data)
+    data.unlink(missing_ok=True)
+    sp = ts.split(shares, binary)
+    return {
+        "cpu_ns_per_sample": ns,
+        "shares": {k: round(v, 3) for k, v in sorted(shares.items(), key=lambda kv: -kv[1])},
+        "embree_pct": sp.embree,
+        "own_pct": sp.own,
+        "other_pct": sp.other,
+        "embree_ns_per_sample": ns * sp.embree_fraction,
+        "own_ns_per_sample": ns * (1.0 - sp.embree_fraction),
+    }
+
+
+def section_time_split(ctx: Context) -> dict[str, Any]:
+    """Ours (`light`) and Mitsuba on the lampshade, one thread each, under
+    perf: CPU time per sample split into Embree's and the renderer's own
+    (time_split.py). Both trace with Embree 3, so this says which side of
+    the Embree call a gap between them is on."""
+    perf = ts.perf_path()
+    if perf is None:
+        raise RuntimeError(
+            "perf is missing or may not record here: make bench installs linux-perf with apt-get; "
+            "recording needs kernel.perf_event_paranoid <= 2"
+        )
+    q = ctx.quick
+    rounds = 1 if q else 3
+    spp = {"direct": 16 if q else 64, "path": 4 if q else 16}
+    passes = 3  # Mitsuba: the compiling first pass and two steady ones
+    max_depth = 8
+    python, env = mitsuba_env()
+    folder = TMP / "time_split"
+    eff = mitsuba_scene(ctx, folder, max_depth)
+    data = folder / "perf.data"
+    out = TMP / "runs" / "time_split"
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "threads": 1,
+        "rounds": rounds,
+        "spp": spp,
+        "mitsuba_passes": passes,
+        "ours": {"strategy": "light", "max_depth": max_depth, "ns_per_sample": "render_cpu_s / samples"},
+        "mitsuba": {"variant": MITSUBA_VARIANT, "ns_per_sample": "the steady passes' CPU time / their samples"},
+        "groups": "embree: libembree*; own: the renderer's code ([JIT] kernels, Dr.Jit and Mitsuba for "
+        "Mitsuba), libc, libm; other: Python, LLVM, EXR and zlib, the kernel (time_split.py)",
+        "split": "ns per sample x embree / (embree + own), and x own / (embree + own)",
+        "perf": perf,
+    }
+    runs: dict[str, dict[str, list[dict[str, Any]]]] = {
+        "direct": {"ours": [], "mitsuba": []},
+        "path": {"ours": [], "mitsuba": []},
+    }
+    for r in range(rounds):
+        log(f"time_split: round {r + 1}/{rounds}")
+        for integ in ("direct", "path"):
+
+            def ours(prefix: tuple[str, ...], integ: str = integ, r: int = r) -> float:
+                args = ["--threads", "1", "--strategy", "light", "--integrator", integ, "--seed", str(r + 1)]
+                args += ["--spp", str(spp[integ]), "--set", f"render.max_depth={max_depth}"]
+                a = bl.run_render(ctx, LAMPSHADE, out / f"ours_{integ}", *args, prefix=prefix).summary()
+                return 1e9 * float(a["render_cpu_s"]) / float(a["samples"])
+
+            def mitsuba(prefix: tuple[str, ...], integ: str = integ, r: int = r) -> float:
+                m = mitsuba_time(python, env, eff, integ, spp[integ], passes, r + 1, folder, threads=1, prefix=prefix)
+                return 1e9 / float(mitsuba_rates(m)["steady_samples_per_cpu_s"])
+
+            runs[integ]["ours"].append(time_split_run(perf, data, ours, ctx.render.name))
+            runs[integ]["mitsuba"].append(time_split_run(perf, data, mitsuba, ctx.render.name))
+    keys = ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample", "embree_pct", "own_pct", "other_pct")
+    table: dict[str, Any] = {}
+    for integ, by in runs.items():
+        row: dict[str, Any] = {who: {k: median([x[k] for x in xs]) for k in keys} for who, xs in by.items()}
+        # ours / Mitsuba, run by run (same round), for the total and each part.
+        for k in ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample"):
+            row[f"ratio_{k}"] = ratio_stats([a[k] / b[k] for a, b in zip(by["ours"], by["mitsuba"], strict=True)])
+        table[integ] = row
+    results = {"table": table, "runs": runs}
+    bl.write_result(ctx, "time_split", params, results)
+    return results
+
+
 SECTIONS: dict[str, Callable[[Context], Any]] = {
     "raw_embree": section_raw_embree,
     "micro": section_micro,
@@ -1249,6 +1360,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "mesh_load": section_mesh_load,
     "mesh_lights": section_mesh_lights,
     "mitsuba": section_mitsuba,
+    "time_split": section_time_split,
 }
 
 

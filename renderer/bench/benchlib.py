@@ -221,11 +221,24 @@ def differential(a: dict[str, Any], b: dict[str, Any]) -> dict[str, float]:
     }
 
 
-def run_render(ctx: Context, config: Path, out: Path, *args: str, snapshots: bool = False) -> RenderRun:
-    """Runs the renderer to completion; raises with its stderr on failure."""
+def run_render(
+    ctx: Context, config: Path, out: Path, *args: str, snapshots: bool = False, prefix: tuple[str, ...] = ()
+) -> RenderRun:
+    """Runs the renderer to completion; raises with its stderr on failure.
+    `prefix` runs it under another program (perf record ... --): the CPU
+    time is then that program's too, the JSON lines' render_cpu_s not."""
     if out.exists():
         shutil.rmtree(out)
-    cmd = [str(ctx.render), str(config), "--out", str(out), "--quiet", *([] if snapshots else NO_SNAPSHOTS), *args]
+    cmd = [
+        *prefix,
+        str(ctx.render),
+        str(config),
+        "--out",
+        str(out),
+        "--quiet",
+        *([] if snapshots else NO_SNAPSHOTS),
+        *args,
+    ]
     c0, w0 = children_cpu_s(), time.monotonic()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall, cpu = time.monotonic() - w0, children_cpu_s() - c0

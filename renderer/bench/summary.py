@@ -739,6 +739,57 @@ def mitsuba(d: dict[str, Any]) -> list[str]:
     ]
 
 
+def time_split(d: dict[str, Any]) -> list[str]:
+    p, t = d["params"], d["results"]["table"]
+    rows = []
+    for integ, r in t.items():
+        for who in ("ours", "mitsuba"):
+            x = r[who]
+            rows.append(
+                [
+                    integ,
+                    who,
+                    f(x["cpu_ns_per_sample"], ".0f"),
+                    f(x["embree_ns_per_sample"], ".0f"),
+                    f(x["own_ns_per_sample"], ".0f"),
+                    f"{f(x['embree_pct'], '.1f')} / {f(x['own_pct'], '.1f')} / {f(x['other_pct'], '.1f')}",
+                ]
+            )
+        rows.append(
+            [
+                integ,
+                "ours / Mitsuba",
+                _range(r["ratio_cpu_ns_per_sample"]),
+                _range(r["ratio_embree_ns_per_sample"]),
+                _range(r["ratio_own_ns_per_sample"]),
+                "",
+            ]
+        )
+    return [
+        f"Lampshade, 1 thread each, {_spp(p['spp'])} (Mitsuba: {p['mitsuba_passes']} passes of that, the first "
+        f"compiling), {p['rounds']} round(s), medians (range over rounds); ours `light`. Each run is sampled by "
+        "`perf record`, and its CPU time per sample (ours: the render threads'; Mitsuba: its steady passes') is "
+        "split by the shares of the perf samples that fell in Embree and in the renderer's own code "
+        "(renderer/bench/time_split.py; Mitsuba's own code is its JIT-compiled kernels and Dr.Jit). Both "
+        "renderers trace with Embree 3, so the columns say on which side of the Embree call a gap is.",
+        "",
+        *table(
+            [
+                "integrator",
+                "renderer",
+                "CPU ns / sample",
+                "in Embree",
+                "in own code",
+                "% of perf samples: Embree / own / other",
+            ],
+            rows,
+        ),
+        "'Other' (not rendering: Python and LLVM for Mitsuba, loading and EXR writing for ours) is left out of "
+        "the split. One thread, so the numbers differ from section 14's two-thread rates.",
+        "",
+    ]
+
+
 SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
     ("raw_embree", "1. Raw Embree limit (lampshade)", raw_embree),
     ("throughput", "2, 5. Renderer throughput and strategy cost", throughput),
@@ -753,6 +804,7 @@ SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
     ("mesh_load", "12. Loading a 1M-triangle PLY (mesh_load.c)", mesh_load),
     ("mesh_lights", "13. Mesh lights: cost per sample (Little Lamp, 16 vs 1,000 triangles)", mesh_lights),
     ("mitsuba", "14. Against Mitsuba 3 (llvm_ad_rgb), and antishadow_exact's cost per sample", mitsuba),
+    ("time_split", "15. Where the time goes: Embree vs the renderer's own code (perf, vs Mitsuba)", time_split),
 ]
 
 
