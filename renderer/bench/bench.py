@@ -1262,14 +1262,29 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
 # ---- 15. where the time goes: Embree vs the rest ----------------------------------
 
 
-def time_split_run(perf: str, data: Path, run: Callable[[tuple[str, ...]], float], binary: str) -> dict[str, Any]:
+# Our functions listed by name in the section (the rest are summed).
+TIME_SPLIT_TOP = 12
+
+
+def time_split_run(
+    perf: str, data: Path, run: Callable[[tuple[str, ...]], float], binary: str, functions: bool
+) -> dict[str, Any]:
     """One profiled run: `run` renders under the perf prefix it is given and
-    returns its CPU ns per sample; the profile splits that time."""
+    returns its CPU ns per sample; the profile splits that time (and, with
+    `functions`, our binary's part by function)."""
     ns = run(ts.record_prefix(perf, data))
     shares = ts.report(perf, data)
-    data.unlink(missing_ok=True)
     sp = ts.split(shares, binary)
+    work = sp.embree + sp.own
+    per_function: dict[str, float] = {}
+    if functions:
+        # Shares of all samples, rescaled like the groups: ns per sample.
+        total = sum(shares.values())
+        for name, pct in ts.report_symbols(perf, data, binary).items():
+            per_function[name] = ns * (100.0 * pct / total) / work
+    data.unlink(missing_ok=True)
     return {
+        "functions_ns_per_sample": per_function,
         "cpu_ns_per_sample": ns,
         "shares": {k: round(v, 3) for k, v in sorted(shares.items(), key=lambda kv: -kv[1])},
         "embree_pct": sp.embree,
@@ -1311,7 +1326,8 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
         "mitsuba": {"variant": MITSUBA_VARIANT, "ns_per_sample": "the steady passes' CPU time / their samples"},
         "groups": "embree: libembree*; own: the renderer's code ([JIT] kernels, Dr.Jit and Mitsuba for "
         "Mitsuba), libc, libm; other: Python, LLVM, EXR and zlib, the kernel (time_split.py)",
-        "split": "ns per sample x embree / (embree + own), and x own / (embree + own)",
+        "split": "ns per sample x embree / (embree + own), and x own / (embree + own); our functions: "
+        "ns per sample x their share / (embree + own)",
         "perf": perf,
     }
     runs: dict[str, dict[str, list[dict[str, Any]]]] = {
@@ -1332,8 +1348,8 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
                 m = mitsuba_time(python, env, eff, integ, spp[integ], passes, r + 1, folder, threads=1, prefix=prefix)
                 return 1e9 / float(mitsuba_rates(m)["steady_samples_per_cpu_s"])
 
-            runs[integ]["ours"].append(time_split_run(perf, data, ours, ctx.render.name))
-            runs[integ]["mitsuba"].append(time_split_run(perf, data, mitsuba, ctx.render.name))
+            runs[integ]["ours"].append(time_split_run(perf, data, ours, ctx.render.name, True))
+            runs[integ]["mitsuba"].append(time_split_run(perf, data, mitsuba, ctx.render.name, False))
     keys = ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample", "embree_pct", "own_pct", "other_pct")
     table: dict[str, Any] = {}
     for integ, by in runs.items():
@@ -1341,6 +1357,13 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
         # ours / Mitsuba, run by run (same round), for the total and each part.
         for k in ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample"):
             row[f"ratio_{k}"] = ratio_stats([a[k] / b[k] for a, b in zip(by["ours"], by["mitsuba"], strict=True)])
+        # Our own code by function: medians over rounds (0 in a round where
+        # perf saw none of it), the largest TIME_SPLIT_TOP by name.
+        names = {n for x in by["ours"] for n in x["functions_ns_per_sample"]}
+        med = {n: median([x["functions_ns_per_sample"].get(n, 0.0) for x in by["ours"]]) for n in names}
+        top = sorted(med.items(), key=lambda kv: -kv[1])[:TIME_SPLIT_TOP]
+        row["ours_functions_ns_per_sample"] = dict(top)
+        row["ours_other_functions_ns_per_sample"] = sum(med.values()) - sum(v for _, v in top)
         table[integ] = row
     results = {"table": table, "runs": runs}
     bl.write_result(ctx, "time_split", params, results)

@@ -787,7 +787,23 @@ def time_split(d: dict[str, Any]) -> list[str]:
         "'Other' (not rendering: Python and LLVM for Mitsuba, loading and EXR writing for ours) is left out of "
         "the split. One thread, so the numbers differ from section 14's two-thread rates.",
         "",
+        "Our own code by function, CPU ns per sample (median over rounds; libc and libm, which count as own "
+        "code above, are not in the list):",
+        "",
+        *table(["function", *t], fn_rows(t)),
+        "",
     ]
+
+
+def fn_rows(t: dict[str, Any]) -> list[list[str]]:
+    """time_split's per-function table: one row per function in any
+    integrator's list, then the rest of each list."""
+    names: list[str] = []
+    for r in t.values():
+        names += [n for n in r.get("ours_functions_ns_per_sample", {}) if n not in names]
+    rows = [[f"`{n}`", *(f(r["ours_functions_ns_per_sample"].get(n), ".1f") for r in t.values())] for n in names]
+    rows.append(["(the others)", *(f(r.get("ours_other_functions_ns_per_sample"), ".1f") for r in t.values())])
+    return rows
 
 
 SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [

@@ -32,6 +32,12 @@ from pathlib import Path
 
 # One row of `perf report --stdio --sort dso`: "    65.85%  libembree3.so".
 _ROW = re.compile(r"^\s*(\d+(?:\.\d+)?)%\s+(\S.*?)\s*$")
+# One user-space row ([.]) of `perf report --stdio --sort sym`:
+# "    16.79%  [.] sphrect_sample_many.arch_x86_64_v4".
+_SYM_ROW = re.compile(r"^\s*(\d+(?:\.\d+)?)%\s+\[\.\]\s+(\S.*?)\s*$")
+# GCC's target_clones suffixes (fastmath.h: FM_SIMD_CLONES): one function
+# whichever clone the CPU runs.
+_CLONE = re.compile(r"\.(arch_x86_64_v\d|avx2|avx512f|default)$")
 
 _OWN_LIBS = ("libc.so", "libm.so", "libdrjit", "libmitsuba", "libnanobind", "_drjit_ext", "_mitsuba_ext")
 
@@ -76,6 +82,18 @@ def parse_report(text: str) -> dict[str, float]:
     return shares
 
 
+def parse_symbols(text: str) -> dict[str, float]:
+    """{function: percent of all samples} from `perf report --stdio --sort
+    sym`, the clones of a function (name.avx2, name.arch_x86_64_v4) as one."""
+    shares: dict[str, float] = {}
+    for line in text.splitlines():
+        m = _SYM_ROW.match(line)
+        if m:
+            name = _CLONE.sub("", m.group(2))
+            shares[name] = shares.get(name, 0.0) + float(m.group(1))
+    return shares
+
+
 def split(shares: dict[str, float], renderer_binary: str) -> Split:
     """The three groups' shares of all samples."""
     acc = {"embree": 0.0, "own": 0.0, "other": 0.0}
@@ -110,3 +128,16 @@ def report(perf: str, data: Path) -> dict[str, float]:
     if p.returncode != 0:
         raise RuntimeError(f"perf report -i {data} failed: {p.stderr.strip()}")
     return parse_report(p.stdout)
+
+
+def report_symbols(perf: str, data: Path, dso: str) -> dict[str, float]:
+    """Shares by function, of all samples, of the functions in one shared
+    object (our `render`: Mitsuba's kernels have no names)."""
+    p = subprocess.run(
+        [perf, "report", "-i", str(data), "--stdio", "--no-children", "--sort", "sym", "--dsos", dso],
+        capture_output=True,
+        text=True,
+    )
+    if p.returncode != 0:
+        raise RuntimeError(f"perf report -i {data} --dsos {dso} failed: {p.stderr.strip()}")
+    return parse_symbols(p.stdout)

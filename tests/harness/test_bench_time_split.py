@@ -13,7 +13,17 @@ from conftest import REPO
 
 sys.path.insert(0, str(REPO / "renderer" / "bench"))
 
-from time_split import Split, group_of, parse_report, perf_path, record_prefix, report, split
+from time_split import (
+    Split,
+    group_of,
+    parse_report,
+    parse_symbols,
+    perf_path,
+    record_prefix,
+    report,
+    report_symbols,
+    split,
+)
 
 # The shape of `perf report --stdio --no-children --sort dso` (Mitsuba's
 # path integrator, 1 thread, trimmed).
@@ -88,6 +98,23 @@ def test_split_scales_the_groups_to_all_samples() -> None:
     assert sp.embree_fraction == pytest.approx(65.85 / (65.85 + 29.73))
 
 
+def test_parse_symbols_merges_a_function_s_clones() -> None:
+    text = """\
+# Overhead  Symbol
+# ........  ......
+#
+    16.79%  [.] sphrect_sample_many.arch_x86_64_v4
+     0.50%  [.] sphrect_sample_many.avx2
+     9.48%  [.] integrator_radiance_row
+     2.71%  [.] hit_at.isra.0
+     0.46%  [k] exc_page_fault
+"""
+    shares = parse_symbols(text)
+    assert shares == pytest.approx(
+        {"sphrect_sample_many": 17.29, "integrator_radiance_row": 9.48, "hit_at.isra.0": 2.71}
+    )
+
+
 def test_embree_fraction_of_no_work_is_nan() -> None:
     assert Split(0.0, 0.0, 100.0).embree_fraction != Split(0.0, 0.0, 100.0).embree_fraction
 
@@ -106,3 +133,9 @@ def test_real_profile_of_the_renderer(real_renderer: Path, tmp_path: Path) -> No
     assert 5.0 < sp.embree < 80.0
     assert 15.0 < sp.own < 95.0
     assert sp.other < 25.0
+    # By function: the row's integrator and the light sampler are among
+    # them, and together they cannot exceed the binary's share.
+    functions = report_symbols(perf, data, real_renderer.name)
+    assert "integrator_radiance_row" in functions
+    assert "sphrect_sample_many" in functions
+    assert sum(functions.values()) <= sp.own + 1e-6
