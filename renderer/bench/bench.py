@@ -1276,6 +1276,8 @@ def time_split_run(
     shares = ts.report(perf, data)
     sp = ts.split(shares, binary)
     work = sp.embree + sp.own
+    if not work > 0.0:
+        raise RuntimeError(f"perf saw neither Embree nor the renderer's code: {shares}")
     per_function: dict[str, float] = {}
     if functions:
         # Shares of all samples, rescaled like the groups: ns per sample.
@@ -1329,6 +1331,7 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
         "split": "ns per sample x embree / (embree + own), and x own / (embree + own); our functions: "
         "ns per sample x their share / (embree + own)",
         "perf": perf,
+        "order": "per round and integrator, ours and Mitsuba one after the other, who goes first alternating",
     }
     runs: dict[str, dict[str, list[dict[str, Any]]]] = {
         "direct": {"ours": [], "mitsuba": []},
@@ -1348,8 +1351,10 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
                 m = mitsuba_time(python, env, eff, integ, spp[integ], passes, r + 1, folder, threads=1, prefix=prefix)
                 return 1e9 / float(mitsuba_rates(m)["steady_samples_per_cpu_s"])
 
-            runs[integ]["ours"].append(time_split_run(perf, data, ours, ctx.render.name, True))
-            runs[integ]["mitsuba"].append(time_split_run(perf, data, mitsuba, ctx.render.name, False))
+            # Who goes first alternates by round, as in section 14.
+            for who in ("ours", "mitsuba") if r % 2 == 0 else ("mitsuba", "ours"):
+                run = ours if who == "ours" else mitsuba
+                runs[integ][who].append(time_split_run(perf, data, run, ctx.render.name, who == "ours"))
     keys = ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample", "embree_pct", "own_pct", "other_pct")
     table: dict[str, Any] = {}
     for integ, by in runs.items():
