@@ -1370,9 +1370,57 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
         row["ours_functions_ns_per_sample"] = dict(top)
         row["ours_other_functions_ns_per_sample"] = sum(med.values()) - sum(v for _, v in top)
         table[integ] = row
-    results = {"table": table, "runs": runs}
+    cost = time_split_cost(ctx, perf, data, rounds, 4 if q else 16)
+    params["cost"] = {
+        "scene": str(MULTI_LAMP.relative_to(bl.ROOT)),
+        "integrator": "direct",
+        "spp": cost["spp"],
+        "what": "light and antishadow_exact, 1 thread, under perf (who goes first alternating): "
+        "where antishadow_exact's extra time per sample goes, by function",
+    }
+    results = {"table": table, "runs": runs, "cost": cost}
     bl.write_result(ctx, "time_split", params, results)
     return results
+
+
+def time_split_cost(ctx: Context, perf: str, data: Path, rounds: int, spp: int) -> dict[str, Any]:
+    """`light` and `antishadow_exact` on multi_lamp (direct, 1 thread) under
+    perf: issue 17's cost goal (antishadow_exact <= 1.15x light per sample)
+    fails there, and the by-function difference says where the extra time
+    goes."""
+    out = TMP / "runs" / "time_split"
+    runs: dict[str, list[dict[str, Any]]] = {"light": [], "antishadow_exact": []}
+    for r in range(rounds):
+        for strategy in ("light", "antishadow_exact") if r % 2 == 0 else ("antishadow_exact", "light"):
+
+            def render(prefix: tuple[str, ...], strategy: str = strategy, r: int = r) -> float:
+                args = ["--threads", "1", "--strategy", strategy, "--integrator", "direct", "--seed", str(r + 1)]
+                a = bl.run_render(
+                    ctx, MULTI_LAMP, out / f"cost_{strategy}", *args, "--spp", str(spp), prefix=prefix
+                ).summary()
+                return 1e9 * float(a["render_cpu_s"]) / float(a["samples"])
+
+            runs[strategy].append(time_split_run(perf, data, render, ctx.render.name, True))
+    keys = ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample")
+    by = {s: {k: median([x[k] for x in xs]) for k in keys} for s, xs in runs.items()}
+    names = {n for xs in runs.values() for x in xs for n in x["functions_ns_per_sample"]}
+    med = {
+        s: {n: median([x["functions_ns_per_sample"].get(n, 0.0) for x in xs]) for n in names} for s, xs in runs.items()
+    }
+    # The functions that add the most to antishadow_exact's sample.
+    extra = sorted(names, key=lambda n: -(med["antishadow_exact"][n] - med["light"][n]))[:TIME_SPLIT_TOP]
+    return {
+        "spp": spp,
+        "by_strategy": by,
+        "ratio_cpu_ns_per_sample": ratio_stats(
+            [
+                a["cpu_ns_per_sample"] / b["cpu_ns_per_sample"]
+                for a, b in zip(runs["antishadow_exact"], runs["light"], strict=True)
+            ]
+        ),
+        "functions_ns_per_sample": {n: {s: med[s][n] for s in runs} for n in extra},
+        "runs": runs,
+    }
 
 
 SECTIONS: dict[str, Callable[[Context], Any]] = {

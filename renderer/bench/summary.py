@@ -792,6 +792,33 @@ def time_split(d: dict[str, Any]) -> list[str]:
         "",
         *table(["function", *t], fn_rows(t)),
         "",
+        *time_split_cost(p, d["results"].get("cost")),
+    ]
+
+
+def time_split_cost(p: dict[str, Any], c: dict[str, Any] | None) -> list[str]:
+    """time_split's multi_lamp part: antishadow_exact's extra time by function."""
+    if c is None:
+        return []
+    by = c["by_strategy"]
+    rows = [
+        [s, f(x["cpu_ns_per_sample"], ".0f"), f(x["embree_ns_per_sample"], ".0f"), f(x["own_ns_per_sample"], ".0f")]
+        for s, x in by.items()
+    ]
+    fn = [
+        [f"`{n}`", f(v["light"], ".1f"), f(v["antishadow_exact"], ".1f"), f(v["antishadow_exact"] - v["light"], "+.1f")]
+        for n, v in c["functions_ns_per_sample"].items()
+    ]
+    return [
+        f"`multi_lamp`, direct, 1 thread, {c['spp']} spp, same rounds: `antishadow_exact` takes "
+        f"{_range(c['ratio_cpu_ns_per_sample'])} of `light`'s CPU time per sample (issue 17's goal: <= 1.15x, "
+        "section 14 measures it at two threads).",
+        "",
+        *table(["strategy", "CPU ns / sample", "in Embree", "in own code"], rows),
+        "The functions that add the most to `antishadow_exact`'s sample, CPU ns per sample (median over rounds):",
+        "",
+        *table(["function", "light", "antishadow_exact", "difference"], fn),
+        "",
     ]
 
 
