@@ -371,8 +371,9 @@ static int project_light(const struct antishadow *a, struct vec3 p, struct polyg
    portal intersects intervals. The corners keep the light's winding, as
    Sutherland-Hodgman's output does. */
 static int box_visible(const struct antishadow_box *b, const struct plane *portal_plane, struct vec3 p,
-                       struct polygon *out)
+                       struct polygon *out, bool *simple)
 {
+    *simple = false;
     double dp = plane_distance(portal_plane, p);
     out->n = 0;
     if (!(dp > 0.0)) return 0;
@@ -388,11 +389,23 @@ static int box_visible(const struct antishadow_box *b, const struct plane *porta
         out->v[i] = vec3_add(b->origin, vec3_add(vec3_scale(b->u, cu[k]), vec3_scale(b->w, cw[k])));
     }
     out->n = 4;
+    double lo = fm_fmin(u1 - u0, w1 - w0), hi = fm_fmax(u1 - u0, w1 - w0);
+    double coords = vec3_max_abs(b->origin) + b->len_u + b->len_w;
+    /* antishadow.h: ANTISHADOW_BOX_SIMPLE_ASPECT. */
+    *simple = lo > ANTISHADOW_BOX_SIMPLE_ASPECT * hi && lo > ANTISHADOW_BOX_SIMPLE_ROUNDING * coords;
     return 4;
 }
 
 int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out)
 {
+    bool simple;
+    return antishadow_visible_polygon_known(a, p, region, out, &simple);
+}
+
+int antishadow_visible_polygon_known(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out,
+                                     bool *simple)
+{
+    *simple = false;
     switch (region) {
     case REGION_OUTSIDE:
     case REGION_INSIDE: /* the light's side: no direction crosses the portal */
@@ -405,7 +418,7 @@ int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enu
         memcpy(out->v, a->portal.v, (size_t)a->portal.n * sizeof out->v[0]);
         return out->n;
     case REGION_ANTI_PENUMBRA: {
-        if (a->box.valid) return box_visible(&a->box, &a->portal_plane, p, out);
+        if (a->box.valid) return box_visible(&a->box, &a->portal_plane, p, out, simple);
         struct polygon projected;
         if (project_light(a, p, &projected) == 0) {
             out->n = 0;

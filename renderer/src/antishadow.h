@@ -89,5 +89,19 @@ int antishadow_visible_polygon(const struct antishadow *a, struct vec3 p, struct
    the anti-umbra gives the projected light and the anti-antumbra the portal
    without clipping; only the anti-penumbra clips. */
 int antishadow_visible_polygon_in(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out);
+/* Same, and *simple tells whether `out` is known to have no collinear or
+   repeated vertex (target.h: target_init_polygon_simple), which holds for
+   the anti-penumbra's box rectangles that are not slivers: there it saves
+   the scan that would find nothing to drop. A box rectangle is simple when
+   its shorter side is above ANTISHADOW_BOX_SIMPLE_ASPECT times its longer
+   one, far from target.h's TARGET_COLLINEAR_REL2 and TARGET_REPEATED_REL2
+   (test_antishadow checks the margins), and above
+   ANTISHADOW_BOX_SIMPLE_ROUNDING times the size of the portal's
+   coordinates, so that the corners' rounding (~1e-16 of those) cannot
+   bring it near them. */
+#define ANTISHADOW_BOX_SIMPLE_ASPECT   1e-6
+#define ANTISHADOW_BOX_SIMPLE_ROUNDING 1e-9
+int antishadow_visible_polygon_known(const struct antishadow *a, struct vec3 p, enum region region, struct polygon *out,
+                                     bool *simple);
 
 #endif

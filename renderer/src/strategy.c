@@ -385,10 +385,14 @@ static const struct polygon *visible_polygon(const struct strategy *s, const str
         const struct strategy_pair *pair = &s->pairs[i];
         struct polygon vis;
         const struct antishadow *a = &s->scene->portals[pair->portal].antishadow;
-        /* Once classified, the anti-umbra and anti-antumbra need no clipping. */
-        int n = classifies(s->kind) ? antishadow_visible_polygon_in(a, pt->p, (enum region)sc->region[i], &vis)
-                                    : antishadow_visible_polygon(a, pt->p, &vis);
-        bool ok = n >= 3 && target_init_polygon(&sc->vis[i], &vis);
+        /* Once classified, the anti-umbra and anti-antumbra need no clipping
+           (and a box rectangle no simplification). */
+        bool simple = false;
+        int n = classifies(s->kind)
+                    ? antishadow_visible_polygon_known(a, pt->p, (enum region)sc->region[i], &vis, &simple)
+                    : antishadow_visible_polygon(a, pt->p, &vis);
+        bool ok =
+            n >= 3 && (simple ? target_init_polygon_simple(&sc->vis[i], &vis) : target_init_polygon(&sc->vis[i], &vis));
         sc->vis_state[i] = ok ? VIS_POLYGON : VIS_EMPTY;
     }
     return sc->vis_state[i] == VIS_EMPTY ? NULL : &sc->vis[i].polygon;

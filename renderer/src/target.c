@@ -16,7 +16,7 @@ static void simplify(const struct polygon *in, struct polygon *out)
 {
     double scale = 0.0;
     for (int i = 0; i < in->n; ++i) scale = fm_fmax(scale, vec3_length2(vec3_sub(in->v[i], in->v[0])));
-    double tol2 = 1e-20 * scale * scale + 1e-300;
+    double tol2 = TARGET_COLLINEAR_REL2 * scale * scale + 1e-300;
     polygon_copy(out, in);
     int n = out->n;
     struct vec3 *v = out->v;
@@ -28,7 +28,7 @@ static void simplify(const struct polygon *in, struct polygon *out)
                were a third of this function's time. */
             struct vec3 a = v[i == 0 ? n - 1 : i - 1], b = v[i], c = v[i + 1 == n ? 0 : i + 1];
             struct vec3 cr = vec3_cross(vec3_sub(b, a), vec3_sub(c, b));
-            if (vec3_length2(cr) <= tol2 || vec3_length2(vec3_sub(b, a)) <= 1e-24 * scale) {
+            if (vec3_length2(cr) <= tol2 || vec3_length2(vec3_sub(b, a)) <= TARGET_REPEATED_REL2 * scale) {
                 for (int k = i; k + 1 < n; ++k) v[k] = v[k + 1];
                 --n;
                 changed = true;
@@ -42,6 +42,12 @@ static void simplify(const struct polygon *in, struct polygon *out)
 bool target_init_polygon(struct target *t, const struct polygon *poly)
 {
     simplify(poly, &t->polygon);
+    return t->polygon.n >= 3;
+}
+
+bool target_init_polygon_simple(struct target *t, const struct polygon *poly)
+{
+    polygon_copy(&t->polygon, poly);
     return t->polygon.n >= 3;
 }
 

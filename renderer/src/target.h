@@ -13,6 +13,14 @@
 #include "spherical.h"
 #include "vec.h"
 
+/* What target_init_polygon's simplification drops, with size^2 the
+   polygon's largest squared distance from its first vertex: a vertex whose
+   two edges have a squared cross product below TARGET_COLLINEAR_REL2 size^4
+   (collinear), or whose edge from the previous vertex has a squared length
+   below TARGET_REPEATED_REL2 size^2 (repeated). */
+#define TARGET_COLLINEAR_REL2 1e-20
+#define TARGET_REPEATED_REL2  1e-24
+
 struct target {
     struct polygon polygon;
     struct vec3 normal; /* unit, by winding */
@@ -33,6 +41,10 @@ bool target_init(struct target *t, const struct polygon *poly);
    then does the rest (false for a degenerate polygon). Together they are
    target_init. */
 bool target_init_polygon(struct target *t, const struct polygon *poly);
+/* target_init_polygon for a polygon known to have no collinear or repeated
+   vertex (antishadow_visible_polygon_known), which simplification would
+   copy unchanged: copied without the scan. */
+bool target_init_polygon_simple(struct target *t, const struct polygon *poly);
 bool target_finish(struct target *t);
 /* *dst = *src, copying only the polygon's vertices in use. */
 void target_copy(struct target *dst, const struct target *src);

@@ -3,12 +3,15 @@
    nothing of the planes: it projects light points from p onto the portal
    plane and measures how far inside the portal they land, and traces rays
    from p through portal points to the light's plane. */
+#include <float.h>
+#include <string.h>
 #include <time.h>
 
 #include "antishadow.h"
 #include "config.h"
 #include "polygon.h"
 #include "rng.h"
+#include "target.h"
 #include "testlib.h"
 
 /* Rotation of v about the unit axis by angle (Rodrigues). */
@@ -958,6 +961,71 @@ static void test_box_matches_clip(void)
     CHECK_MSG(compared > 1000, "only %d anti-penumbra points compared", compared);
 }
 
+/* A box rectangle reported simple (antishadow_visible_polygon_known) is one
+   that simplification copies unchanged, bit for bit: that is what lets a
+   portal strategy skip the scan (target_init_polygon_simple). Most
+   anti-penumbra points qualify; a sliver, found by bisecting to the edge of
+   the overlap, does not. */
+static void test_box_simple_needs_no_simplifying(void)
+{
+    /* The margins over simplification's tolerances, for a rectangle of
+       sides lo <= hi at the aspect limit: its corners' cross product over
+       the squared diagonal is lo hi / (lo^2 + hi^2) >= aspect / 2, its
+       shorter edge over the diagonal >= aspect / sqrt(2); each must stay at
+       least 1e3 times the tolerance (a looser simplify fails here). */
+    double aspect = ANTISHADOW_BOX_SIMPLE_ASPECT;
+    CHECK(0.5 * aspect >= 1e3 * sqrt(TARGET_COLLINEAR_REL2));
+    CHECK(aspect / sqrt(2.0) >= 1e3 * sqrt(TARGET_REPEATED_REL2));
+    CHECK(ANTISHADOW_BOX_SIMPLE_ROUNDING >= 1e3 * DBL_EPSILON);
+    struct pair_setup c[N_FIXED];
+    fixed_setups(c);
+    int simple_seen = 0, changed = 0;
+    for (int i = 0; i < 5; ++i) {
+        struct antishadow a;
+        struct error err;
+        if (!antishadow_build(&c[i].light, &c[i].portal, &a, &err) || !a.box.valid) {
+            CHECK_MSG(false, "%s: no box pair", c[i].name);
+            continue;
+        }
+        struct brute b;
+        brute_init(&b, &c[i].light, &c[i].portal, 900 + (uint64_t)i);
+        struct rng r;
+        rng_seed(&r, 1000 + (uint64_t)i, 0, 0);
+        for (int k = 0; k < 4000; ++k) {
+            struct vec3 p = setup_point(&c[i], &b, &r, k);
+            if (antishadow_classify(&a, p) != REGION_ANTI_PENUMBRA) continue;
+            struct polygon vis;
+            bool simple;
+            int n = antishadow_visible_polygon_known(&a, p, REGION_ANTI_PENUMBRA, &vis, &simple);
+            if (!simple) continue;
+            ++simple_seen;
+            struct target t;
+            bool ok = n == 4 && target_init_polygon(&t, &vis) && t.polygon.n == vis.n &&
+                      memcmp(t.polygon.v, vis.v, (size_t)vis.n * sizeof vis.v[0]) == 0;
+            if (!ok && changed++ < 3)
+                fprintf(stderr, "  %s: p (%.17g, %.17g, %.17g) simplified to %d vertices\n", c[i].name, p.x, p.y, p.z,
+                        t.polygon.n);
+        }
+        /* From below the portal's centre (the whole overlap) to a point far
+           to the side (none): the last point with an overlap sees a sliver. */
+        struct vec3 in = vec3_make(0.0, 1.0, 0.0), out = vec3_make(40.0, 1.0, 0.0);
+        struct polygon vis;
+        bool simple;
+        CHECK_MSG(antishadow_visible_polygon_known(&a, in, REGION_ANTI_PENUMBRA, &vis, &simple) == 4 && simple,
+                  "%s: the overlap below the centre is not simple", c[i].name);
+        CHECK(antishadow_visible_polygon_known(&a, out, REGION_ANTI_PENUMBRA, &vis, &simple) == 0 && !simple);
+        for (int it = 0; it < 200; ++it) {
+            struct vec3 mid = vec3_scale(vec3_add(in, out), 0.5);
+            if (antishadow_visible_polygon_known(&a, mid, REGION_ANTI_PENUMBRA, &vis, &simple) == 4) in = mid;
+            else out = mid;
+        }
+        CHECK_MSG(antishadow_visible_polygon_known(&a, in, REGION_ANTI_PENUMBRA, &vis, &simple) == 4 && !simple,
+                  "%s: a sliver at x = %.17g is reported simple", c[i].name, in.x);
+    }
+    CHECK_MSG(changed == 0, "%d simple rectangles were changed by simplification", changed);
+    CHECK_MSG(simple_seen > 1000, "only %d simple rectangles seen", simple_seen);
+}
+
 static const struct test_case antishadow_tests[] = {
     { "build_plane_counts", test_build_plane_counts },
     { "lampshade_hand_checked", test_lampshade_hand_checked },
@@ -965,6 +1033,7 @@ static const struct test_case antishadow_tests[] = {
     { "brute_force_random_pairs", test_brute_force_random_pairs },
     { "visible_polygon", test_visible_polygon },
     { "box_matches_clip", test_box_matches_clip },
+    { "box_simple_needs_no_simplifying", test_box_simple_needs_no_simplifying },
     { "round_32", test_round_32 },
     { "round_config", test_round_config },
     { "build_errors", test_build_errors },
