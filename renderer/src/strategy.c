@@ -155,23 +155,14 @@ static bool build_emitters(struct strategy *s, struct error *err)
     s->centre = calloc((size_t)n, sizeof *s->centre);
     s->reach = calloc((size_t)n, sizeof *s->reach);
     s->shade = malloc(sizeof *s->shade * (size_t)n);
-    s->first_side_plane = malloc(sizeof *s->first_side_plane * (size_t)(n + 1));
-    size_t n_planes = 0;
-    for (int i = 0; i < sc->n_emitters; ++i) n_planes += (size_t)sc->lights[sc->emitters[i].first_light].n_portals;
-    s->side_planes = malloc(sizeof *s->side_planes * (n_planes > 0 ? n_planes : 1));
-    if (!s->members || !s->centre || !s->reach || !s->shade || !s->first_side_plane || !s->side_planes)
+    s->portal_plane = malloc(sizeof *s->portal_plane * (size_t)(s->n_pairs > 0 ? s->n_pairs : 1));
+    if (!s->members || !s->centre || !s->reach || !s->shade || !s->portal_plane)
         return error_set(err, "out of memory for %d lights", sc->n_emitters);
     /* The planes on_light_side tests, in one small array: reached through
        the lights and portals, each test touched a separate part of
        structs of several kilobytes. */
-    s->first_side_plane[0] = 0;
-    for (int i = 0; i < sc->n_emitters; ++i) {
-        const struct light *l = &sc->lights[sc->emitters[i].first_light];
-        int j = s->first_side_plane[i];
-        for (int k = l->first_portal; k < l->first_portal + l->n_portals; ++k)
-            s->side_planes[j++] = sc->portals[k].antishadow.portal_plane;
-        s->first_side_plane[i + 1] = j;
-    }
+    for (int i = 0; i < s->n_pairs; ++i)
+        if (s->pairs[i].portal >= 0) s->portal_plane[i] = sc->portals[s->pairs[i].portal].antishadow.portal_plane;
     for (int i = 0; i < sc->n_emitters; ++i) {
         const struct emitter *e = &sc->emitters[i];
         s->shade[i] = shade_box(sc, e);
@@ -243,8 +234,7 @@ bool strategy_init(struct strategy *s, const struct scene *scene, const struct r
     s->n_pairs = 0;
     s->use_bvh = false;
     s->shade = NULL;
-    s->side_planes = NULL;
-    s->first_side_plane = NULL;
+    s->portal_plane = NULL;
     s->bvh = (struct pair_bvh){ 0 };
     s->outline = NULL;
     double *power = malloc(sizeof *power * (size_t)scene->n_lights);
@@ -298,14 +288,12 @@ void strategy_free(struct strategy *s)
     free(s->centre);
     free(s->reach);
     free(s->shade);
-    free(s->side_planes);
-    free(s->first_side_plane);
+    free(s->portal_plane);
     s->members = NULL;
     s->centre = NULL;
     s->reach = NULL;
     s->shade = NULL;
-    s->side_planes = NULL;
-    s->first_side_plane = NULL;
+    s->portal_plane = NULL;
     for (int i = 0; s->outline && i < s->n_pairs; ++i) free(s->outline[i].x);
     free(s->outline);
     s->outline = NULL;
@@ -476,13 +464,14 @@ static double weight_finish(struct weight_term t, struct vec3 p, struct vec3 n)
 }
 
 /* True when p is inside the emitter's shade: on the light's side of every
-   one of its portals' planes and within its shade box. */
+   one of its portals' planes and within its shade box. The emitter's pairs
+   are its first light's portals, in order, when it has any (strategy_init). */
 static bool on_light_side(const struct strategy *s, int emitter, struct vec3 p)
 {
-    int first = s->first_side_plane[emitter], end = s->first_side_plane[emitter + 1];
-    if (first == end) return false;
+    int first = s->first_pair[emitter], end = s->first_pair[emitter + 1];
+    if (s->pairs[first].portal < 0) return false;
     for (int k = first; k < end; ++k)
-        if (plane_distance(&s->side_planes[k], p) > 0.0) return false;
+        if (plane_distance(&s->portal_plane[k], p) > 0.0) return false;
     return aabb_contains(&s->shade[emitter], p);
 }
 

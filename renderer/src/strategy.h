@@ -68,8 +68,7 @@ struct strategy {
     double *reach;                  /* per emitter: radius of the sphere about centre that holds it */
     bool use_bvh;                   /* antishadow strategies: candidates from the BVH */
     struct aabb *shade;             /* per emitter: where a point counts as inside its shade */
-    struct plane *side_planes;      /* per emitter, from first_side_plane[e] to first_side_plane[e + 1]: */
-    int *first_side_plane;          /* its first light's portal planes, in portal order (on_light_side) */
+    struct plane *portal_plane;     /* per pair with a portal: that portal's plane (on_light_side) */
     struct pair_bvh bvh;            /* over the pairs' lit regions */
     struct portal_outline *outline; /* per pair: its portal's, for a mesh light's portal pairs (else empty) */
 };
