@@ -1297,6 +1297,17 @@ def time_split_run(
     }
 
 
+def function_names(runs: list[dict[str, Any]]) -> set[str]:
+    """Every function some profiled run (time_split_run) saw."""
+    return {n for x in runs for n in x["functions_ns_per_sample"]}
+
+
+def function_medians(runs: list[dict[str, Any]], names: set[str]) -> dict[str, float]:
+    """Each function's ns per sample, median over the runs (0 in a run
+    where perf saw none of it)."""
+    return {n: median([x["functions_ns_per_sample"].get(n, 0.0) for x in runs]) for n in names}
+
+
 def section_time_split(ctx: Context) -> dict[str, Any]:
     """Ours (`light`) and Mitsuba on the lampshade, one thread each, under
     perf: CPU time per sample split into Embree's and the renderer's own
@@ -1362,10 +1373,8 @@ def section_time_split(ctx: Context) -> dict[str, Any]:
         # ours / Mitsuba, run by run (same round), for the total and each part.
         for k in ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample"):
             row[f"ratio_{k}"] = ratio_stats([a[k] / b[k] for a, b in zip(by["ours"], by["mitsuba"], strict=True)])
-        # Our own code by function: medians over rounds (0 in a round where
-        # perf saw none of it), the largest TIME_SPLIT_TOP by name.
-        names = {n for x in by["ours"] for n in x["functions_ns_per_sample"]}
-        med = {n: median([x["functions_ns_per_sample"].get(n, 0.0) for x in by["ours"]]) for n in names}
+        # Our own code by function, the largest TIME_SPLIT_TOP by name.
+        med = function_medians(by["ours"], function_names(by["ours"]))
         top = sorted(med.items(), key=lambda kv: -kv[1])[:TIME_SPLIT_TOP]
         row["ours_functions_ns_per_sample"] = dict(top)
         row["ours_other_functions_ns_per_sample"] = sum(med.values()) - sum(v for _, v in top)
@@ -1403,10 +1412,8 @@ def time_split_cost(ctx: Context, perf: str, data: Path, rounds: int, spp: int) 
             runs[strategy].append(time_split_run(perf, data, render, ctx.render.name, True))
     keys = ("cpu_ns_per_sample", "embree_ns_per_sample", "own_ns_per_sample")
     by = {s: {k: median([x[k] for x in xs]) for k in keys} for s, xs in runs.items()}
-    names = {n for xs in runs.values() for x in xs for n in x["functions_ns_per_sample"]}
-    med = {
-        s: {n: median([x["functions_ns_per_sample"].get(n, 0.0) for x in xs]) for n in names} for s, xs in runs.items()
-    }
+    names = function_names([x for xs in runs.values() for x in xs])
+    med = {s: function_medians(xs, names) for s, xs in runs.items()}
     # The functions that add the most to antishadow_exact's sample.
     extra = sorted(names, key=lambda n: -(med["antishadow_exact"][n] - med["light"][n]))[:TIME_SPLIT_TOP]
     return {
