@@ -28,6 +28,10 @@ summary.py turns them into results/bench/summary.md. Sections:
                   and antishadow_exact's cost per sample against `light`'s
   time_split      the same two renderers under perf, one thread: CPU time
                   per sample inside Embree and in the renderer's own code
+  mitsuba_efficiency
+                  equal-time error of `light` and `antishadow_exact` against
+                  Mitsuba 3 (llvm_ad_rgb) on the lampshade: how many times
+                  less time each needs for Mitsuba's error
 
 usage: bench.py BUILD_DIR [--quick] [--only SECTION[,SECTION...]]
 """
@@ -46,10 +50,12 @@ import sys
 import time
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import benchlib as bl
+import equal_error as ee
 import numpy as np
 import time_split as ts
 from benchlib import LAMPSHADE, MULTI_LAMP, TMP, Context, log, median
@@ -1029,10 +1035,14 @@ def mitsuba_time(
     folder: Path,
     threads: int = 2,
     prefix: tuple[str, ...] = (),
+    steady_time: float = 0.0,
+    image: Path | None = None,
 ) -> dict[str, Any]:
     """One mitsuba_time.py process: `passes` passes of `spp`, the first one
     compiling its kernels into an empty cache (a new user's first render).
-    `prefix` runs it under another program (perf record ... --)."""
+    `prefix` runs it under another program (perf record ... --).
+    `steady_time` adds steady passes until they took that long together;
+    `image` keeps their mean image and its variance (an .npz)."""
     cache = folder / f"drjit_cache_{integrator}_{seed}"
     if cache.exists():
         shutil.rmtree(cache)
@@ -1057,6 +1067,10 @@ def mitsuba_time(
         "--mesh-dir",
         str(folder / "meshes"),
     ]
+    if steady_time > 0:
+        cmd += ["--steady-time", str(steady_time)]
+    if image is not None:
+        cmd += ["--image", str(image)]
     p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, env={**env, "DRJIT_CACHE_DIR": str(cache)})
     shutil.rmtree(cache, ignore_errors=True)
     if p.returncode != 0:
@@ -1097,12 +1111,13 @@ def ours_steady(short: dict[str, Any], long: dict[str, Any], px: int) -> dict[st
     return {"samples_per_s": extra / wall, "samples_per_cpu_s": extra / cpu, "cores": cpu / wall}
 
 
-def mitsuba_scene(ctx: Context, folder: Path, max_depth: int) -> Path:
+def mitsuba_scene(ctx: Context, folder: Path, max_depth: int, sets: tuple[str, ...] = (), tag: str = "") -> Path:
     """The lampshade as Mitsuba gets it: our effective config (render
-    --print-config), which the cross-check's converter turns into Mitsuba's
-    scene, written into `folder`."""
+    --print-config, with `sets` applied), which the cross-check's converter
+    turns into Mitsuba's scene, written into `folder`."""
     folder.mkdir(parents=True, exist_ok=True)
-    eff = folder / "lampshade.yaml"
+    eff = folder / f"lampshade{tag}.yaml"
+    set_args = [a for x in sets for a in ("--set", x)]
     p = subprocess.run(
         [
             str(ctx.render),
@@ -1110,6 +1125,7 @@ def mitsuba_scene(ctx: Context, folder: Path, max_depth: int) -> Path:
             str(LAMPSHADE),
             "--set",
             f"render.max_depth={max_depth}",
+            *set_args,
             "--format",
             "yaml",
         ],
@@ -1430,6 +1446,180 @@ def time_split_cost(ctx: Context, perf: str, data: Path, rounds: int, spp: int) 
     }
 
 
+# ---- 16. equal-time error against Mitsuba ------------------------------------------
+
+# (integrator, s_L) of the lampshade: three light/portal ratios with direct
+# lighting, one with the path integrator.
+MITSUBA_EFF_CASES = (("direct", 0.15), ("direct", 0.6), ("direct", 1.2), ("path", 0.6))
+MITSUBA_EFF_STRATEGIES = ("light", "antishadow_exact")
+
+
+def mitsuba_eff_sets(integ: str, s_l: float, max_depth: int) -> list[str]:
+    """The --set overrides of one case, as both renderers and the reference
+    get them (the direct cases' are section 8's, so that its cached
+    references serve here too)."""
+    sets = [f"params.s_L={s_l}", f"params.s_P={S_P}"]
+    if integ == "path":
+        sets += ["render.integrator=path", f"render.max_depth={max_depth}"]
+    return sets
+
+
+@dataclass(frozen=True)
+class EffCase:
+    """One case of the section: what each of its renders needs."""
+
+    integ: str
+    set_args: list[str]
+    out: Path  # run folders
+    scene: Path  # Mitsuba's scene (our effective config)
+    folder: Path  # Mitsuba's working folder (meshes, kernel caches)
+    ref: np.ndarray
+    ref_var: np.ndarray
+    secs: float
+    mits_spp: int
+
+
+def eff_ours(ctx: Context, c: EffCase, strategy: str, r: int) -> dict[str, Any]:
+    """Ours with `strategy` for c.secs (seed r + 1): its error and clocks."""
+    args = ["--time", str(c.secs), "--spp", "0", "--threads", "2", "--seed", str(r + 1)]
+    run = bl.run_render(ctx, LAMPSHADE, c.out / strategy, *args, "--strategy", strategy, *c.set_args)
+    x, x_var, _ = bl.read_exr(Path(run.final["path"]))
+    return {
+        **bl.rel_error(x, x_var, c.ref, c.ref_var),
+        "time_s": run.time_s,
+        "cpu_s": run.cpu_s,
+        "spp": run.final["spp"],
+    }
+
+
+def eff_mitsuba(python: Path, env: dict[str, str], c: EffCase, r: int, info: dict[str, Any]) -> dict[str, Any]:
+    """Mitsuba's steady passes for c.secs (seed r + 1): the error of their
+    mean image and their clocks; `info` receives its versions."""
+    npz = c.out / "mitsuba.npz"
+    npz.parent.mkdir(parents=True, exist_ok=True)
+    m = mitsuba_time(python, env, c.scene, c.integ, c.mits_spp, 2, r + 1, c.folder, steady_time=c.secs, image=npz)
+    info.update({k: m[k] for k in ("mitsuba", "drjit", "variant", "threads", "libllvm")})
+    with np.load(npz) as img:
+        x, x_var, n_passes = img["mean"], img["var"], int(img["passes"])
+    if x.shape != c.ref.shape:
+        raise RuntimeError(f"Mitsuba's image is {x.shape}, the reference {c.ref.shape}")
+    steady = m["passes"][1:]
+    return {
+        **bl.rel_error(x, x_var, c.ref, c.ref_var),
+        "time_s": sum(p["wall_s"] for p in steady),
+        "cpu_s": sum(p["cpu_s"] for p in steady),
+        "spp": sum(p["spp"] for p in steady),
+        "passes": n_passes,
+    }
+
+
+def eff_round(
+    ctx: Context, python: Path, env: dict[str, str], c: EffCase, r: int, info: dict[str, Any]
+) -> dict[str, Any]:
+    """One round of a case: each of our strategies and Mitsuba, the order
+    rotating with r, and each strategy's speed-up over Mitsuba."""
+    names = [*MITSUBA_EFF_STRATEGIES, "mitsuba"]
+    k = r % len(names)
+    row: dict[str, Any] = {}
+    for name in names[k:] + names[:k]:
+        row[name] = eff_mitsuba(python, env, c, r, info) if name == "mitsuba" else eff_ours(ctx, c, name, r)
+    m = row["mitsuba"]
+    for s in MITSUBA_EFF_STRATEGIES:
+        o = row[s]
+        o["vs_mitsuba_cpu"] = ee.speedup(o, o["cpu_s"], m, m["cpu_s"])
+        o["vs_mitsuba_wall"] = ee.speedup(o, o["time_s"], m, m["time_s"])
+        o["vs_mitsuba_per_sample"] = ee.speedup(o, o["spp"], m, m["spp"])
+    return row
+
+
+def eff_table(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """A case's rounds summarised: speed-ups over rounds, and each
+    renderer's median error and clocks."""
+    table: dict[str, Any] = {
+        s: {
+            k: ee.over_rounds([row[s][k] for row in runs])
+            for k in ("vs_mitsuba_cpu", "vs_mitsuba_wall", "vs_mitsuba_per_sample")
+        }
+        for s in MITSUBA_EFF_STRATEGIES
+    }
+    for name in (*MITSUBA_EFF_STRATEGIES, "mitsuba"):
+        table.setdefault(name, {}).update(
+            {
+                k: median([row[name][k] for row in runs])
+                for k in ("rel_mse_est", "rel_mse_est_se", "rel_var", "spp", "time_s", "cpu_s")
+            }
+        )
+    table["mitsuba"]["consistent"] = all(ee.consistent(row["mitsuba"]) for row in runs)
+    table["mitsuba"]["bias_z"] = [row["mitsuba"]["bias_z"] for row in runs]
+    return table
+
+
+def section_mitsuba_efficiency(ctx: Context) -> dict[str, Any]:
+    q = ctx.quick
+    rounds = 1 if q else 3
+    secs, ref_secs = (1.0 if q else 4.0), (6.0 if q else 60.0)
+    mits_spp = {"direct": 16 if q else 64, "path": 8 if q else 32}
+    max_depth = 8
+    python, env = mitsuba_env()
+    params = {
+        "config": str(LAMPSHADE.relative_to(bl.ROOT)),
+        "cases": [{"integrator": i, "s_L": s, "ratio": s / S_P} for i, s in MITSUBA_EFF_CASES],
+        "rounds": rounds,
+        "time_s": secs,
+        "threads": 2,
+        "ours": {"strategies": list(MITSUBA_EFF_STRATEGIES), "time": "render --time (time_s, render_cpu_s)"},
+        "mitsuba": {
+            "variant": MITSUBA_VARIANT,
+            "spp_per_pass": mits_spp,
+            "time": "its steady passes (after the compiling first one) until they took time_s together; "
+            "their wall and CPU seconds",
+            "image": "the mean of the steady passes; its variance from their spread",
+        },
+        "reference": {"strategy": "light", "time_s_min": ref_secs, "seed": REF_SEED, "renderer": "ours"},
+        "rel_mse_est": "mean over pixels and channels of ((x - ref)^2 - var_ref) / (ref^2 + 0.01)",
+        "speedup": "(Mitsuba's rel_mse_est x seconds) / (ours): how many times less time ours needs for "
+        "Mitsuba's error; per round, median and range over rounds; low = two standard errors of both "
+        "estimates against ours (a bound where the reference does not resolve ours)",
+        "per_sample": "the same with samples per pixel in place of seconds: the error of one sample",
+        "consistent": "Mitsuba's bias_z against our reference <= 4 in every round: its error is its noise",
+    }
+    cases: dict[str, Any] = {}
+    info: dict[str, Any] = {}
+    for integ, s_l in MITSUBA_EFF_CASES:
+        sets = mitsuba_eff_sets(integ, s_l, max_depth)
+        tag = f"{integ}_sL{s_l}"
+        ref_name = f"lampshade_sL{s_l}" if integ == "direct" else f"lampshade_{integ}_sL{s_l}"
+        ref_exr, meta = reference(ctx, LAMPSHADE, sets, ref_secs, ref_name)
+        ref, ref_var, _ = bl.read_exr(ref_exr)
+        folder = TMP / "mitsuba_efficiency"
+        case = EffCase(
+            integ=integ,
+            set_args=[a for x in sets for a in ("--set", x)],
+            out=TMP / "runs" / "mitsuba_efficiency" / tag,
+            scene=mitsuba_scene(ctx, folder, max_depth, tuple(sets), f"_{tag}"),
+            folder=folder,
+            ref=ref,
+            ref_var=ref_var,
+            secs=secs,
+            mits_spp=mits_spp[integ],
+        )
+        runs = []
+        for r in range(rounds):
+            log(f"mitsuba_efficiency: {tag}, round {r + 1}/{rounds}")
+            runs.append(eff_round(ctx, python, env, case, r, info))
+        cases[tag] = {
+            "integrator": integ,
+            "s_L": s_l,
+            "ratio": s_l / S_P,
+            "reference": meta,
+            "table": eff_table(runs),
+            "runs": runs,
+        }
+    results = {"mitsuba": info, "cases": cases}
+    bl.write_result(ctx, "mitsuba_efficiency", params, results)
+    return results
+
+
 SECTIONS: dict[str, Callable[[Context], Any]] = {
     "raw_embree": section_raw_embree,
     "micro": section_micro,
@@ -1444,6 +1634,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "mesh_lights": section_mesh_lights,
     "mitsuba": section_mitsuba,
     "time_split": section_time_split,
+    "mitsuba_efficiency": section_mitsuba_efficiency,
 }
 
 

@@ -23,8 +23,16 @@ state (the later passes) apart. The kernel cache on disk is DRJIT_CACHE_DIR,
 which bench.py points at a fresh folder per call, so every first pass
 compiles as a new user's first render does.
 
+With --image OUT.npz the steady passes' images are kept as well: their
+mean (`mean`, height x width x RGB, float64), the variance of that mean
+estimated from the passes (`var`), and the pass count, for the equal-time
+error section (`mitsuba_efficiency`). With --steady-time T the steady
+passes go on until they have taken T seconds together (at least
+--passes - 1 of them), so that Mitsuba renders for as long as ours does.
+
 usage: mitsuba_time.py CONFIG.yaml --integrator direct|path --spp N --passes K
            [--seed S] [--threads T] [--variant llvm_ad_rgb] [--mesh-dir DIR]
+           [--steady-time T] [--image OUT.npz]
 Exit status: 0 measured, 2 setup error (message on stderr).
 """
 
@@ -54,9 +62,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--threads", type=int, default=2, help="Dr.Jit's worker threads")
     p.add_argument("--variant", default="llvm_ad_rgb")
     p.add_argument("--mesh-dir", type=Path, default=None, help="where the converted meshes go (default: a temp dir)")
+    p.add_argument("--steady-time", type=float, default=0.0, help="steady passes until they took this long (s)")
+    p.add_argument("--image", type=Path, default=None, help="keep the steady passes' mean image and its variance")
     args = p.parse_args(argv)
     if args.spp < 1 or args.passes < 2 or args.threads < 1:
         p.error("--spp and --threads must be >= 1 and --passes >= 2")
+    if not args.steady_time >= 0.0 or args.steady_time > 3600.0:
+        p.error("--steady-time must be between 0 and 3600 s")
     return args
 
 
@@ -97,6 +109,41 @@ def busy_threads(before: dict[str, int], after: dict[str, int]) -> int:
     used = [after[t] - before.get(t, 0) for t in after]
     total = sum(used)
     return sum(1 for u in used if total > 0 and u >= 0.1 * total)
+
+
+class PassImages:
+    """Running sums of the steady passes' images (Welford's update, float64):
+    their mean, and the variance of that mean from the spread between
+    passes (each pass is an independent estimate with the same spp)."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.mean: Any = None
+        self.m2: Any = None
+
+    def add(self, img: Any) -> None:
+        import numpy as np
+
+        x = np.asarray(img, dtype=np.float64)
+        self.n += 1
+        if self.mean is None:
+            self.mean, self.m2 = x.copy(), np.zeros_like(x)
+            return
+        d = x - self.mean
+        self.mean += d / self.n
+        self.m2 += d * (x - self.mean)
+
+    def var_of_mean(self) -> Any:
+        if self.n < 2:
+            raise ValueError("the variance of the mean needs two passes or more")
+        return self.m2 / (self.n - 1) / self.n
+
+    def save(self, path: Path) -> None:
+        import numpy as np
+
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez(tmp, mean=self.mean, var=self.var_of_mean(), passes=self.n)
+        tmp.replace(path)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -144,11 +191,17 @@ def main(argv: list[str] | None = None) -> int:
 
     passes = []
     ticks: dict[str, int] = {}
-    for k in range(args.passes):
+    images = PassImages() if args.image else None
+    steady_wall = 0.0
+    k = 0
+    while k < args.passes or steady_wall < args.steady_time:
         if k == 1:
             ticks = thread_cpu_ticks()
         dr.kernel_history_clear()
         c0, t0 = time.process_time(), time.perf_counter()
+        if k >= 1000:
+            print("mitsuba_time: more than 1000 passes (seeds would repeat); raise --spp", file=sys.stderr)
+            return 2
         img = mi.render(scene, seed=args.seed * 1000 + k, spp=args.spp)
         dr.eval(img)
         dr.sync_thread()
@@ -158,6 +211,14 @@ def main(argv: list[str] | None = None) -> int:
         passes.append(
             {"spp": args.spp, "wall_s": wall, "cpu_s": cpu, "mean": mean, **kernel_stats(dr.kernel_history())}
         )
+        if k > 0:
+            steady_wall += wall
+            if images is not None:
+                # Outside the clock: the copy to numpy is not rendering.
+                images.add(img.numpy())
+        k += 1
+    if images is not None and args.image is not None:
+        images.save(args.image)
     # Threads that ran the steady passes (None without /proc).
     busy = busy_threads(ticks, thread_cpu_ticks()) if ticks else None
     out = {
