@@ -1038,11 +1038,28 @@ static int cdf_find(const double *cdf, int n, double x)
    which the pair's light was picked within its emitter (1 but for a mesh
    light's member); known_sel the pair's probability when known (mixture_pdf),
    else -1. */
+/* finish_sample for a light-only strategy (light, light_area): the light
+   sampled was picked by power with probability power.prob[light] and the
+   direction wi, at distance dist, with density pdf_sa on it. */
+static inline void finish_light_only(const struct strategy *s, int light, struct vec3 wi, double dist, double pdf_sa,
+                                     struct light_sample *out)
+{
+    out->wi = wi;
+    out->light = light;
+    out->dist = dist;
+    out->radiance = light_emitted(&s->scene->lights[light], vec3_neg(wi));
+    out->pdf_sa = s->power.prob[light] * pdf_sa;
+}
+
 static void finish_sample(const struct strategy *s, const struct strategy_point *pt, const struct strategy_pair *pair,
                           int index, const struct target_point *tp, double pick, double known_sel,
                           struct light_sample *out)
 {
     const struct scene *sc = s->scene;
+    if (pair->portal < 0 && !strategy_kind_uses_portals(s->kind)) {
+        finish_light_only(s, pair->light, tp->wi, tp->dist, tp->pdf_sa, out);
+        return;
+    }
     out->wi = tp->wi;
     const struct light *l = &sc->lights[pair->light];
     if (pair->portal < 0) {
@@ -1182,24 +1199,40 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
         for (int i = 0; i < n; ++i) ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
         return;
     }
+    /* strategy_sample's light-only branch, lane by lane: the light by
+       power, then target_sample_solid_angle. The lanes it samples as
+       spherical rectangles go to sphrect_sample_many together and are
+       finished here; the others (and the rectangle lanes that area
+       sampling must take) go the one-point way, which takes the same
+       decisions from the same numbers. */
     for (int b = 0; b < n; b += STRATEGY_MANY_CHUNK) {
-        int m = n - b < STRATEGY_MANY_CHUNK ? n - b : STRATEGY_MANY_CHUNK;
-        const struct target *t[STRATEGY_MANY_CHUNK];
-        struct vec3 p[STRATEGY_MANY_CHUNK];
-        double uu[STRATEGY_MANY_CHUNK][3];
-        struct strategy_pair pairs[STRATEGY_MANY_CHUNK];
-        struct target_point tp[STRATEGY_MANY_CHUNK];
-        for (int k = 0; k < m; ++k) {
-            /* strategy_sample's light-only branch, technique by technique. */
-            int light = alias_sample(&s->power, u[b + k][0], NULL);
-            pairs[k] = (struct strategy_pair){ light, -1, s->scene->lights[light].emitter };
-            t[k] = &s->scene->lights[pairs[k].light].target;
-            p[k] = pts[b + k].p;
-            for (int j = 0; j < 3; ++j) uu[k][j] = u[b + k][j + 1];
+        int m = n - b < STRATEGY_MANY_CHUNK ? n - b : STRATEGY_MANY_CHUNK, lanes = 0;
+        const struct sphrect_frame *frames[STRATEGY_MANY_CHUNK];
+        struct vec3 o[STRATEGY_MANY_CHUNK], wi[STRATEGY_MANY_CHUNK];
+        double uu[STRATEGY_MANY_CHUNK], vv[STRATEGY_MANY_CHUNK], dist[STRATEGY_MANY_CHUNK], omega[STRATEGY_MANY_CHUNK];
+        int lane_of[STRATEGY_MANY_CHUNK], light_of[STRATEGY_MANY_CHUNK];
+        for (int i = b; i < b + m; ++i) {
+            int light = alias_sample(&s->power, u[i][0], NULL);
+            const struct target *t = &s->scene->lights[light].target;
+            if (!target_rect_lane(t, pts[i].p)) {
+                ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
+                continue;
+            }
+            frames[lanes] = &t->frame;
+            o[lanes] = pts[i].p;
+            uu[lanes] = u[i][2];
+            vv[lanes] = u[i][3];
+            light_of[lanes] = light;
+            lane_of[lanes++] = i;
         }
-        target_sample_solid_angle_many(t, p, (const double(*)[3])uu, m, tp, ok + b);
-        for (int k = 0; k < m; ++k)
-            if (ok[b + k]) finish_sample(s, &pts[b + k], &pairs[k], -1, &tp[k], 1.0, -1.0, &out[b + k]);
+        sphrect_sample_many(frames, o, uu, vv, lanes, wi, dist, omega);
+        for (int k = 0; k < lanes; ++k) {
+            int i = lane_of[k];
+            bool by_area;
+            double pdf = target_rect_lane_pdf(omega[k], dist[k], &by_area);
+            if (by_area) ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
+            else if ((ok[i] = pdf > 0.0)) finish_light_only(s, light_of[k], wi[k], dist[k], pdf, &out[i]);
+        }
     }
 }
 

@@ -158,13 +158,13 @@ static double usable_solid_angle(const struct target *t, struct vec3 p, struct s
 
 /* A spherical-rectangle sample as a target point, shared by the one-point
    and the many-point samplers. */
-static bool rect_point(struct vec3 p, struct vec3 wi, double dist, double omega, struct target_point *out)
+static bool rect_point(struct vec3 p, struct vec3 wi, double dist, double pdf, struct target_point *out)
 {
-    if (!(dist > 0.0) || !isfinite(dist)) return false;
+    if (!(pdf > 0.0)) return false;
     out->wi = wi;
     out->dist = dist;
     out->y = vec3_madd(p, wi, dist);
-    out->pdf_sa = 1.0 / omega;
+    out->pdf_sa = pdf;
     return true;
 }
 
@@ -177,8 +177,9 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     if (omega == 0.0) return target_sample_area(t, p, u_tri, u, v, out);
     if (t->is_rectangle) {
         double dist;
+        bool by_area;
         struct vec3 wi = sphrect_sample_dir(&r, u, v, &dist);
-        return rect_point(p, wi, dist, omega, out);
+        return rect_point(p, wi, dist, target_rect_lane_pdf(omega, dist, &by_area), out);
     }
     struct vec3 wi = sphpoly_sample(&sp, u_tri, u, v);
     double dist;
@@ -190,6 +191,21 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     out->y = vec3_madd(p, wi, dist);
     out->pdf_sa = 1.0 / omega;
     return true;
+}
+
+bool target_rect_lane(const struct target *t, struct vec3 p)
+{
+    return t->is_rectangle && above_min_height(t, p);
+}
+
+double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area)
+{
+    /* usable_solid_angle's rule: too small a solid angle (or a refused
+       rectangle, solid angle 0) samples by area; rect_point's: a sample
+       needs a positive, finite distance. */
+    *by_area = !(solid_angle >= TARGET_MIN_SOLID_ANGLE);
+    if (*by_area || !(dist > 0.0) || !isfinite(dist)) return 0.0;
+    return 1.0 / solid_angle;
 }
 
 /* Lanes per call of sphrect_sample_many (stack arrays, no allocation). */
@@ -208,7 +224,7 @@ void target_sample_solid_angle_many(const struct target *const *t, const struct 
             /* The rectangles above their min_height go to the vectorised
                sampler, everything else the one-point way. */
             const struct target *ti = t[i];
-            if (ti->is_rectangle && above_min_height(ti, p[i])) {
+            if (target_rect_lane(ti, p[i])) {
                 frames[lanes] = &ti->frame;
                 o[lanes] = p[i];
                 uu[lanes] = u[i][1];
@@ -221,10 +237,10 @@ void target_sample_solid_angle_many(const struct target *const *t, const struct 
         sphrect_sample_many(frames, o, uu, vv, lanes, wi, dist, omega);
         for (int k = 0; k < lanes; ++k) {
             int i = lane_of[k];
-            /* usable_solid_angle's rule: too small a solid angle (or a
-               refused rectangle, omega = 0) samples by area. */
-            if (omega[k] >= TARGET_MIN_SOLID_ANGLE) ok[i] = rect_point(p[i], wi[k], dist[k], omega[k], &out[i]);
-            else ok[i] = target_sample_area(t[i], p[i], u[i][0], u[i][1], u[i][2], &out[i]);
+            bool by_area;
+            double pdf = target_rect_lane_pdf(omega[k], dist[k], &by_area);
+            if (by_area) ok[i] = target_sample_area(t[i], p[i], u[i][0], u[i][1], u[i][2], &out[i]);
+            else ok[i] = rect_point(p[i], wi[k], dist[k], pdf, &out[i]);
         }
     }
 }

@@ -75,4 +75,15 @@ double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3
 void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3], int n,
                                     struct target_point *out, bool *ok);
 
+/* The rectangle lanes of target_sample_solid_angle_many, for a caller that
+   runs sphrect_sample_many on its own lanes (strategy_sample_many):
+   target_rect_lane says whether t is sampled from p as a spherical
+   rectangle, i.e. by sphrect_sample_many's lane (t->frame, p, u[1], u[2]);
+   target_rect_lane_pdf turns that lane's solid angle and distance into the
+   direction's density, as target_sample_solid_angle would give it, or
+   returns 0 when the sample is dropped (*by_area false) or area sampling
+   must take the lane instead (*by_area true). */
+bool target_rect_lane(const struct target *t, struct vec3 p);
+double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area);
+
 #endif

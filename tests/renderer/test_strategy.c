@@ -234,7 +234,8 @@ static void test_sample_many_matches_one(void)
         for (int rep = 0; rep < 20; ++rep) {
             /* Shading points anywhere in the room, and around the lights: in
                a light's plane (area fallback below min_height, failures), a
-               hair off it on either side, far from a small light. Normals
+               hair off it on either side, far from every light (area
+               fallback below the spherical samplers' smallest solid angle). Normals
                random, sometimes zero (allowed: no receiving side). */
             for (int i = 0; i < MANY_POINTS; ++i) {
                 struct vec3 p = vec3_make(6 * rng_uniform(&r) - 3, 4 * rng_uniform(&r), 6 * rng_uniform(&r) - 3);
@@ -244,8 +245,10 @@ static void test_sample_many_matches_one(void)
                     struct vec3 c = polygon_centroid(poly);
                     struct vec3 q =
                         vec3_add(c, vec3_scale(vec3_sub(poly->v[i / 5 % poly->n], c), 3 * rng_uniform(&r) - 1));
-                    double off[] = { 0.0, 1e-9, -1e-9, 1e-3, -1e-3, 0.5 };
-                    p = vec3_madd(q, l->target.normal, off[i / 5 % 6]);
+                    /* 3e3: every light subtends below 1e-7 sr there, so
+                       its rectangle is sampled by area. */
+                    double off[] = { 0.0, 1e-9, -1e-9, 1e-3, -1e-3, 0.5, 3e3 };
+                    p = vec3_madd(q, l->target.normal, off[i / 5 % 7]);
                 }
                 struct vec3 nrm = i % 7 == 0 ? vec3_make(0, 0, 0) : random_dir(&r);
                 strategy_prepare(&s, &scratch, p, nrm, &pts[i]);
