@@ -135,18 +135,11 @@ double target_pdf_area(const struct target *t, struct vec3 p, struct vec3 wi)
     return area_density(t, wi, dist);
 }
 
-/* Whether p is far enough from the target's plane for solid-angle sampling
-   (below min_height: area sampling). */
-static bool above_min_height(const struct target *t, struct vec3 p)
-{
-    return !(fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal)) <= t->min_height);
-}
-
 /* The decision shared by sampling and pdf: the solid angle subtended, or 0
    when area sampling must be used instead. */
 static double usable_solid_angle(const struct target *t, struct vec3 p, struct sphrect *r, struct sphpoly *sp)
 {
-    if (!above_min_height(t, p)) return 0.0;
+    if (!target_above_min_height(t, p)) return 0.0;
     double omega = 0.0;
     if (t->is_rectangle) {
         if (sphrect_init_frame(r, &t->frame, p)) omega = r->solid_angle;
@@ -191,11 +184,6 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     out->y = vec3_madd(p, wi, dist);
     out->pdf_sa = 1.0 / omega;
     return true;
-}
-
-bool target_rect_lane(const struct target *t, struct vec3 p)
-{
-    return t->is_rectangle && above_min_height(t, p);
 }
 
 double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area)

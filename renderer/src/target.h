@@ -75,6 +75,13 @@ double target_pdf_solid_angle(const struct target *t, struct vec3 p, struct vec3
 void target_sample_solid_angle_many(const struct target *const *t, const struct vec3 *p, const double (*u)[3], int n,
                                     struct target_point *out, bool *ok);
 
+/* Whether p is far enough from the target's plane for solid-angle sampling
+   (below min_height: area sampling). */
+static inline bool target_above_min_height(const struct target *t, struct vec3 p)
+{
+    return !(fabs(vec3_dot(vec3_sub(p, t->polygon.v[0]), t->normal)) <= t->min_height);
+}
+
 /* The rectangle lanes of target_sample_solid_angle_many, for a caller that
    runs sphrect_sample_many on its own lanes (strategy_sample_many):
    target_rect_lane says whether t is sampled from p as a spherical
@@ -82,8 +89,12 @@ void target_sample_solid_angle_many(const struct target *const *t, const struct 
    target_rect_lane_pdf turns that lane's solid angle and distance into the
    direction's density, as target_sample_solid_angle would give it, or
    returns 0 when the sample is dropped (*by_area false) or area sampling
-   must take the lane instead (*by_area true). */
-bool target_rect_lane(const struct target *t, struct vec3 p);
+   must take the lane instead (*by_area true). Inline: the light strategy
+   asks it for every shading point. */
+static inline bool target_rect_lane(const struct target *t, struct vec3 p)
+{
+    return t->is_rectangle && target_above_min_height(t, p);
+}
 double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area);
 
 #endif
