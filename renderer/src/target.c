@@ -3,11 +3,11 @@
 #include "fastmath.h"
 #include "spherical.h"
 
-/* Below this solid angle (sr), or this height above the plane relative to
-   the polygon's size, the spherical parametrisations lose precision; area
-   sampling is then safe and nearly optimal (tiny or edge-on polygons). */
-#define TARGET_MIN_SOLID_ANGLE 1e-7
-#define TARGET_MIN_REL_HEIGHT  1e-6
+/* Below this height above the plane relative to the polygon's size (and
+   below TARGET_MIN_SOLID_ANGLE, target.h), the spherical parametrisations
+   lose precision; area sampling is then safe and nearly optimal (tiny or
+   edge-on polygons). */
+#define TARGET_MIN_REL_HEIGHT 1e-6
 
 /* Drops vertices that repeat or lie on the segment between their
    neighbours (relative tolerance), preserving order. Writes only the
@@ -184,16 +184,6 @@ bool target_sample_solid_angle(const struct target *t, struct vec3 p, double u_t
     out->y = vec3_madd(p, wi, dist);
     out->pdf_sa = 1.0 / omega;
     return true;
-}
-
-double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area)
-{
-    /* usable_solid_angle's rule: too small a solid angle (or a refused
-       rectangle, solid angle 0) samples by area; rect_point's: a sample
-       needs a positive, finite distance. */
-    *by_area = !(solid_angle >= TARGET_MIN_SOLID_ANGLE);
-    if (*by_area || !(dist > 0.0) || !isfinite(dist)) return 0.0;
-    return 1.0 / solid_angle;
 }
 
 /* Lanes per call of sphrect_sample_many (stack arrays, no allocation). */

@@ -20,6 +20,9 @@
    below TARGET_REPEATED_REL2 size^2 (repeated). */
 #define TARGET_COLLINEAR_REL2 1e-20
 #define TARGET_REPEATED_REL2  1e-24
+/* Below this solid angle (sr) the spherical parametrisations lose
+   precision: area sampling takes the point instead (target.c). */
+#define TARGET_MIN_SOLID_ANGLE 1e-7
 
 struct target {
     struct polygon polygon;
@@ -95,6 +98,14 @@ static inline bool target_rect_lane(const struct target *t, struct vec3 p)
 {
     return t->is_rectangle && target_above_min_height(t, p);
 }
-double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area);
+static inline double target_rect_lane_pdf(double solid_angle, double dist, bool *by_area)
+{
+    /* usable_solid_angle's rule: too small a solid angle (or a refused
+       rectangle, solid angle 0) samples by area; a sample needs a
+       positive, finite distance. */
+    *by_area = !(solid_angle >= TARGET_MIN_SOLID_ANGLE);
+    if (*by_area || !(dist > 0.0) || !isfinite(dist)) return 0.0;
+    return 1.0 / solid_angle;
+}
 
 #endif
