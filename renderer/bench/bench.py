@@ -1585,13 +1585,13 @@ def section_mitsuba_efficiency(ctx: Context) -> dict[str, Any]:
     }
     cases: dict[str, Any] = {}
     info: dict[str, Any] = {}
+    folder = TMP / "mitsuba_efficiency"
     for integ, s_l in MITSUBA_EFF_CASES:
         sets = mitsuba_eff_sets(integ, s_l, max_depth)
         tag = f"{integ}_sL{s_l}"
         ref_name = f"lampshade_sL{s_l}" if integ == "direct" else f"lampshade_{integ}_sL{s_l}"
         ref_exr, meta = reference(ctx, LAMPSHADE, sets, ref_secs, ref_name)
         ref, ref_var, _ = bl.read_exr(ref_exr)
-        folder = TMP / "mitsuba_efficiency"
         case = EffCase(
             integ=integ,
             set_args=[a for x in sets for a in ("--set", x)],

@@ -195,13 +195,13 @@ def main(argv: list[str] | None = None) -> int:
     steady_wall = 0.0
     k = 0
     while k < args.passes or steady_wall < args.steady_time:
+        if k >= 1000:
+            print("mitsuba_time: more than 1000 passes (seeds would repeat); raise --spp", file=sys.stderr)
+            return 2
         if k == 1:
             ticks = thread_cpu_ticks()
         dr.kernel_history_clear()
         c0, t0 = time.process_time(), time.perf_counter()
-        if k >= 1000:
-            print("mitsuba_time: more than 1000 passes (seeds would repeat); raise --spp", file=sys.stderr)
-            return 2
         img = mi.render(scene, seed=args.seed * 1000 + k, spp=args.spp)
         dr.eval(img)
         dr.sync_thread()
@@ -217,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
                 # Outside the clock: the copy to numpy is not rendering.
                 images.add(img.numpy())
         k += 1
-    if images is not None and args.image is not None:
+    if args.image is not None and images is not None:
         images.save(args.image)
     # Threads that ran the steady passes (None without /proc).
     busy = busy_threads(ticks, thread_cpu_ticks()) if ticks else None

@@ -1033,11 +1033,6 @@ static int cdf_find(const double *cdf, int n, double x)
     return lo;
 }
 
-/* The light sample from a technique's target point: the light it reaches
-   and its density under the whole strategy. `pick` is the probability with
-   which the pair's light was picked within its emitter (1 but for a mesh
-   light's member); known_sel the pair's probability when known (mixture_pdf),
-   else -1. */
 /* finish_sample for a light-only strategy (light, light_area): the light
    sampled was picked by power with probability power.prob[light] and the
    direction wi, at distance dist, with density pdf_sa on it. */
@@ -1051,12 +1046,19 @@ static inline void finish_light_only(const struct strategy *s, int light, struct
     out->pdf_sa = s->power.prob[light] * pdf_sa;
 }
 
+/* The light sample from a technique's target point: the light it reaches
+   and its density under the whole strategy. `pick` is the probability with
+   which the pair's light was picked within its emitter (1 but for a mesh
+   light's member); known_sel the pair's probability when known (mixture_pdf),
+   else -1. */
 static void finish_sample(const struct strategy *s, const struct strategy_point *pt, const struct strategy_pair *pair,
                           int index, const struct target_point *tp, double pick, double known_sel,
                           struct light_sample *out)
 {
     const struct scene *sc = s->scene;
-    if (pair->portal < 0 && !strategy_kind_uses_portals(s->kind)) {
+    /* A light-only strategy samples its lights alone (sample_at's
+       light-only pair, portal -1); the rest is the portal strategies'. */
+    if (!strategy_kind_uses_portals(s->kind)) {
         finish_light_only(s, pair->light, tp->wi, tp->dist, tp->pdf_sa, out);
         return;
     }
@@ -1086,10 +1088,8 @@ static void finish_sample(const struct strategy *s, const struct strategy_point 
         return;
     }
     out->radiance = light_emitted(&sc->lights[out->light], vec3_neg(tp->wi));
-    /* Light-only strategies know their density already; mixtures must add
-       every other way of producing the same direction. */
-    if (!strategy_kind_uses_portals(s->kind)) out->pdf_sa = s->power.prob[pair->light] * tp->pdf_sa;
-    else if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, pick * tp->pdf_sa, known_sel);
+    /* A mixture must add every other way of producing the same direction. */
+    if (index >= 0) out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, index, pick * tp->pdf_sa, known_sel);
     else out->pdf_sa = mixture_pdf(s, pt, out->light, tp->wi, -1, 0.0, -1.0);
 }
 
@@ -1230,8 +1230,12 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
             int i = lane_of[k];
             bool by_area;
             double pdf = target_rect_lane_pdf(omega[k], dist[k], &by_area);
-            if (by_area) ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
-            else if ((ok[i] = pdf > 0.0)) finish_light_only(s, light_of[k], wi[k], dist[k], pdf, &out[i]);
+            if (by_area) {
+                ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
+                continue;
+            }
+            ok[i] = pdf > 0.0;
+            if (ok[i]) finish_light_only(s, light_of[k], wi[k], dist[k], pdf, &out[i]);
         }
     }
 }
