@@ -184,10 +184,13 @@ struct rgb integrator_radiance_from(const struct integrator *it, struct strategy
    keeps from one bounce to the next. */
 struct path_lane {
     int pixel;
-    struct rgb beta;          /* throughput up to the ray o + t d */
-    double bsdf_pdf_prev;     /* the density with which d was sampled */
-    struct vec3 o, d;         /* the ray to trace next */
-    struct strategy_point sp; /* the vertex d left from, for MIS where it reaches a light */
+    struct rgb beta;      /* throughput up to the ray's next hit */
+    double bsdf_pdf_prev; /* the density with which d was sampled */
+    struct vec3 d;        /* the ray's direction (its origin: integrator_row's ray_o) */
+    /* The vertex d left from (p and n of its strategy_point), prepared
+       again where d reaches a light, for MIS: kept whole, the point was
+       most of what path_row copied as paths moved. */
+    struct vec3 prev_p, prev_n;
 };
 
 /* One film row of shading points in flight (direct_row, path_row). */
@@ -206,7 +209,7 @@ struct integrator_row {
     int *light;
     int *pixel;
     struct path_lane *paths;
-    struct vec3 *ray_o, *ray_d; /* path_row's bounce rays, in double, */
+    struct vec3 *ray_o, *ray_d; /* path_row's bounce rays, in double (ray k: path k's), */
     struct hit *hit;            /* and what path k's ray met */
     bool *found;
 };
@@ -363,18 +366,6 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
     }
 }
 
-/* The next ray of each of the n live paths of the row, as one stream. */
-static void trace_bounces(const struct scene *sc, struct integrator_row *row, int n)
-{
-    struct path_lane *paths = row->paths;
-    for (int k = 0; k < n; ++k) {
-        row->ray_o[k] = paths[k].o;
-        row->ray_d[k] = paths[k].d;
-        ray_stream_set(&row->bsdf_rays, k, paths[k].o, paths[k].d, INFINITY);
-    }
-    scene_intersect_stream(sc, &row->bsdf_rays, n, row->ray_o, row->ray_d, row->hit, row->found);
-}
-
 /* The path integrator a row at a time (a wavefront): each bounce of all the
    row's live paths is one step, as in direct_row: their vertices and light
    samples (a strategy_batches strategy draws them together), the set-up of
@@ -387,8 +378,8 @@ static void trace_bounces(const struct scene *sc, struct integrator_row *row, in
    point's pair distribution lives in the one scratch: a path whose BSDF
    ray reaches a light prepares its previous vertex again for the pdf. */
 static void path_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
-                     struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
-                     struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
+                     const struct vec3 *d, const struct hit *hits, const bool *found, int n, struct sampler *smp,
+                     struct rgb *out, struct integrator_stats *stats)
 {
     const struct scene *sc = it->scene;
     bool batches = strategy_batches(it->strategy);
@@ -400,7 +391,6 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
         pl->pixel = x;
         pl->beta = rgb_make(1.0, 1.0, 1.0);
         pl->bsdf_pdf_prev = 0.0;
-        pl->o = o;
         pl->d = d[x];
     }
     for (int depth = 0; live > 0; ++depth) {
@@ -409,7 +399,8 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
         const struct hit *hit = hits;
         const bool *met = found;
         if (depth > 0) {
-            trace_bounces(sc, row, live);
+            /* The live paths' rays, left in place by the last bounce. */
+            scene_intersect_stream(sc, &row->bsdf_rays, live, row->ray_o, row->ray_d, row->hit, row->found);
             hit = row->hit;
             met = row->found;
         }
@@ -422,8 +413,11 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             const struct hit *h = &hit[k];
             if (h->light >= 0) {
                 struct rgb *L = &out[pl->pixel];
-                *L = rgb_add(*L, rgb_mul(pl->beta, light_reached(it, &pl->sp, batches ? NULL : scratch, depth, h->light,
-                                                                 pl->d, pl->bsdf_pdf_prev)));
+                struct strategy_point sp; /* prepared by bsdf_hit_light, if it needs it */
+                sp.p = pl->prev_p;
+                sp.n = pl->prev_n;
+                *L = rgb_add(
+                    *L, rgb_mul(pl->beta, light_reached(it, &sp, scratch, depth, h->light, pl->d, pl->bsdf_pdf_prev)));
                 continue;
             }
             if (depth >= it->max_depth) continue;
@@ -443,12 +437,12 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
                                         row->ok);
         }
         /* The shadow rays and the BSDF samples (the rays in bsdf_rays are
-           traced by trace_bounces, for the paths that go on). */
+           traced at the next bounce, for the paths that go on). */
         shading_setup_many(sc, it->mis, row->v, row->ok, row->ls, (const double(*)[2])row->ub, lanes, stats,
                            row->shadow, &row->shadow_rays, row->bsdf, &row->bsdf_rays);
         trace_shadows(sc, row, lanes, depth == 0);
         /* Each path's next ray, by BSDF sampling; the paths that go on stay
-           packed. */
+           packed, and so do their rays (path k's is ray k). */
         live = 0;
         for (int k = 0; k < lanes; ++k) {
             struct path_lane *pl = &paths[k];
@@ -460,22 +454,27 @@ static void path_row(const struct integrator *it, struct integrator_row *row, st
             pl->beta = rgb_mul(pl->beta, bq->weight);
             pl->bsdf_pdf_prev = bq->pdf;
             pl->d = bq->ray.d;
-            pl->o = bq->ray.o;
-            pl->sp = row->sp[k];
+            pl->prev_p = row->sp[k].p;
+            pl->prev_n = row->sp[k].n;
             if (!roulette_survives(it, &pl->beta, &smp[pl->pixel], depth)) continue;
-            if (live != k) paths[live] = *pl;
+            row->ray_o[live] = bq->ray.o;
+            row->ray_d[live] = bq->ray.d;
+            if (live != k) {
+                paths[live] = *pl;
+                ray_stream_move(&row->bsdf_rays, k, live);
+            }
             ++live;
         }
     }
 }
 
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
-                             struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
+                             const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct sampler *smp, struct rgb *out, struct integrator_stats *stats)
 {
     if (it->kind == INTEGRATOR_DIRECT) {
         direct_row(it, row, scratch, d, hits, found, n, smp, out, stats);
         return;
     }
-    path_row(it, row, scratch, o, d, hits, found, n, smp, out, stats);
+    path_row(it, row, scratch, d, hits, found, n, smp, out, stats);
 }

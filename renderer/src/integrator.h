@@ -52,14 +52,14 @@ struct integrator_row *integrator_row_create(int n, struct error *err);
 /* Safe on NULL. */
 void integrator_row_destroy(struct integrator_row *row);
 
-/* integrator_radiance_from for the n camera rays o + t d[x] of one film row
-   (n at most the size row was created for),
-   their first hits already traced (found[x]: hit hits[x]); out[x] is the
-   same, bit for bit. Direct lighting sets up and traces the row's shadow
+/* integrator_radiance_from for the n camera rays of one film row, with
+   directions d[x] (n at most the size row was created for), their first
+   hits already traced (found[x]: hit hits[x]; where the rays start is in
+   the hits); out[x] is the same, bit for bit. Direct lighting sets up and traces the row's shadow
    and BSDF rays together, and with a strategy_batches strategy draws the
    row's light samples together too (strategy_sample_many). */
 void integrator_radiance_row(const struct integrator *it, struct integrator_row *row, struct strategy_scratch *scratch,
-                             struct vec3 o, const struct vec3 *d, const struct hit *hits, const bool *found, int n,
+                             const struct vec3 *d, const struct hit *hits, const bool *found, int n,
                              struct sampler *smp, struct rgb *out, struct integrator_stats *stats);
 
 #endif

@@ -65,6 +65,16 @@ static inline void ray_stream_set(struct ray_stream *s, int i, struct vec3 o, st
     s->tfar[i] = ray_stream_tfar_for(true, tmax);
 }
 
+/* Ray `from`'s segment (origin, direction, tnear, tfar) into ray `to`,
+   as a set of rays is compacted. */
+static inline void ray_stream_move(struct ray_stream *s, int from, int to)
+{
+    s->ox[to] = s->ox[from], s->oy[to] = s->oy[from], s->oz[to] = s->oz[from];
+    s->dx[to] = s->dx[from], s->dy[to] = s->dy[from], s->dz[to] = s->dz[from];
+    s->tnear[to] = s->tnear[from];
+    s->tfar[to] = s->tfar[from];
+}
+
 /* Marks ray i as not to be traced. */
 static inline void ray_stream_skip(struct ray_stream *s, int i)
 {

@@ -167,8 +167,8 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
         camera_row_sampled(w->camera, cfg->render.sampler, cfg->render.seed, y, pass, cfg->width, w->row_smp,
                            w->row_dir);
     scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit, w->row_found);
-    integrator_radiance_row(w->integrator, w->row, &w->scratch, w->camera->origin, w->row_dir, w->row_hit, w->row_found,
-                            cfg->width, w->row_smp, w->row_color, stats);
+    integrator_radiance_row(w->integrator, w->row, &w->scratch, w->row_dir, w->row_hit, w->row_found, cfg->width,
+                            w->row_smp, w->row_color, stats);
     if (w->pc->fault_biased)
         for (int x = 0; x < cfg->width; ++x) w->row_color[x] = rgb_scale(w->row_color[x], w->pc->fault_bias);
     int dropped = 0;

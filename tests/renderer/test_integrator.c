@@ -98,7 +98,7 @@ static void compare_rows(const struct config *cfg, const struct scene *sc, enum 
             struct integrator_stats st_row, st_one;
             memset(&st_row, 0, sizeof st_row);
             memset(&st_one, 0, sizeof st_one);
-            integrator_radiance_row(&it, row, &scratch_row, cam.origin, d, hits, found, w, rng_row, out_row, &st_row);
+            integrator_radiance_row(&it, row, &scratch_row, d, hits, found, w, rng_row, out_row, &st_row);
             for (int x = 0; x < w; ++x)
                 out_one[x] = integrator_radiance_from(&it, &scratch_one, cam.origin, d[x], found[x] ? &hits[x] : NULL,
                                                       &rng_one[x], &st_one);
