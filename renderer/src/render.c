@@ -64,7 +64,7 @@ struct pass_control {
     double fault_bias;
     uint64_t nonfinite;
     struct integrator_stats stats;
-    double cpu_s; /* CPU time the workers spent on passes, and spinning between them (pool_spin) */
+    double cpu_s; /* CPU time the workers spent rendering passes (not spinning between them) */
 };
 
 struct worker {
@@ -231,8 +231,6 @@ static void *worker_main(void *arg)
     _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
     _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
     int64_t seen = 0;
-    /* The CPU time of each pass and of the spin before it (pool_spin). */
-    double cpu_mark = timing_thread_cpu_s();
     pthread_mutex_lock(&pc->lock);
     for (;;) {
         if (pc->generation == seen && !pc->quit) {
@@ -246,6 +244,9 @@ static void *worker_main(void *arg)
         int64_t pass = pc->pass;
         struct integrator_stats stats = { 0, 0, 0, 0, 0 };
         uint64_t nonfinite = 0;
+        /* The pass's CPU time alone: a spin before it may overlap the main
+           thread's snapshot pause, which is not render time. */
+        double cpu0 = timing_thread_cpu_s();
         for (;;) {
             int y = pc->next_row < w->cfg->height ? pc->next_row++ : -1;
             if (y < 0) break;
@@ -255,12 +256,9 @@ static void *worker_main(void *arg)
         }
         integrator_stats_add(&pc->stats, &stats);
         pc->nonfinite += nonfinite;
-        double cpu = timing_thread_cpu_s();
-        pc->cpu_s += cpu - cpu_mark;
-        cpu_mark = cpu;
+        pc->cpu_s += timing_thread_cpu_s() - cpu0;
         if (--pc->active == 0) pthread_cond_signal(&pc->done);
     }
-    pc->cpu_s += timing_thread_cpu_s() - cpu_mark;
     pthread_mutex_unlock(&pc->lock);
     return NULL;
 }

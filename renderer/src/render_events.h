@@ -27,7 +27,7 @@ extern const char *const render_event_names[RENDER_EVENT_COUNT];
    `final` line and a resumable state carry them. Cumulative over resumed
    runs, like every counter of a render. */
 struct render_timers {
-    double render_cpu_s;     /* CPU time the render threads spent in passes (and spinning between them) */
+    double render_cpu_s;     /* CPU time the render threads spent in passes */
     double snapshot_cpu_s;   /* CPU time timed snapshots took (writer thread and copies) */
     double snapshot_pause_s; /* wall time the render threads were paused for snapshot copies */
 };
