@@ -11,9 +11,11 @@ remainder, light_samples - light_missed - shadow_rays, reached the light
 with nothing to deliver (below the point's horizon, the light's back, a
 zero density) and traced no ray either. A shading point where the
 strategy knows that no direction reaches the light (outside every
-antishadow, for the antishadow strategies) draws no sample and is not
-counted at all; `camera_samples` (the final spp times the image's pixels,
-from the `start` event) says how many samples were drawn per camera sample.
+antishadow, for the antishadow strategies; behind a one-sided light or
+with the whole light below its horizon, for the light-only strategies
+from renderer 0.11.4 on) draws no sample and is not counted at all;
+`camera_samples` (the final spp times the image's pixels, from the `start`
+event) says how many samples were drawn per camera sample.
 """
 
 from __future__ import annotations

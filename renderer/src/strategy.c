@@ -1010,9 +1010,19 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
     return pdf;
 }
 
+/* Whether a light-only strategy (light, light_area) draws nothing at pt
+   when it picks `light` (light_culled): no sample, and a density of zero
+   in every direction towards it. The portal strategies' defensive light
+   sampling is left as it was (their densities are mixtures). */
+static inline bool light_only_culls(const struct strategy *s, int light, const struct strategy_point *pt)
+{
+    return !strategy_kind_uses_portals(s->kind) && light_culled(&s->scene->lights[light], pt->p, pt->n);
+}
+
 double strategy_pdf(const struct strategy *s, const struct strategy_point *pt, int light, struct vec3 wi)
 {
     if (!strategy_kind_uses_portals(s->kind)) {
+        if (light_only_culls(s, light, pt)) return 0.0;
         const struct light *l = &s->scene->lights[light];
         double sel = s->power.prob[light];
         return sel * (s->kind == STRATEGY_LIGHT_AREA ? target_pdf_area(&l->target, pt->p, wi)
@@ -1156,6 +1166,7 @@ static bool sample_at(const struct strategy *s, const struct strategy_point *pt,
     } else {
         if (strategy_kind_uses_portals(s->kind)) u0 = u0 / s->defensive;
         light_only.light = alias_sample(&s->power, u0, NULL);
+        if (light_only_culls(s, light_only.light, pt)) return false;
         light_only.portal = -1;
         light_only.emitter = s->scene->lights[light_only.light].emitter;
         pair = &light_only;
@@ -1214,6 +1225,10 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
         for (int i = b; i < b + m; ++i) {
             int light = alias_sample(&s->power, u[i][0], NULL);
             const struct target *t = &s->scene->lights[light].target;
+            if (light_only_culls(s, light, &pts[i])) {
+                ok[i] = false;
+                continue;
+            }
             if (!target_rect_lane(t, pts[i].p)) {
                 ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
                 continue;

@@ -68,7 +68,10 @@ static void test_tilted_pentagon(void)
     struct polygon penta;
     penta.n = 5;
     for (int i = 0; i < 5; ++i) {
-        double a = -2.0 * M_PI * i / 5.0; /* clockwise seen from above: faces down */
+        /* Wound so that its normal (by winding) is -y: it faces the
+           points below. (Wound the other way until 0.11.4, it showed them
+           its back, which the light-only strategies now cull.) */
+        double a = 2.0 * M_PI * i / 5.0;
         penta.v[i] = vec3_make(0.25 * cos(a), 2.6, 0.25 * sin(a));
     }
     int l = ts_add_light(&ts, penta, warm, false);
@@ -169,6 +172,85 @@ static void test_outside_returns_nothing(void)
         struct light_sample ls;
         CHECK(!strategy_sample(&s, &pt, u, &ls));
         CHECK(strategy_pdf(&s, &pt, 0, vec3_normalize(vec3_sub(vec3_make(0, 2.6, 0), p))) == 0.0);
+        ts_close_strategy(&s, &scratch);
+    }
+}
+
+/* The light-only strategies draw nothing for a light that can deliver
+   nothing at the point (light_culled): behind a one-sided light, or with
+   the whole light below the point's horizon. No sample, one point at a
+   time or batched, and a density of zero towards the light; in front of
+   it, above the horizon, a two-sided light from behind, a point with no
+   receiving side, and points within rounding of the light's plane sample
+   as before. */
+static void test_light_culled_draws_nothing(void)
+{
+    struct test_scene ts;
+    lampshade(&ts, 0.6); /* one-sided, emitting down from y = 2.6 */
+    const struct light *l = &ts.lights[0];
+    struct vec3 up = vec3_make(0, 1, 0), down = vec3_make(0, -1, 0), zero = vec3_make(0, 0, 0);
+    struct vec3 centre = vec3_make(0, 2.6, 0);
+    struct {
+        struct vec3 p, n;
+        bool culled;
+        const char *what;
+    } cases[] = {
+        { { 0.1, 3.0, 0.2 }, up, true, "behind the light" },
+        { { 0.1, 3.0, 0.2 }, zero, true, "behind the light, no receiving side" },
+        { { 0.2, 0.0, -0.1 }, down, true, "the light below the horizon" },
+        { { 0.2, 2.5, -0.1 }, vec3_make(0, 0.6, 0.8), false, "part of the light above the horizon" },
+        { { 0.2, 0.0, -0.1 }, up, false, "in front, above the horizon" },
+        { { 0.2, 0.0, -0.1 }, zero, false, "in front, no receiving side" },
+        /* 1e-12 behind the plane: within the margin, sampled as before. */
+        { { 0.1, 2.6 + 1e-12, 0.2 }, zero, false, "within rounding of the plane" },
+        { { 2.0, 2.6 - 1e-12, 0.0 }, up, false, "within rounding of the horizon" },
+    };
+    int n_cases = (int)(sizeof cases / sizeof cases[0]);
+    for (int c = 0; c < n_cases; ++c)
+        CHECK_MSG(light_culled(l, cases[c].p, cases[c].n) == cases[c].culled, "%s", cases[c].what);
+    /* A two-sided light is never culled for being behind. */
+    struct test_scene two;
+    ts_init(&two);
+    ts_add_light(&two, square_y(0, 2.6, 0, 0.6, true), warm, true);
+    CHECK(!light_culled(&two.lights[0], vec3_make(0.1, 3.0, 0.2), zero));
+    CHECK(light_culled(&two.lights[0], vec3_make(0.1, 3.0, 0.2), up));
+
+    const enum strategy_kind kinds[] = { STRATEGY_LIGHT, STRATEGY_LIGHT_AREA };
+    for (int k = 0; k < 2; ++k) {
+        struct render_desc rd;
+        memset(&rd, 0, sizeof rd);
+        rd.strategy = kinds[k];
+        struct strategy s;
+        struct strategy_scratch scratch;
+        if (!ts_open_strategy(&ts.scene, &rd, &s, &scratch)) continue;
+        for (int c = 0; c < n_cases; ++c) {
+            struct strategy_point pts[5];
+            double u[5][4];
+            struct light_sample one[5], many[5];
+            bool ok_one[5], ok_many[5];
+            for (int i = 0; i < 5; ++i) {
+                strategy_prepare(&s, &scratch, cases[c].p, cases[c].n, &pts[i]);
+                for (int j = 0; j < 4; ++j) u[i][j] = (i + 1) / 6.0 + 0.03 * j;
+                ok_one[i] = strategy_sample(&s, &pts[i], u[i], &one[i]);
+                ok_many[i] = !ok_one[i];
+            }
+            strategy_sample_many(&s, pts, (const double(*)[4])u, 5, many, ok_many);
+            double pdf = strategy_pdf(&s, &pts[0], 0, vec3_normalize(vec3_sub(centre, cases[c].p)));
+            if (cases[c].culled) {
+                for (int i = 0; i < 5; ++i)
+                    CHECK_MSG(!ok_one[i] && !ok_many[i], "%s, %s: sampled", strategy_names[kinds[k]], cases[c].what);
+                CHECK_MSG(pdf == 0.0, "%s, %s: density %g", strategy_names[kinds[k]], cases[c].what, pdf);
+            } else if (c == 4 || c == 5) {
+                /* Well in front: every uniform gives a sample, with the
+                   density strategy_pdf reports in its direction. */
+                for (int i = 0; i < 5; ++i) {
+                    CHECK_MSG(ok_one[i] && ok_many[i], "%s, %s: no sample", strategy_names[kinds[k]], cases[c].what);
+                    double again = strategy_pdf(&s, &pts[i], one[i].light, one[i].wi);
+                    CHECK_NEAR(again, one[i].pdf_sa, 1e-9 * one[i].pdf_sa);
+                }
+                CHECK(pdf > 0.0);
+            }
+        }
         ts_close_strategy(&s, &scratch);
     }
 }
@@ -526,6 +608,7 @@ static const struct test_case tests[] = {
     { "many_lights", test_many_lights },
     { "power_selection", test_power_selection },
     { "outside_returns_nothing", test_outside_returns_nothing },
+    { "light_culled_draws_nothing", test_light_culled_draws_nothing },
     { "sample_many_matches_one", test_sample_many_matches_one },
     { "sample_begin_matches_one", test_sample_begin_matches_one },
     { "point_on_portal_plane_inside", test_point_on_portal_plane_inside },
