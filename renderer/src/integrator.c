@@ -120,6 +120,8 @@ struct rgb integrator_direct_at(const struct integrator *it, struct strategy_scr
     struct rgb L = rgb_make(0.0, 0.0, 0.0);
     struct vertex v;
     if (!vertex_init(it->scene, p, ng, material, wo, &v)) return L;
+    int hint = 0;
+    if (strategy_point_unlit(it->strategy, p, v.n, &hint)) return L;
     struct strategy_point sp;
     strategy_prepare(it->strategy, scratch, p, v.n, &sp);
     L = sample_direct(it, &sp, &v, 0, smp, stats);
@@ -326,7 +328,7 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
 {
     const struct scene *sc = it->scene;
     bool mis = it->mis != MIS_NONE, batches = strategy_batches(it->strategy);
-    int lanes = 0;
+    int lanes = 0, unlit_hint = 0;
     for (int x = 0; x < n; ++x) {
         out[x] = rgb_make(0.0, 0.0, 0.0);
         ++stats->rays;
@@ -339,6 +341,9 @@ static void direct_row(const struct integrator *it, struct integrator_row *row, 
         if (it->max_depth < 1) continue;
         struct vertex *v = &row->v[lanes];
         if (!vertex_init_lanes(sc, h->p, h->ng, h->material, vec3_neg(d[x]), v)) continue;
+        /* As integrator_direct_at: nothing can light it. Its numbers are
+           not drawn either: its stream has no later use in this pass. */
+        if (strategy_point_unlit(it->strategy, h->p, v->n, &unlit_hint)) continue;
         if (batches) strategy_prepare(it->strategy, scratch, h->p, v->n, &row->sp[lanes]);
         row->pixel[lanes++] = x;
     }

@@ -820,6 +820,33 @@ static bool single_live(const double *w, int n)
     return live == 1;
 }
 
+/* Whether emitter e can deliver nothing to p (strategy_point_unlit). */
+static bool emitter_culled(const struct strategy *s, int e, struct vec3 p, struct vec3 n)
+{
+    const struct scene *sc = s->scene;
+    const struct emitter *em = &sc->emitters[e];
+    if (em->n_lights == 1) return light_culled(&sc->lights[em->first_light], p, n);
+    /* A mesh light: every point of it lies within reach of centre. */
+    struct vec3 d = vec3_sub(s->centre[e], p);
+    return vec3_dot(n, n) > 0.0 && light_clearly_below(vec3_dot(d, n) + s->reach[e], d);
+}
+
+bool strategy_point_unlit(const struct strategy *s, struct vec3 p, struct vec3 n, int *hint)
+{
+    int count = s->scene->n_emitters;
+    if (count == 0) return true;
+    if (count > STRATEGY_UNLIT_MAX_EMITTERS) return false;
+    int first = *hint >= 0 && *hint < count ? *hint : 0, e = first;
+    do {
+        if (!emitter_culled(s, e, p, n)) {
+            *hint = e;
+            return false;
+        }
+        e = e + 1 < count ? e + 1 : 0;
+    } while (e != first);
+    return true;
+}
+
 struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct vec3 n)
 {
     return vec3_madd(p, n, scene_offset_height(s->scene, p));

@@ -143,6 +143,23 @@ static inline bool strategy_batches(const struct strategy *s)
    normal keeps p. Directions and densities are still those from p. */
 struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct vec3 n);
 
+/* True when no light of the scene can deliver anything to point p, whose
+   receiving side has unit normal n (zero: every side), whatever the
+   direction: every polygon light is culled there (light_culled: behind a
+   one-sided light, or below p's horizon) and every mesh light's bounding
+   sphere lies clearly below the horizon. Then neither a light sample nor
+   a BSDF ray of direct lighting can reach an emitting face from p, and
+   the direct integrator skips the point: its value is exactly zero. On
+   the lampshade that is 43% of the camera's points (the ceiling, the
+   upper walls). Scenes with more than STRATEGY_UNLIT_MAX_EMITTERS
+   emitters are not tested (false): the test would cost more than it
+   saves. Independent of the strategy's kind. *hint is the emitter to
+   test first; a lit point leaves there the emitter that lights it, so
+   that a film row's next point, most often on the same surface, is
+   decided by one test (out-of-range values are taken as 0). */
+#define STRATEGY_UNLIT_MAX_EMITTERS 16
+bool strategy_point_unlit(const struct strategy *s, struct vec3 p, struct vec3 n, int *hint);
+
 /* The portal strategies' part of strategy_prepare: pt->sided, and the
    candidate pairs found there with their weights at pt->p, into
    pt->scratch. p and n are pt->p and pt->n, passed in registers: read

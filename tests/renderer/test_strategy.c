@@ -255,6 +255,85 @@ static void test_light_culled_draws_nothing(void)
     }
 }
 
+/* strategy_point_unlit lets the direct integrator skip a point, so it must
+   be conservative: where it says unlit, no direction on the point's
+   receiving side (any direction for a point without one) meets an
+   emitting face of any light, and the light sample draws nothing. On the
+   lampshade (one polygon light), multi_lamp (six, one two-sided) and the
+   Little Lamp (a 400-triangle mesh light): random points and normals, and
+   each scene must have both outcomes. */
+static struct vec3 random_dir(struct rng *r);
+
+static void test_point_unlit_is_conservative(void)
+{
+    const char *scenes[] = { "configs/scenes/lampshade.yaml", "configs/scenes/multi_lamp.yaml",
+                             "configs/scenes/little_lamp.yaml" };
+    for (int si = 0; si < 3; ++si) {
+        struct config cfg;
+        struct scene sc;
+        if (!test_scene_load(scenes[si], NULL, 0, &cfg, &sc)) {
+            CHECK_MSG(false, "%s", scenes[si]);
+            continue;
+        }
+        struct render_desc rd = cfg.render;
+        rd.strategy = STRATEGY_LIGHT;
+        struct strategy s;
+        struct strategy_scratch scratch;
+        if (!ts_open_strategy(&sc, &rd, &s, &scratch)) {
+            scene_destroy(&sc);
+            config_free(&cfg);
+            continue;
+        }
+        /* The scene's extent, from its lights' vertices, widened. */
+        struct vec3 lo = sc.lights[0].target.polygon.v[0], hi = lo;
+        for (int i = 0; i < sc.n_lights; ++i)
+            for (int k = 0; k < sc.lights[i].target.polygon.n; ++k) {
+                struct vec3 v = sc.lights[i].target.polygon.v[k];
+                lo = vec3_make(fmin(lo.x, v.x), fmin(lo.y, v.y), fmin(lo.z, v.z));
+                hi = vec3_make(fmax(hi.x, v.x), fmax(hi.y, v.y), fmax(hi.z, v.z));
+            }
+        struct vec3 mid = vec3_scale(vec3_add(lo, hi), 0.5);
+        double size = fmax(vec3_length(vec3_sub(hi, lo)), 0.05);
+        struct rng r;
+        rng_seed(&r, 99, (uint64_t)si, 0);
+        int unlit = 0, lit = 0, wrong = 0;
+        for (int i = 0; i < 3000; ++i) {
+            struct vec3 p = vec3_madd(mid, random_dir(&r), 2.0 * size * rng_uniform(&r));
+            struct vec3 n = i % 9 == 0 ? vec3_make(0, 0, 0) : random_dir(&r);
+            /* The answer must not depend on the hint. */
+            int hint = (int)(rng_uniform(&r) * (sc.n_emitters + 2)) - 1, hint0 = 0;
+            bool unlit_here = strategy_point_unlit(&s, p, n, &hint);
+            CHECK(unlit_here == strategy_point_unlit(&s, p, n, &hint0));
+            if (!unlit_here) {
+                ++lit;
+                continue;
+            }
+            ++unlit;
+            for (int j = 0; j < 200; ++j) {
+                struct vec3 w = random_dir(&r);
+                if (vec3_dot(w, n) < 0.0) w = vec3_neg(w);
+                for (int l = 0; l < sc.n_lights; ++l) {
+                    double t;
+                    if (polygon_intersect_ray(&sc.lights[l].target.polygon, p, w, &t) &&
+                        !rgb_is_black(light_emitted(&sc.lights[l], vec3_neg(w))))
+                        ++wrong;
+                }
+            }
+            struct strategy_point pt;
+            strategy_prepare(&s, &scratch, p, n, &pt);
+            struct light_sample ls;
+            double u[4] = { rng_uniform(&r), rng_uniform(&r), rng_uniform(&r), rng_uniform(&r) };
+            wrong += strategy_sample(&s, &pt, u, &ls) && !rgb_is_black(ls.radiance);
+        }
+        printf("  %s: %d unlit and %d lit points\n", scenes[si], unlit, lit);
+        CHECK_MSG(wrong == 0, "%s: %d directions from unlit points reach an emitting face", scenes[si], wrong);
+        CHECK_MSG(unlit > 100 && lit > 100, "%s: %d unlit, %d lit", scenes[si], unlit, lit);
+        ts_close_strategy(&s, &scratch);
+        scene_destroy(&sc);
+        config_free(&cfg);
+    }
+}
+
 /* ---- batched sampling ------------------------------------------------------
    strategy_sample_many must give what strategy_sample gives, bit for bit,
    for the strategies that batch (the light-only ones): the renderer draws a
@@ -609,6 +688,7 @@ static const struct test_case tests[] = {
     { "power_selection", test_power_selection },
     { "outside_returns_nothing", test_outside_returns_nothing },
     { "light_culled_draws_nothing", test_light_culled_draws_nothing },
+    { "point_unlit_is_conservative", test_point_unlit_is_conservative },
     { "sample_many_matches_one", test_sample_many_matches_one },
     { "sample_begin_matches_one", test_sample_begin_matches_one },
     { "point_on_portal_plane_inside", test_point_on_portal_plane_inside },
