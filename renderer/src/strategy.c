@@ -1014,6 +1014,8 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
     if (s->defensive > 0.0) pdf += s->defensive * s->power.prob[light] * target_pdf_solid_angle(&l->target, pt->p, wi);
     if (pt->total > 0.0) {
         double mix = 0.0, pick = e->n_lights > 1 ? s->members[l->emitter].prob[light - e->first_light] : 1.0;
+        /* sample_at draws nothing for a member culled at pt. */
+        bool member_culled = e->n_lights > 1 && light_culled(l, pt->p, pt->n);
         for (int i = s->first_pair[l->emitter]; i < s->first_pair[l->emitter + 1]; ++i) {
             double sel = i == known && known_sel >= 0.0 ? known_sel : pair_probability(pt, i);
             if (sel <= 0.0) continue;
@@ -1027,6 +1029,7 @@ static double mixture_pdf(const struct strategy *s, const struct strategy_point 
                 mix += sel * technique_pdf(s, pt, &s->pairs[i], i, t, r, NULL, wi);
                 continue;
             }
+            if (member_culled) continue;
             struct strategy_pair m = member_of(sc, &s->pairs[i], light);
             enum region r = member_region(s, pt, i, &m);
             struct target vis;
@@ -1185,6 +1188,10 @@ static bool sample_at(const struct strategy *s, const struct strategy_point *pt,
             int m = alias_sample(members, um, NULL);
             pick = members->prob[m];
             member = member_of(s->scene, pair, s->scene->emitters[pair->emitter].first_light + m);
+            /* A triangle that can deliver nothing here (light_culled: most
+               often one facing away) is not sampled; mixture_pdf gives it
+               no density either. */
+            if (light_culled(&s->scene->lights[member.light], pt->p, pt->n)) return false;
             pair = &member;
             region = member_region(s, pt, index, &member);
             vis = &member_vis;

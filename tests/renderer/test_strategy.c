@@ -504,6 +504,41 @@ static void test_mesh_light(void)
     check_strategies(&ts, vec3_make(0.0, 0, 0.05), "mesh light below", 700, false);
     check_strategies(&ts, vec3_make(0.7, 0, -0.4), "mesh light penumbra", 800, false);
     check_strategies(&ts, vec3_make(0.15, 2.3, -0.1), "mesh light inside the shade", 900, true);
+    /* The octahedron shows each point four faces and hides four: every
+       strategy that picks triangles draws none of the hidden ones
+       (light_culled), and gives them no density, while the chi-square
+       runs above check the rest. */
+    struct vec3 p = vec3_make(0.0, 0, 0.05), up = vec3_make(0, 1, 0);
+    int hidden = 0;
+    for (int i = 0; i < 8; ++i) hidden += light_culled(&ts.scene.lights[i], p, up);
+    CHECK_MSG(hidden == 4, "%d faces hidden", hidden);
+    for (int k = STRATEGY_PROJECTION; k <= STRATEGY_ANTISHADOW_EXACT; ++k) {
+        struct render_desc rd;
+        memset(&rd, 0, sizeof rd);
+        rd.strategy = (enum strategy_kind)k;
+        rd.portal_weight = PORTAL_WEIGHT_IRRADIANCE;
+        struct strategy s;
+        struct strategy_scratch scratch;
+        if (!ts_open_strategy(&ts.scene, &rd, &s, &scratch)) continue;
+        struct strategy_point pt;
+        strategy_prepare(&s, &scratch, p, up, &pt);
+        struct rng r;
+        rng_seed(&r, 31, (uint64_t)k, 0);
+        int drawn = 0, from_hidden = 0;
+        for (int j = 0; j < 4000; ++j) {
+            double u[4] = { rng_uniform(&r), rng_uniform(&r), rng_uniform(&r), rng_uniform(&r) };
+            struct light_sample ls;
+            if (!strategy_sample(&s, &pt, u, &ls) || ls.light < 0) continue;
+            ++drawn;
+            from_hidden += ls.light < 8 && light_culled(&ts.scene.lights[ls.light], p, up);
+        }
+        CHECK_MSG(drawn > 1000 && from_hidden == 0, "%s: %d samples, %d of hidden faces", strategy_names[k], drawn,
+                  from_hidden);
+        for (int i = 0; i < 8; ++i)
+            if (light_culled(&ts.scene.lights[i], p, up))
+                CHECK(strategy_pdf(&s, &pt, i, vec3_normalize(vec3_sub(ts.scene.lights[i].centroid, p))) == 0.0);
+        ts_close_strategy(&s, &scratch);
+    }
 }
 
 /* The region of a mesh light's pair (strategy_pair_irradiance, as the
