@@ -1259,12 +1259,14 @@ void strategy_sample_many(const struct strategy *s, const struct strategy_point 
         for (int i = b; i < b + m; ++i) {
             int light = alias_sample(&s->power, u[i][0], NULL);
             const struct target *t = &s->scene->lights[light].target;
-            if (light_only_culls(s, light, &pts[i])) {
-                ok[i] = false;
-                continue;
-            }
+            /* strategy_sample culls as sample_at does; the rectangle lanes
+               are culled here, once. */
             if (!target_rect_lane(t, pts[i].p)) {
                 ok[i] = strategy_sample(s, &pts[i], u[i], &out[i]);
+                continue;
+            }
+            if (light_only_culls(s, light, &pts[i])) {
+                ok[i] = false;
                 continue;
             }
             frames[lanes] = &t->frame;
