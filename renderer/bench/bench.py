@@ -1037,12 +1037,14 @@ def mitsuba_time(
     prefix: tuple[str, ...] = (),
     steady_time: float = 0.0,
     image: Path | None = None,
+    robust: bool = False,
 ) -> dict[str, Any]:
     """One mitsuba_time.py process: `passes` passes of `spp`, the first one
     compiling its kernels into an empty cache (a new user's first render).
     `prefix` runs it under another program (perf record ... --).
     `steady_time` adds steady passes until they took that long together;
-    `image` keeps their mean image and its variance (an .npz)."""
+    `image` keeps their mean image and its variance (an .npz); `robust`
+    builds Mitsuba's Embree scene in robust mode, as ours always is."""
     cache = folder / f"drjit_cache_{integrator}_{seed}"
     if cache.exists():
         shutil.rmtree(cache)
@@ -1071,6 +1073,8 @@ def mitsuba_time(
         cmd += ["--steady-time", str(steady_time)]
     if image is not None:
         cmd += ["--image", str(image)]
+    if robust:
+        cmd += ["--robust"]
     p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, env={**env, "DRJIT_CACHE_DIR": str(cache)})
     shutil.rmtree(cache, ignore_errors=True)
     if p.returncode != 0:
@@ -1172,6 +1176,9 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
             "steady": "the passes after the first, together",
             "integrators": "direct: 1 emitter + 1 BSDF sample, MIS (our `light`); path: max_depth ours + 1, "
             "our rr_depth (tools/crosscheck/mitsuba_lampshade.py: mitsuba_integrator)",
+            "embree": "Mitsuba's default (not robust) for the ratio; a third run per round and integrator "
+            "with embree_use_robust_intersections (RTC_SCENE_FLAG_ROBUST, which our renderer always sets) "
+            "for ratio_vs_robust",
         },
         "order": "per round and integrator, ours and Mitsuba one after the other, who goes first "
         "alternating by round; seed = round",
@@ -1190,6 +1197,7 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
     bl.run_render(ctx, LAMPSHADE, out / "warmup", "--spp", "1", "--threads", "2")
     ours_runs: dict[str, list[dict[str, Any]]] = {"direct": [], "path": []}
     mits_runs: dict[str, list[dict[str, Any]]] = {"direct": [], "path": []}
+    robust_runs: dict[str, list[dict[str, Any]]] = {"direct": [], "path": []}
     cost_runs: dict[str, list[dict[str, Any]]] = {}
     info: dict[str, Any] = {}
     for r in range(rounds):
@@ -1216,7 +1224,12 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
                 info.setdefault("integrators", {})[integ] = m["integrator"]
                 mits_runs[integ].append({**m, "rates": mitsuba_rates(m)})
 
-            for step in (ours, mitsuba) if r % 2 == 0 else (mitsuba, ours):
+            def mitsuba_robust(integ: str = integ, r: int = r) -> None:
+                m = mitsuba_time(python, env, eff, integ, mits_spp[integ], mits_passes, r + 1, folder, robust=True)
+                robust_runs[integ].append({**m, "rates": mitsuba_rates(m)})
+
+            steps = (ours, mitsuba, mitsuba_robust)
+            for step in steps if r % 2 == 0 else steps[::-1]:
                 step()
         for name, scene in COST_SCENES.items():
             for s in ("light", "antishadow_exact") if r % 2 == 0 else ("antishadow_exact", "light"):
@@ -1250,6 +1263,17 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
             "ratio_vs_first_pass": ratio_stats(
                 [a["samples_per_s"] / b["first_samples_per_s"] for a, b in zip(o, rates, strict=True)]
             ),
+            # Both renderers' Embree scenes robust: how much of the ratio
+            # is the traversal mode rather than the code around the rays.
+            "mitsuba_robust_steady_samples_per_s": median(
+                [x["rates"]["steady_samples_per_s"] for x in robust_runs[integ]]
+            ),
+            "ratio_vs_robust": ratio_stats(
+                [
+                    a["steady"]["samples_per_s"] / b["rates"]["steady_samples_per_s"]
+                    for a, b in zip(o, robust_runs[integ], strict=True)
+                ]
+            ),
         }
     cost: dict[str, Any] = {}
     for name in COST_SCENES:
@@ -1269,7 +1293,7 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
         "mitsuba": info,
         "table": table,
         "cost": cost,
-        "runs": {"ours": ours_runs, "mitsuba": mits_runs, "cost": cost_runs},
+        "runs": {"ours": ours_runs, "mitsuba": mits_runs, "mitsuba_robust": robust_runs, "cost": cost_runs},
     }
     bl.write_result(ctx, "mitsuba", params, results)
     return results

@@ -32,7 +32,7 @@ passes go on until they have taken T seconds together (at least
 
 usage: mitsuba_time.py CONFIG.yaml --integrator direct|path --spp N --passes K
            [--seed S] [--threads T] [--variant llvm_ad_rgb] [--mesh-dir DIR]
-           [--steady-time T] [--image OUT.npz]
+           [--steady-time T] [--image OUT.npz] [--robust]
 Exit status: 0 measured, 2 setup error (message on stderr).
 """
 
@@ -64,6 +64,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--mesh-dir", type=Path, default=None, help="where the converted meshes go (default: a temp dir)")
     p.add_argument("--steady-time", type=float, default=0.0, help="steady passes until they took this long (s)")
     p.add_argument("--image", type=Path, default=None, help="keep the steady passes' mean image and its variance")
+    p.add_argument(
+        "--robust",
+        action="store_true",
+        help="Embree's robust mode (embree_use_robust_intersections), the mode our renderer always uses",
+    )
     args = p.parse_args(argv)
     if args.spp < 1 or args.passes < 2 or args.threads < 1:
         p.error("--spp and --threads must be >= 1 and --passes >= 2")
@@ -184,6 +189,10 @@ def main(argv: list[str] | None = None) -> int:
     except xc.SetupError as e:
         print(f"mitsuba_time: {args.config}: {e}", file=sys.stderr)
         return 2
+    if args.robust:
+        # Mitsuba builds its Embree scene without RTC_SCENE_FLAG_ROBUST
+        # unless asked; ours always sets it (watertight seams).
+        scene_dict["embree_use_robust_intersections"] = True
     t0 = time.perf_counter()
     scene = mi.load_dict(scene_dict)
     load_s = time.perf_counter() - t0
@@ -234,6 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH"),
         "drjit_cache_dir": os.environ.get("DRJIT_CACHE_DIR"),
         "integrator": integ,
+        "robust": args.robust,
         "width": w,
         "height": h,
         "load_s": load_s,
