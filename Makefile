@@ -13,10 +13,12 @@ BUILD := renderer/build-san
 SAN_FLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 endif
 
-# -O3: 1-4% fewer instructions in the render passes than -O2 (bench-ab
-# INSTRUCTIONS=1, all eight cases; results/bench/README.md, "Thirteenth
-# pass"), the same images bit for bit: it changes no floating-point rule.
-CFLAGS ?= -O3 -g
+# -O3 runs 2-6% fewer instructions in the render passes than -O2 (bench-ab
+# INSTRUCTIONS=1, every case; results/bench/README.md, "Thirteenth pass")
+# and gives the same images bit for bit: it changes no floating-point rule.
+# Without -fno-tree-loop-distribution it split camera_row's vectorised
+# loop (render.c) into four, which then took 1.5x the instructions.
+CFLAGS ?= -O3 -fno-tree-loop-distribution -g
 # ISO C mode also means no contraction into fused multiply-adds, which the
 # vectorised samplers rely on to match the one-point code bit for bit.
 WARN := -std=c99 -Wall -Wextra -Wpedantic -Wshadow
