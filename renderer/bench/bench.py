@@ -39,6 +39,7 @@ usage: bench.py BUILD_DIR [--quick] [--only SECTION[,SECTION...]]
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import importlib.util
 import json
@@ -1218,17 +1219,13 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
                     {**short, "render": render_rates(short), "long": long, "steady": ours_steady(short, long, px)}
                 )
 
-            def mitsuba(integ: str = integ, r: int = r) -> None:
-                m = mitsuba_time(python, env, eff, integ, mits_spp[integ], mits_passes, r + 1, folder)
+            def mitsuba(integ: str = integ, r: int = r, robust: bool = False) -> None:
+                m = mitsuba_time(python, env, eff, integ, mits_spp[integ], mits_passes, r + 1, folder, robust=robust)
                 info.update({k: m[k] for k in ("mitsuba", "drjit", "variant", "threads", "libllvm")})
                 info.setdefault("integrators", {})[integ] = m["integrator"]
-                mits_runs[integ].append({**m, "rates": mitsuba_rates(m)})
+                (robust_runs if robust else mits_runs)[integ].append({**m, "rates": mitsuba_rates(m)})
 
-            def mitsuba_robust(integ: str = integ, r: int = r) -> None:
-                m = mitsuba_time(python, env, eff, integ, mits_spp[integ], mits_passes, r + 1, folder, robust=True)
-                robust_runs[integ].append({**m, "rates": mitsuba_rates(m)})
-
-            steps = (ours, mitsuba, mitsuba_robust)
+            steps = (ours, mitsuba, functools.partial(mitsuba, robust=True))
             for step in steps if r % 2 == 0 else steps[::-1]:
                 step()
         for name, scene in COST_SCENES.items():
