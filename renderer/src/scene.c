@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "config.h"
+#include "fastmath.h"
 #include "light_hit.h"
 #include "watertight.h"
 
@@ -375,19 +376,38 @@ static void ray_setup(struct RTCRay *r, struct vec3 o, struct vec3 d, double tma
     r->flags = 0;
 }
 
+/* Where a hit lies and how it faces: the point at distance t of o + t d
+   and the unit normal from Embree's unnormalised geometric normal ng.
+   Straight-line, so that resolve_block vectorises it; hit_at (single
+   rays) calls it too, so that a ray traced either way gives the same hit,
+   bit for bit. */
+struct hit_geometry {
+    struct vec3 p, ng;
+};
+FM_INLINE struct hit_geometry hit_geometry_at(struct vec3 o, struct vec3 d, double t, struct vec3 ng)
+{
+    struct hit_geometry h = { vec3_madd(o, d, t), vec3_normalize(ng) };
+    return h;
+}
+
+/* What primitive prim of geometry geom is: its material or its light. */
+FM_INLINE void hit_what(const struct scene *s, unsigned geom, unsigned prim, struct hit *h)
+{
+    const struct geometry_info *g = &s->geometries[geom];
+    h->material = g->material;
+    h->light = geometry_light(g, prim);
+}
+
 /* The hit at distance t of o + t d on primitive prim of geometry geom, with
-   Embree's unnormalised geometric normal (ngx, ngy, ngz). One function for
-   single rays and streams, so that a ray traced either way gives the same
-   hit, bit for bit. */
+   Embree's unnormalised geometric normal (ngx, ngy, ngz). */
 static void hit_at(const struct scene *s, struct vec3 o, struct vec3 d, float t, float ngx, float ngy, float ngz,
                    unsigned geom, unsigned prim, struct hit *h)
 {
-    const struct geometry_info *g = &s->geometries[geom];
+    struct hit_geometry hg = hit_geometry_at(o, d, t, vec3_make(ngx, ngy, ngz));
     h->t = t;
-    h->p = vec3_madd(o, d, h->t);
-    h->ng = vec3_normalize(vec3_make(ngx, ngy, ngz));
-    h->material = g->material;
-    h->light = geometry_light(g, prim);
+    h->p = hg.p;
+    h->ng = hg.ng;
+    hit_what(s, geom, prim, h);
 }
 
 static void hit_from_embree(const struct scene *s, struct vec3 o, struct vec3 d, const struct RTCRayHit *rh,
@@ -426,21 +446,98 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
    for the stack. */
 #define COHERENT_CHUNK 128
 
+/* Closest hits in Embree's SOA form: what scene_intersect_coherent and
+   scene_intersect_stream hand to resolve_hits. */
+struct closest_hits {
+    const float *tfar, *ng_x, *ng_y, *ng_z;
+    const unsigned *geom_id, *prim_id;
+};
+
+/* Hits per block of resolve_hits: the block's points and normals are
+   computed in one vectorised loop, then stored with their lookups. */
+#define HIT_BLOCK 16
+
+/* hit_at for the closest-hit results b..b+m-1 (m <= HIT_BLOCK), ray i
+   from o0 (one_origin) or o[i] along d[i]: found[i] says whether it met
+   anything, hits[i] what. The points and normals (a square root and a
+   division per ray) go through one vectorised loop, the lookups and the
+   stores to the hits through a plain one. one_origin is a constant in
+   each caller's copy: a select between the two origins is not
+   vectorised. */
+FM_INLINE void resolve_block(const struct scene *s, bool one_origin, struct vec3 o0, const struct vec3 *o,
+                             const struct vec3 *d, const struct closest_hits *c, int b, int m, struct hit *hits,
+                             bool *found)
+{
+    double t[HIT_BLOCK], p[3][HIT_BLOCK], ng[3][HIT_BLOCK];
+#pragma omp simd
+    for (int k = 0; k < m; ++k) {
+        int i = b + k;
+        t[k] = c->tfar[i];
+        struct hit_geometry hg =
+            hit_geometry_at(one_origin ? o0 : o[i], d[i], t[k], vec3_make(c->ng_x[i], c->ng_y[i], c->ng_z[i]));
+        p[0][k] = hg.p.x, p[1][k] = hg.p.y, p[2][k] = hg.p.z;
+        ng[0][k] = hg.ng.x, ng[1][k] = hg.ng.y, ng[2][k] = hg.ng.z;
+    }
+    for (int k = 0; k < m; ++k) {
+        int i = b + k;
+        unsigned g = c->geom_id[i];
+        found[i] = g != RTC_INVALID_GEOMETRY_ID;
+        if (!found[i]) continue;
+        struct hit *h = &hits[i];
+        h->t = t[k];
+        h->p = vec3_make(p[0][k], p[1][k], p[2][k]);
+        h->ng = vec3_make(ng[0][k], ng[1][k], ng[2][k]);
+        hit_what(s, g, c->prim_id[i], h);
+    }
+}
+
+/* resolve_block for n results, ray i from o[i] (o NULL: from o0). */
+FM_SIMD_CLONES static void resolve_hits(const struct scene *s, struct vec3 o0, const struct vec3 *o,
+                                        const struct vec3 *d, const struct closest_hits *c, int n, struct hit *hits,
+                                        bool *found)
+{
+    for (int b = 0; b < n; b += HIT_BLOCK) {
+        int m = n - b < HIT_BLOCK ? n - b : HIT_BLOCK;
+        if (o) resolve_block(s, false, o0, o, d, c, b, m, hits, found);
+        else resolve_block(s, true, o0, o, d, c, b, m, hits, found);
+    }
+}
+
 void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n, struct hit *hits,
                               bool *found)
 {
-    struct RTCRayHit rh[COHERENT_CHUNK];
+    /* Embree's SOA stream layout, on the stack: the rays are written and
+       their hits read in vectorised loops. */
+    float ox[COHERENT_CHUNK], oy[COHERENT_CHUNK], oz[COHERENT_CHUNK], dx[COHERENT_CHUNK], dy[COHERENT_CHUNK],
+        dz[COHERENT_CHUNK], tnear[COHERENT_CHUNK], tfar[COHERENT_CHUNK], time[COHERENT_CHUNK], ngx[COHERENT_CHUNK],
+        ngy[COHERENT_CHUNK], ngz[COHERENT_CHUNK], u[COHERENT_CHUNK], v[COHERENT_CHUNK];
+    unsigned mask[COHERENT_CHUNK], id[COHERENT_CHUNK], flags[COHERENT_CHUNK], prim[COHERENT_CHUNK],
+        geom[COHERENT_CHUNK], inst[COHERENT_CHUNK];
+    struct RTCRayHitNp np = { { ox, oy, oz, tnear, dx, dy, dz, time, tfar, mask, id, flags },
+                              { ngx, ngy, ngz, u, v, prim, geom, { inst } } };
+    const struct closest_hits c = { tfar, ngx, ngy, ngz, geom, prim };
     for (int i0 = 0; i0 < n; i0 += COHERENT_CHUNK) {
         int m = n - i0 < COHERENT_CHUNK ? n - i0 : COHERENT_CHUNK;
-        for (int k = 0; k < m; ++k) rayhit_setup(&rh[k], o, d[i0 + k], INFINITY);
+        for (int k = 0; k < m; ++k) {
+            /* ray_setup's values. */
+            ox[k] = (float)o.x, oy[k] = (float)o.y, oz[k] = (float)o.z;
+            dx[k] = (float)d[i0 + k].x, dy[k] = (float)d[i0 + k].y, dz[k] = (float)d[i0 + k].z;
+            tnear[k] = 0.0f;
+            tfar[k] = INFINITY;
+            time[k] = 0.0f;
+            mask[k] = ~0u;
+            id[k] = 0;
+            flags[k] = 0;
+            geom[k] = RTC_INVALID_GEOMETRY_ID;
+            inst[k] = RTC_INVALID_GEOMETRY_ID;
+            /* A miss leaves its normal as it was: resolve_block reads it. */
+            ngx[k] = ngy[k] = ngz[k] = 0.0f;
+        }
         struct RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-        rtcIntersect1M(s->rtc_scene, &ctx, rh, (unsigned)m, sizeof rh[0]);
-        for (int k = 0; k < m; ++k) {
-            found[i0 + k] = rh[k].hit.geomID != RTC_INVALID_GEOMETRY_ID;
-            if (found[i0 + k]) hit_from_embree(s, o, d[i0 + k], &rh[k], &hits[i0 + k]);
-        }
+        rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)m);
+        resolve_hits(s, o, NULL, d + i0, &c, m, hits + i0, found + i0);
     }
 }
 
@@ -594,13 +691,8 @@ void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int 
                             const struct vec3 *d, struct hit *hits, bool *found)
 {
     trace_closest_stream(s->rtc_scene, rays, n);
-    for (int i = 0; i < n; ++i) {
-        unsigned g = rays->geom_id[i];
-        found[i] = g != RTC_INVALID_GEOMETRY_ID;
-        if (found[i])
-            hit_at(s, o[i], d[i], rays->tfar[i], rays->ng_x[i], rays->ng_y[i], rays->ng_z[i], g, rays->prim_id[i],
-                   &hits[i]);
-    }
+    const struct closest_hits c = { rays->tfar, rays->ng_x, rays->ng_y, rays->ng_z, rays->geom_id, rays->prim_id };
+    resolve_hits(s, vec3_make(0.0, 0.0, 0.0), o, d, &c, n, hits, found);
 }
 
 int scene_emitter_hit(const struct scene *s, int emitter, struct vec3 o, struct vec3 d, double *dist)

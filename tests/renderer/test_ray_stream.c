@@ -1,10 +1,12 @@
 /* test_ray_stream.c: tracing a ray stream (scene_occluded_stream,
-   scene_first_light_stream, one Embree call for many rays) against the
-   one-ray wrappers (scene_occluded, scene_first_light) on the lampshade
+   scene_first_light_stream, scene_intersect_stream and
+   scene_intersect_coherent, one Embree call for many rays) against the
+   one-ray wrappers (scene_occluded, scene_first_light, scene_intersect) on the lampshade
    scene: the same answer for every ray, inactive rays left out (clear, no
    light), rays of every kind among them (blocked and clear segments, rays
    that reach the light, hit a surface first or leave the scene). */
 #include <math.h>
+#include <string.h>
 
 #include "polygon.h"
 #include "rng.h"
@@ -292,11 +294,75 @@ static void test_first_light_is_closest_hit(void)
     }
 }
 
+/* Whether two hits are the same, bit for bit (every field the renderer
+   reads). */
+static bool same_hit(const struct hit *a, const struct hit *b)
+{
+    return memcmp(&a->t, &b->t, sizeof a->t) == 0 && memcmp(&a->p, &b->p, sizeof a->p) == 0 &&
+           memcmp(&a->ng, &b->ng, sizeof a->ng) == 0 && a->material == b->material && a->light == b->light;
+}
+
+/* The closest hits of a stream (scene_intersect_stream: the path
+   integrator's bounce rays) and of rays from one point
+   (scene_intersect_coherent: a film row's camera rays) are those of
+   scene_intersect, ray by ray and bit for bit (their points and normals
+   are computed in vectorised blocks, the one-ray hit one at a time), and
+   misses are misses. Sizes that fill no whole block or chunk, one ray,
+   and none. */
+static void test_intersect_matches_one(void)
+{
+    static struct fixture f;
+    static struct vec3 o[N_RAYS], d[N_RAYS];
+    static struct hit hits[N_RAYS];
+    static bool found[N_RAYS];
+    if (!fixture_init(&f, 5)) {
+        CHECK(false);
+        return;
+    }
+    struct ray_stream s;
+    CHECK(ray_stream_init(&s, N_RAYS, NULL));
+    long hit_light = 0, hit_surface = 0, missed = 0, differ = 0;
+    const int sizes[] = { N_RAYS, 300, 17, 1, 0 };
+    for (int si = 0; si < 5; ++si) {
+        int n = sizes[si];
+        /* As the path integrator traces them: active, unbounded. */
+        for (int i = 0; i < n; ++i) {
+            o[i] = f.rays[i].o;
+            d[i] = f.rays[i].d;
+            ray_stream_set(&s, i, o[i], d[i], INFINITY);
+        }
+        scene_intersect_stream(&f.sc, &s, n, o, d, hits, found);
+        for (int i = 0; i < n; ++i) {
+            struct hit want;
+            bool want_found = scene_intersect(&f.sc, o[i], d[i], INFINITY, &want);
+            differ += found[i] != want_found || (want_found && !same_hit(&hits[i], &want));
+            if (n == N_RAYS) {
+                hit_light += want_found && want.light >= 0;
+                hit_surface += want_found && want.light < 0;
+                missed += !want_found;
+            }
+        }
+        /* From one point: the fixture's first origin, its directions. */
+        scene_intersect_coherent(&f.sc, o[0], d, n, hits, found);
+        for (int i = 0; i < n; ++i) {
+            struct hit want;
+            bool want_found = scene_intersect(&f.sc, o[0], d[i], INFINITY, &want);
+            differ += found[i] != want_found || (want_found && !same_hit(&hits[i], &want));
+        }
+    }
+    fprintf(stderr, "  %ld rays hit a light, %ld a surface, %ld nothing\n", hit_light, hit_surface, missed);
+    CHECK_MSG(differ == 0, "%ld hits differ", differ);
+    CHECK(hit_light > 200 && hit_surface > 1000);
+    ray_stream_free(&s);
+    fixture_free(&f);
+}
+
 static const struct test_case tests[] = {
     { "first_light_is_closest_hit", test_first_light_is_closest_hit },
     { "occluded_matches_one", test_occluded_matches_one },
     { "occluded_grouped_matches_one", test_occluded_grouped_matches_one },
     { "first_light_matches_one", test_first_light_matches_one },
+    { "intersect_matches_one", test_intersect_matches_one },
 };
 
 TEST_MAIN(tests)
