@@ -79,6 +79,7 @@ struct worker {
        hit, so that the row's camera rays are traced as one stream. */
     struct sampler *row_smp;
     struct vec3 *row_dir;
+    struct ray_stream row_rays; /* the camera rays, as Embree traces them */
     struct hit *row_hit;
     bool *row_found;
     struct rgb *row_color;
@@ -99,6 +100,7 @@ static bool worker_alloc_row(struct worker *w, int width, struct error *err)
     w->row_color = malloc(n * sizeof *w->row_color);
     if (!w->row_smp || !w->row_dir || !w->row_hit || !w->row_found || !w->row_color)
         return error_set(err, "out of memory for a film row of %d pixels", width);
+    if (!ray_stream_init(&w->row_rays, width, err)) return false;
     w->row = integrator_row_create(width, err);
     if (!w->row) return false;
     if (!w->aov) return true;
@@ -112,6 +114,7 @@ static void worker_free(struct worker *w)
     strategy_scratch_free(&w->scratch);
     free(w->row_smp);
     free(w->row_dir);
+    ray_stream_free(&w->row_rays);
     free(w->row_hit);
     free(w->row_found);
     free(w->row_color);
@@ -166,7 +169,8 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
     else
         camera_row_sampled(w->camera, cfg->render.sampler, cfg->render.seed, y, pass, cfg->width, w->row_smp,
                            w->row_dir);
-    scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, w->row_hit, w->row_found);
+    scene_intersect_coherent(w->integrator->scene, w->camera->origin, w->row_dir, cfg->width, &w->row_rays, w->row_hit,
+                             w->row_found);
     integrator_radiance_row(w->integrator, w->row, &w->scratch, w->row_dir, w->row_hit, w->row_found, cfg->width,
                             w->row_smp, w->row_color, stats);
     if (w->pc->fault_biased)

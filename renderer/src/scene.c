@@ -442,10 +442,6 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
     return true;
 }
 
-/* Rays per rtcIntersect1M call: enough for Embree's packets, small enough
-   for the stack. */
-#define COHERENT_CHUNK 128
-
 /* Closest hits in Embree's SOA form: what scene_intersect_coherent and
    scene_intersect_stream hand to resolve_hits. */
 struct closest_hits {
@@ -500,44 +496,6 @@ FM_SIMD_CLONES static void resolve_hits(const struct scene *s, struct vec3 o0, c
         int m = n - b < HIT_BLOCK ? n - b : HIT_BLOCK;
         if (o) resolve_block(s, false, o0, o, d, c, b, m, hits, found);
         else resolve_block(s, true, o0, o, d, c, b, m, hits, found);
-    }
-}
-
-void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n, struct hit *hits,
-                              bool *found)
-{
-    /* Embree's SOA stream layout, on the stack: the rays are written and
-       their hits read in vectorised loops. */
-    float ox[COHERENT_CHUNK], oy[COHERENT_CHUNK], oz[COHERENT_CHUNK], dx[COHERENT_CHUNK], dy[COHERENT_CHUNK],
-        dz[COHERENT_CHUNK], tnear[COHERENT_CHUNK], tfar[COHERENT_CHUNK], time[COHERENT_CHUNK], ngx[COHERENT_CHUNK],
-        ngy[COHERENT_CHUNK], ngz[COHERENT_CHUNK], u[COHERENT_CHUNK], v[COHERENT_CHUNK];
-    unsigned mask[COHERENT_CHUNK], id[COHERENT_CHUNK], flags[COHERENT_CHUNK], prim[COHERENT_CHUNK],
-        geom[COHERENT_CHUNK], inst[COHERENT_CHUNK];
-    struct RTCRayHitNp np = { { ox, oy, oz, tnear, dx, dy, dz, time, tfar, mask, id, flags },
-                              { ngx, ngy, ngz, u, v, prim, geom, { inst } } };
-    const struct closest_hits c = { tfar, ngx, ngy, ngz, geom, prim };
-    for (int i0 = 0; i0 < n; i0 += COHERENT_CHUNK) {
-        int m = n - i0 < COHERENT_CHUNK ? n - i0 : COHERENT_CHUNK;
-        for (int k = 0; k < m; ++k) {
-            /* ray_setup's values. */
-            ox[k] = (float)o.x, oy[k] = (float)o.y, oz[k] = (float)o.z;
-            dx[k] = (float)d[i0 + k].x, dy[k] = (float)d[i0 + k].y, dz[k] = (float)d[i0 + k].z;
-            tnear[k] = 0.0f;
-            tfar[k] = INFINITY;
-            time[k] = 0.0f;
-            mask[k] = ~0u;
-            id[k] = 0;
-            flags[k] = 0;
-            geom[k] = RTC_INVALID_GEOMETRY_ID;
-            inst[k] = RTC_INVALID_GEOMETRY_ID;
-            /* A miss leaves its normal as it was: resolve_block reads it. */
-            ngx[k] = ngy[k] = ngz[k] = 0.0f;
-        }
-        struct RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-        rtcIntersectNp(s->rtc_scene, &ctx, &np, (unsigned)m);
-        resolve_hits(s, o, NULL, d + i0, &c, m, hits + i0, found + i0);
     }
 }
 
@@ -626,8 +584,9 @@ void scene_occluded_grouped(const struct scene *s, struct ray_stream *rays, int 
 }
 
 /* Closest hits of the first n rays of a stream in `scene` (the whole
-   scene or the lights' alone), its hit fields reset first. */
-static void trace_closest_stream(RTCScene scene, struct ray_stream *rays, int n)
+   scene or the lights' alone), its hit fields reset first; coherent: rays
+   that Embree may trace as packets (from one point). */
+static void trace_closest_stream(RTCScene scene, struct ray_stream *rays, int n, bool coherent)
 {
     for (int i = 0; i < n; ++i) rays->geom_id[i] = RTC_INVALID_GEOMETRY_ID;
     for (int i = 0; i < n; ++i) rays->inst_id[i] = RTC_INVALID_GEOMETRY_ID;
@@ -637,6 +596,7 @@ static void trace_closest_stream(RTCScene scene, struct ray_stream *rays, int n)
     };
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
+    if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     rtcIntersectNp(scene, &ctx, &np, (unsigned)n);
 }
 
@@ -645,7 +605,7 @@ static void trace_closest_stream(RTCScene scene, struct ray_stream *rays, int n)
 
 void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, int n, int *light)
 {
-    if (!s->light_hits) trace_closest_stream(s->rtc_lights, rays, n);
+    if (!s->light_hits) trace_closest_stream(s->rtc_lights, rays, n, false);
     /* The rays that met a light become the segments to test, the others
        inactive; one occlusion call for them all. */
     int to_test = 0;
@@ -687,10 +647,21 @@ void scene_first_light_stream(const struct scene *s, struct ray_stream *rays, in
         if (ray_stream_blocked(rays, i)) light[i] = -1;
 }
 
+FM_SIMD_CLONES
+void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n,
+                              struct ray_stream *rays, struct hit *hits, bool *found)
+{
+#pragma omp simd
+    for (int i = 0; i < n; ++i) ray_stream_set(rays, i, o, d[i], INFINITY);
+    trace_closest_stream(s->rtc_scene, rays, n, true);
+    const struct closest_hits c = { rays->tfar, rays->ng_x, rays->ng_y, rays->ng_z, rays->geom_id, rays->prim_id };
+    resolve_hits(s, o, NULL, d, &c, n, hits, found);
+}
+
 void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int n, const struct vec3 *o,
                             const struct vec3 *d, struct hit *hits, bool *found)
 {
-    trace_closest_stream(s->rtc_scene, rays, n);
+    trace_closest_stream(s->rtc_scene, rays, n, false);
     const struct closest_hits c = { rays->tfar, rays->ng_x, rays->ng_y, rays->ng_z, rays->geom_id, rays->prim_id };
     resolve_hits(s, vec3_make(0.0, 0.0, 0.0), o, d, &c, n, hits, found);
 }

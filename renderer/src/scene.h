@@ -98,10 +98,12 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
 /* Closest hits of the n rays o + t d[i], t > 0 (d[i] unit), rays from one
    point such as the camera rays of a film row. They are traced as a
    coherent stream, which Embree traces as packets: about twice the single-
-   ray rate for camera rays (`make bench`, raw limit). found[i] tells
-   whether ray i hit; hits[i] is then set. */
-void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n, struct hit *hits,
-                              bool *found);
+   ray rate for camera rays (`make bench`, raw limit), through `rays`, a
+   stream with room for n rays. found[i] tells whether ray i hit; hits[i]
+   is then set, as scene_intersect(s, o, d[i], INFINITY, ...) gives it, bit
+   for bit. */
+void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct vec3 *d, int n,
+                              struct ray_stream *rays, struct hit *hits, bool *found);
 /* The light that the ray o + t d, t in (0, tmax), hits first; -1 when it
    hits a surface first or nothing (the MIS ray of direct lighting, which
    counts only where it reaches a light). Most such rays reach no light,

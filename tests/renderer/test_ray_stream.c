@@ -343,7 +343,7 @@ static void test_intersect_matches_one(void)
             }
         }
         /* From one point: the fixture's first origin, its directions. */
-        scene_intersect_coherent(&f.sc, o[0], d, n, hits, found);
+        scene_intersect_coherent(&f.sc, o[0], d, n, &s, hits, found);
         for (int i = 0; i < n; ++i) {
             struct hit want;
             bool want_found = scene_intersect(&f.sc, o[0], d[i], INFINITY, &want);

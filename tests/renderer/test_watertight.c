@@ -307,7 +307,10 @@ static void test_lampshade_firefly_pass_gone(void)
     struct vec3 d = camera_ray(&cam, x + jx.u, y + jy.u);
     struct hit h;
     bool found;
-    scene_intersect_coherent(&sc, cam.origin, &d, 1, &h, &found);
+    struct ray_stream rays;
+    CHECK(ray_stream_init(&rays, 1, NULL));
+    scene_intersect_coherent(&sc, cam.origin, &d, 1, &rays, &h, &found);
+    ray_stream_free(&rays);
     CHECK(found && h.material >= 0);
     struct integrator_stats stats = { 0 };
     struct rgb c = integrator_radiance_from(&it, &scr, cam.origin, d, found ? &h : NULL, &rr, &stats);
