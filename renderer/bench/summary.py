@@ -103,7 +103,8 @@ def raw_embree(d: dict[str, Any]) -> list[str]:
         *table(["kind", *RAW_APIS], rows_2t),
         "wrapper = the renderer's scene_intersect/scene_occluded; embree = rtcIntersect1/rtcOccluded1; "
         "stream = rtcIntersect1M/rtcOccluded1M over chunks of 1024 rays split by kind, camera rays flagged "
-        "coherent (the renderer traces each film row's camera rays this way); packetW = "
+        "coherent (the renderer traces each film row's camera rays as such a coherent stream, in Embree's "
+        "SoA layout: rtcIntersectNp); packetW = "
         "rtcIntersectW/rtcOccludedW, W rays of one kind of the same chunks at a time, the copy into Embree's "
         "SoA layout timed. 'best' is the fastest of embree, stream and packets: the raw limit that '% raw' "
         "of section 2 divides by.",
