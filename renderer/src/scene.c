@@ -442,26 +442,19 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
     return true;
 }
 
-/* Closest hits in Embree's SOA form: what scene_intersect_coherent and
-   scene_intersect_stream hand to resolve_hits. */
-struct closest_hits {
-    const float *tfar, *ng_x, *ng_y, *ng_z;
-    const unsigned *geom_id, *prim_id;
-};
-
 /* Hits per block of resolve_hits: the block's points and normals are
    computed in one vectorised loop, then stored with their lookups. */
 #define HIT_BLOCK 16
 
-/* hit_at for the closest-hit results b..b+m-1 (m <= HIT_BLOCK), ray i
-   from o0 (one_origin) or o[i] along d[i]: found[i] says whether it met
-   anything, hits[i] what. The points and normals (a square root and a
+/* hit_at for the closest-hit results b..b+m-1 (m <= HIT_BLOCK) of stream
+   c, ray i from o0 (one_origin) or o[i] along d[i]: found[i] says whether
+   it met anything, hits[i] what. The points and normals (a square root and a
    division per ray) go through one vectorised loop, the lookups and the
    stores to the hits through a plain one. one_origin is a constant in
    each caller's copy: a select between the two origins is not
    vectorised. */
 FM_INLINE void resolve_block(const struct scene *s, bool one_origin, struct vec3 o0, const struct vec3 *o,
-                             const struct vec3 *d, const struct closest_hits *c, int b, int m, struct hit *hits,
+                             const struct vec3 *d, const struct ray_stream *c, int b, int m, struct hit *hits,
                              bool *found)
 {
     double t[HIT_BLOCK], p[3][HIT_BLOCK], ng[3][HIT_BLOCK];
@@ -489,7 +482,7 @@ FM_INLINE void resolve_block(const struct scene *s, bool one_origin, struct vec3
 
 /* resolve_block for n results, ray i from o[i] (o NULL: from o0). */
 FM_SIMD_CLONES static void resolve_hits(const struct scene *s, struct vec3 o0, const struct vec3 *o,
-                                        const struct vec3 *d, const struct closest_hits *c, int n, struct hit *hits,
+                                        const struct vec3 *d, const struct ray_stream *c, int n, struct hit *hits,
                                         bool *found)
 {
     for (int b = 0; b < n; b += HIT_BLOCK) {
@@ -654,16 +647,14 @@ void scene_intersect_coherent(const struct scene *s, struct vec3 o, const struct
 #pragma omp simd
     for (int i = 0; i < n; ++i) ray_stream_set(rays, i, o, d[i], INFINITY);
     trace_closest_stream(s->rtc_scene, rays, n, true);
-    const struct closest_hits c = { rays->tfar, rays->ng_x, rays->ng_y, rays->ng_z, rays->geom_id, rays->prim_id };
-    resolve_hits(s, o, NULL, d, &c, n, hits, found);
+    resolve_hits(s, o, NULL, d, rays, n, hits, found);
 }
 
 void scene_intersect_stream(const struct scene *s, struct ray_stream *rays, int n, const struct vec3 *o,
                             const struct vec3 *d, struct hit *hits, bool *found)
 {
     trace_closest_stream(s->rtc_scene, rays, n, false);
-    const struct closest_hits c = { rays->tfar, rays->ng_x, rays->ng_y, rays->ng_z, rays->geom_id, rays->prim_id };
-    resolve_hits(s, vec3_make(0.0, 0.0, 0.0), o, d, &c, n, hits, found);
+    resolve_hits(s, vec3_make(0.0, 0.0, 0.0), o, d, rays, n, hits, found);
 }
 
 int scene_emitter_hit(const struct scene *s, int emitter, struct vec3 o, struct vec3 d, double *dist)
