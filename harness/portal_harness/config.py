@@ -274,12 +274,20 @@ class Experiment:
             reference=True,
         )
 
-    def pilot_spec(self, point: Point, strategy: str) -> RunSpec:
+    def pilot_spec(self, point: Point, strategy: str, spp: int = 0) -> RunSpec:
         """A short render of a candidate reference strategy: its own
-        variance layer says how efficient the strategy is here."""
+        variance layer says how efficient the strategy is here. It lasts
+        reference.pilot_time_s, or `spp` samples when given (pilot.MIN_SPP
+        for a pilot whose time drew too few to test for fireflies)."""
         r = self.reference
         return self._spec(
-            point, strategy, spp=0, time_s=r.pilot_time_s, seed=r.seed + 1000, threads=r.threads, label="pilot"
+            point,
+            strategy,
+            spp=spp,
+            time_s=0.0 if spp else r.pilot_time_s,
+            seed=r.seed + 1000,
+            threads=r.threads,
+            label="pilot",
         )
 
     def region_map_spec(self, point: Point) -> RunSpec:

@@ -31,6 +31,23 @@ at a tenth of every other candidate's cost with 0.79 and 0.95 of the
 image's noise in fireflies; it was chosen, and its references were full
 of them (169 firefly pixels holding 0.60 of the noise at 0.25).
 
+The firefly test needs samples. A pixel-channel is a firefly when at most
+a handful (1 / FIREFLY_REL_SE^2 = 4) of its samples carry its value; after
+n samples, a pixel whose samples are either 0 or x (an edge, a shadow's
+border: a fraction p of them x) has relative standard error
+sqrt((1 - p) / (n p)) and is flagged when p <= 4 / (n + 4): a third of the
+pixel at n = 9, 6% at n = 64. A strategy whose image is otherwise nearly
+noise-free then holds most of its noise in such pixels. The 512x512
+multi_lamp_full pilots drew 9 samples of `antishadow_exact` in 0.5 s (3
+with path tracing), and its direct pilot held 0.56 of its noise in
+"fireflies"; rendered on, the same strategy holds 0.42 at 20 samples,
+0.25 at 64 and 0 at 320, where real fireflies grow: the path-traced
+lampshade's `projection` (ratio 0.25, 128x128) holds 0.65 at 64 and 0.92
+at 256. So a pilot whose time drew fewer than MIN_SPP samples is drawn
+again for MIN_SPP samples (sweep.py), and that one is scored. Without it
+the direct multi_lamp_full reference fell to `light`, whose worst region
+needs 1,800 times the best strategy's time.
+
 The first part's render time is then predicted: the noise limit q of the
 error gives T = t * max_R need(R) * (1 - q) / q * margin (noise_check.py's
 extension formula with the pilot's costs), between reference.time_s and the
@@ -50,6 +67,8 @@ from portal_harness.noise_check import FIREFLY_SHARE_MAX, firefly_share
 from portal_harness.regions import NamedRegion
 
 BASELINE = "light"
+# The fewest samples a pilot's firefly test is trusted on (above).
+MIN_SPP = 64
 
 
 @dataclass(frozen=True)

@@ -567,6 +567,19 @@ def _first_time(experiment: Experiment, ranked: list[pilot.PilotResult]) -> floa
     return float(min(max(math.ceil(predicted), r.time_s), cap))
 
 
+def _pilot_snapshots(
+    specs: dict[tuple[str, str], RunSpec], options: SweepOptions, manifests: dict[str, dict[str, Any]]
+) -> dict[tuple[str, str], exr.Snapshot]:
+    """The final images of the pilots that finished, by (point, strategy)."""
+    out: dict[tuple[str, str], exr.Snapshot] = {}
+    for k, spec in specs.items():
+        key = spec.key(options.renderer_version)
+        if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
+            with contextlib.suppress(CorruptExrError):
+                out[k] = exr.read_snapshot(options.layout.run(key).final)
+    return out
+
+
 def choose_reference_strategies(
     experiment: Experiment,
     options: SweepOptions,
@@ -581,22 +594,31 @@ def choose_reference_strategies(
         return {p.id: ReferenceChoice(given, None, {}) for p in points}
     specs = {(p.id, s): experiment.pilot_spec(p, s) for p in points for s in experiment.strategies}
     manifests.update(execute_specs(list(specs.values()), options, conn, desc="pilots"))
+    snaps = _pilot_snapshots(specs, options, manifests)
+    # A pilot whose time drew fewer than pilot.MIN_SPP samples cannot tell
+    # fireflies from a few samples' ordinary noise: it is drawn again, by
+    # samples (pilot.py).
+    by_id = {p.id: p for p in points}
+    short = {
+        k: experiment.pilot_spec(by_id[k[0]], k[1], spp=pilot.MIN_SPP)
+        for k, snap in snaps.items()
+        if snap.header.spp < pilot.MIN_SPP
+    }
+    if short:
+        manifests.update(execute_specs(list(short.values()), options, conn, desc="pilots by samples"))
+        redone = _pilot_snapshots(short, options, manifests)
+        snaps.update(redone)
+        specs.update({k: short[k] for k in redone})
     chosen: dict[str, ReferenceChoice] = {}
     for p in points:
-        snaps: dict[str, exr.Snapshot] = {}
-        keys: dict[str, str] = {}
-        for s in experiment.strategies:
-            key = specs[(p.id, s)].key(options.renderer_version)
-            keys[s] = key
-            if (manifests.get(key) or {}).get("status") == store.STATUS_DONE:
-                with contextlib.suppress(CorruptExrError):
-                    snaps[s] = exr.read_snapshot(options.layout.run(key).final)
+        keys = {s: specs[(p.id, s)].key(options.renderer_version) for s in experiment.strategies}
+        by_strategy = {s: snaps[(p.id, s)] for s in experiment.strategies if (p.id, s) in snaps}
         ranked: list[pilot.PilotResult] = []
-        if snaps:
+        if by_strategy:
             # The pilots' regions: a light-sampled pilot (or any) stands in for the reference.
-            stand_in = snaps.get(pilot.BASELINE) or next(iter(snaps.values()))
+            stand_in = by_strategy.get(pilot.BASELINE) or next(iter(by_strategy.values()))
             ranked = pilot.score(
-                snaps, regions_of(stand_in, experiment.insets, experiment.lit_threshold, maps[p.id][1])
+                by_strategy, regions_of(stand_in, experiment.insets, experiment.lit_threshold, maps[p.id][1])
             )
         chosen[p.id] = ReferenceChoice(pilot.choose(ranked), _first_time(experiment, ranked), keys)
     return chosen

@@ -378,3 +378,39 @@ def test_13_the_pilot_passes_over_a_candidate_with_fireflies(rng: np.random.Gene
     assert pilot.choose(ranked) == ("antishadow", "light")
     # with nothing else left it is still a reference strategy (the noise check then judges it)
     assert pilot.choose([by["projection"]])[0] == "projection"
+
+
+def _pixel_means(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel-channel, the mean of the samples (last axis) and its variance, as the renderer's layers give them."""
+    n = samples.shape[-1]
+    return samples.mean(axis=-1), samples.var(axis=-1, ddof=1) / n
+
+
+@pytest.mark.parametrize("n", [9, pilot.MIN_SPP])
+def test_14_a_few_samples_make_edges_look_like_fireflies(rng: np.random.Generator, n: int) -> None:
+    # a nearly noise-free estimator over most pixels, and edge pixels whose samples are 0 or 4
+    # (coverage p): what the 512x512 multi_lamp pilots of antishadow_exact look like
+    shape = (H, W, 3)
+    samples = 0.5 + 0.001 * rng.standard_normal((*shape, n))
+    edge = rng.random((H, W)) < 0.08
+    p = rng.uniform(0.02, 1.0, size=(H, W))
+    hits = rng.random((*shape, n)) < p[..., None, None]
+    samples[edge] = 4.0 * hits[edge]
+    mean, var = _pixel_means(samples)
+    share = noise_check.firefly_share(mean, var, np.ones((H, W), dtype=bool))
+    if n < pilot.MIN_SPP:
+        assert share > noise_check.FIREFLY_SHARE_MAX  # what made the pilot pass over the best strategy
+    else:
+        assert share < noise_check.FIREFLY_SHARE_MAX
+
+
+def test_15_real_fireflies_stay_fireflies_at_the_pilots_sample_floor(rng: np.random.Generator) -> None:
+    # rare large samples (one in 200, 200 times the pixel's value): the projection pilots'
+    # caustic-like noise; at pilot.MIN_SPP they still hold most of the image's noise
+    n = pilot.MIN_SPP
+    shape = (H, W, 3)
+    samples = 0.5 + 0.05 * rng.standard_normal((*shape, n))
+    spikes = rng.random((H, W, 1, n)) < 1 / 200
+    samples = samples + 100.0 * spikes
+    mean, var = _pixel_means(samples)
+    assert noise_check.firefly_share(mean, var, np.ones((H, W), dtype=bool)) > noise_check.FIREFLY_SHARE_MAX
