@@ -308,32 +308,6 @@ def test_09_the_pilot_sets_the_first_reference_time(
         assert all(c["ok"] for c in ref["noise"])
 
 
-def test_11_a_pilot_too_short_for_the_firefly_test_is_drawn_again_by_samples(
-    cli: CliRunner, write_experiment: Callable[..., Path], results: Path, render_log: Callable[[], list[str]]
-) -> None:
-    # 0.65 s of the fake draws 65 passes of light (0.01 s each) but 60 of portal (0.011 s):
-    # only portal's pilots are drawn again, for pilot.MIN_SPP samples
-    exp = write_experiment(reference={"strategies": "auto", "time_s": 1, "seed": 99, "pilot_time_s": 0.65})
-    status, out, err = cli("sweep", str(exp), "--no-progress")
-    assert status == 0, out + err
-    conn = sqlite3.connect(results / "index.sqlite")
-    pilots = conn.execute(
-        "SELECT e.strategy, r.spp_target, r.time_target_s, r.final_spp FROM experiment_runs e "
-        "JOIN runs r ON r.key = e.key WHERE e.role = 'pilot'"
-    ).fetchall()
-    by_time = conn.execute(
-        "SELECT strategy, final_spp FROM runs WHERE time_target_s = 0.65 AND params_json LIKE '%pilot%'"
-    ).fetchall()
-    conn.close()
-    # two points: every strategy's pilot by time, then portal's again by samples
-    assert sorted(by_time) == [("light", 65)] * 2 + [("portal", 60)] * 2
-    assert len([line for line in render_log() if line.startswith("portal ")]) >= 4
-    # the pilots the plan records, and scores, are the last ones drawn
-    assert sorted(pilots) == [("light", 0, 0.65, 65)] * 2 + [("portal", pilot.MIN_SPP, 0.0, pilot.MIN_SPP)] * 2
-    for ref in _summary(results)["references"]:
-        assert [p["strategy"] for p in ref["parts"]] == ["portal", "light"]
-
-
 def test_10_run_keys_follow_the_included_files_and_meshes(
     cli: CliRunner,
     write_experiment: Callable[..., Path],
@@ -387,6 +361,31 @@ def test_10_run_keys_follow_the_included_files_and_meshes(
         rendered = sweep()
         assert len(rendered) == 8 and not rendered & seen, f.name
         seen |= rendered
+
+
+def test_11_a_pilot_too_short_for_the_firefly_test_is_drawn_again_by_samples(
+    cli: CliRunner, write_experiment: Callable[..., Path], results: Path
+) -> None:
+    # 0.65 s of the fake draws 65 passes of light (0.01 s each) but 60 of portal (0.011 s):
+    # only portal's pilots are drawn again, for pilot.MIN_SPP samples
+    exp = write_experiment(reference={"strategies": "auto", "time_s": 1, "seed": 99, "pilot_time_s": 0.65})
+    status, out, err = cli("sweep", str(exp), "--no-progress")
+    assert status == 0, out + err
+    conn = sqlite3.connect(results / "index.sqlite")
+    pilots = conn.execute(
+        "SELECT e.strategy, r.spp_target, r.time_target_s, r.final_spp FROM experiment_runs e "
+        "JOIN runs r ON r.key = e.key WHERE e.role = 'pilot'"
+    ).fetchall()
+    by_time = conn.execute(
+        "SELECT strategy, final_spp FROM runs WHERE time_target_s = 0.65 AND params_json LIKE '%pilot%'"
+    ).fetchall()
+    conn.close()
+    # two points: every strategy's pilot by time, then portal's again by samples
+    assert sorted(by_time) == [("light", 65)] * 2 + [("portal", 60)] * 2
+    # the pilots the plan records, and scores, are the last ones drawn
+    assert sorted(pilots) == [("light", 0, 0.65, 65)] * 2 + [("portal", pilot.MIN_SPP, 0.0, pilot.MIN_SPP)] * 2
+    for ref in _summary(results)["references"]:
+        assert [p["strategy"] for p in ref["parts"]] == ["portal", "light"]
 
 
 def test_12_a_shared_reference_is_continued_from_what_is_stored(
