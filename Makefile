@@ -34,7 +34,11 @@ ALL_CFLAGS := $(WARN) $(MATH) $(CFLAGS) $(SAN_FLAGS) -pthread
 # assimp (mesh_file.c): pkg-config --libs assimp gives -lassimp.
 LDLIBS := -lembree3 -lOpenEXRCore -lyaml -lassimp -lm -pthread
 
-SRCS := $(filter-out renderer/src/main.c,$(wildcard renderer/src/*.c))
+# The renderer's layers, lowest first: a file may include its own layer and
+# the ones before it (make lint-c runs tests/check_layers.sh). The list is
+# repeated there.
+LAYERS := base geometry config scene sampling render cli
+SRCS := $(filter-out renderer/src/cli/main.c,$(wildcard $(LAYERS:%=renderer/src/%/*.c)))
 OBJS := $(SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
 TEST_SRCS := $(wildcard tests/renderer/test_*.c)
 TEST_BINS := $(TEST_SRCS:tests/renderer/%.c=$(BUILD)/tests/%)
@@ -49,16 +53,16 @@ FUZZ_MESH_CORPUS := tests/configs/meshes tests/configs/bad/meshes $(wildcard tes
 # and the mesh loaders' sources only.
 FUZZ_CC ?= clang
 FUZZ_BUILD := renderer/build-fuzz
-FUZZ_SRCS := $(wildcard renderer/src/config*.c) $(wildcard renderer/src/*_kind.c) renderer/src/json_write.c \
-             renderer/src/mesh_file.c renderer/src/ply_check.c renderer/src/transform.c \
-             renderer/src/expr.c renderer/src/polygon.c renderer/src/error.c
-FUZZ_MESH_SRCS := renderer/src/mesh_file.c renderer/src/ply_check.c renderer/src/error.c
+FUZZ_SRCS := $(wildcard renderer/src/config/config*.c) renderer/src/base/kinds.c renderer/src/base/json_write.c \
+             renderer/src/config/mesh_file.c renderer/src/config/ply_check.c renderer/src/base/transform.c \
+             renderer/src/config/expr.c renderer/src/geometry/polygon.c renderer/src/base/error.c
+FUZZ_MESH_SRCS := renderer/src/config/mesh_file.c renderer/src/config/ply_check.c renderer/src/base/error.c
 DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
 VENV_STAMP := $(VENV)/.installed
 
 .SECONDARY:
-.PHONY: FORCE all deps venv browser test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab bench-bins fuzz crosscheck clean
+.PHONY: FORCE all deps venv browser test lint-c format test-c test-c-san test-py lint-py figures bench bench-ab same-images bench-bins fuzz crosscheck clean
 .DEFAULT_GOAL := all
 
 all: $(BUILD)/render
@@ -91,6 +95,8 @@ C_FORMATTED = $(shell git ls-files '*.c' '*.h' 2>/dev/null || find renderer test
 lint-c: $(CLANG_FORMAT_STAMP)
 	@clang-format --dry-run --Werror $(C_FORMATTED)
 	@echo "lint-c: $(words $(C_FORMATTED)) C files formatted"
+	@tests/check_layers.sh renderer/src
+	@tests/check_layers_fails.sh
 format: $(CLANG_FORMAT_STAMP)
 	clang-format -i $(C_FORMATTED)
 
@@ -112,7 +118,7 @@ $(BUILD)/librender.a: $(OBJS)
 	@rm -f $@
 	ar rcs $@ $^
 
-$(BUILD)/render: $(BUILD)/obj/main.o $(BUILD)/librender.a
+$(BUILD)/render: $(BUILD)/obj/cli/main.o $(BUILD)/librender.a
 	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
 
 $(BUILD)/tests/%.o: tests/renderer/%.c $(FLAGS_STAMP) | $(DEPS_STAMP)
@@ -146,10 +152,10 @@ $(FUZZ_MESH_REPLAY): $(BUILD)/fuzz/fuzz_mesh.o $(BUILD)/fuzz/replay.o $(FUZZ_MES
 # libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
 FUZZ_FLAGS := -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
               -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
-$(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*.h)
+$(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*/*.h)
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lyaml -lassimp -lm
-$(FUZZ_BUILD)/fuzz_mesh: renderer/fuzz/fuzz_mesh.c $(FUZZ_MESH_SRCS) $(wildcard renderer/src/*.h)
+$(FUZZ_BUILD)/fuzz_mesh: renderer/fuzz/fuzz_mesh.c $(FUZZ_MESH_SRCS) $(wildcard renderer/src/*/*.h)
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lassimp -lm
 
@@ -257,6 +263,12 @@ $(PERF):
 bench: $(BUILD)/render $(BENCH_BINS) $(XCHECK_BENCH_STAMP) $(LIBLLVM) $(PERF)
 	@DRJIT_LIBLLVM_PATH="$${DRJIT_LIBLLVM_PATH:-$(LIBLLVM)}" renderer/bench/run.sh $(BUILD)
 
+# Bit-identity of the images against another build, for changes that claim
+# to keep behaviour: make same-images BASE=path/to/old/render.
+same-images: $(BUILD)/render
+	@test -x "$(BASE)" || { echo "same-images: give BASE=path/to/another/render" >&2; exit 2; }
+	@python3 renderer/bench/same_images.py $(BASE) $(BUILD)/render $(if $(SPP),--spp $(SPP),)
+
 VALGRIND := /usr/bin/valgrind
 # Same-run A/B throughput against another build: make bench-ab BASE=old/render
 # (INSTRUCTIONS=1: instructions of the render passes under callgrind instead
@@ -306,7 +318,7 @@ crosscheck: $(BUILD)/render
 clean:
 	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)
 
--include $(OBJS:.o=.d) $(BUILD)/obj/main.d $(TEST_BINS:=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
+-include $(OBJS:.o=.d) $(BUILD)/obj/cli/main.d $(TEST_BINS:=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
   $(BUILD)/fuzz/fuzz_mesh.d $(BUILD)/fuzz/replay.d
 
 # Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c

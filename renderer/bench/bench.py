@@ -521,8 +521,8 @@ def section_harness(ctx: Context) -> dict[str, Any]:
     table = {}
     try:
         # The harness's own code path, if installed.
-        from portal_harness import exr as hexr
-        from portal_harness import metrics as hmet
+        from portal_harness.core import exr as hexr
+        from portal_harness.core import metrics as hmet
 
         have_harness = True
     except ImportError:

@@ -9,8 +9,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "config.h"
-#include "timing.h"
+#include "config/config.h"
+#include "base/timing.h"
 
 /* The clocks are the renderer's own (timing.h): timing_now_s for wall time,
    timing_thread_cpu_s for the calling thread's CPU time, which on a shared

@@ -269,7 +269,7 @@ def read_exr(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     harness venv)."""
     import dataclasses
 
-    from portal_harness import exr  # imported here so that sections without EXR work without it
+    from portal_harness.core import exr
 
     snap = exr.read_snapshot(path)
     return snap.rgb, snap.variance, dataclasses.asdict(snap.header)

@@ -19,9 +19,9 @@
 #include <sys/resource.h>
 
 #include "bench_util.h"
-#include "config.h"
-#include "scene.h"
-#include "watertight.h"
+#include "config/config.h"
+#include "scene/scene.h"
+#include "geometry/watertight.h"
 
 static double process_cpu_s(void)
 {

@@ -33,13 +33,13 @@
    scene. Prints one JSON object on stdout. */
 #include <stdint.h>
 
-#include "antishadow.h"
+#include "geometry/antishadow.h"
 #include "bench_util.h"
-#include "config.h"
-#include "rng.h"
-#include "scene.h"
-#include "strategy.h"
-#include "target.h"
+#include "config/config.h"
+#include "base/rng.h"
+#include "scene/scene.h"
+#include "sampling/strategy.h"
+#include "geometry/target.h"
 
 #define N_POINTS   4096
 #define N_VARIANTS (STRATEGY_COUNT + 2)

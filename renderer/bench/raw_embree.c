@@ -31,10 +31,10 @@
 #include <xmmintrin.h>
 
 #include "bench_util.h"
-#include "camera.h"
-#include "config.h"
-#include "rng.h"
-#include "scene.h"
+#include "scene/camera.h"
+#include "config/config.h"
+#include "base/rng.h"
+#include "scene/scene.h"
 
 enum ray_kind { RAY_CAMERA, RAY_BOUNCE, RAY_SHADOW };
 enum batch_id { BATCH_CAMERA, BATCH_BOUNCE, BATCH_SHADOW, BATCH_MIX, BATCH_COUNT };

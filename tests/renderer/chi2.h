@@ -55,8 +55,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "rng.h"
-#include "vec.h"
+#include "base/rng.h"
+#include "base/vec.h"
 
 /* Draws one direction from three uniforms in [0, 1); returns false when the
    sampler fails (that counts as a failure, not as a direction). dir need not

@@ -4,7 +4,7 @@
 
 #include <math.h>
 
-#include "polygon.h"
+#include "geometry/polygon.h"
 
 /* The distance from x to the polygon's rim (its nearest edge segment): how
    close a ray's crossing came to where two tests may rightly disagree. */

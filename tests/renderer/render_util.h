@@ -9,10 +9,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "config.h"
-#include "film.h"
-#include "render.h"
-#include "scene.h"
+#include "config/config.h"
+#include "render/film.h"
+#include "render/render.h"
+#include "scene/scene.h"
 
 /* Renders `path` with the overrides plus render.output = a new temporary
    folder; fills img with final.exr. Prints the error and returns false on

@@ -5,8 +5,8 @@
 
 #include <stdio.h>
 
-#include "config.h"
-#include "scene.h"
+#include "config/config.h"
+#include "scene/scene.h"
 
 /* The scene of a loaded config; on failure the config is freed. */
 static inline bool test_scene_build(struct config *cfg, struct scene *sc)

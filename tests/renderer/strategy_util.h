@@ -6,8 +6,8 @@
 #include <string.h>
 
 #include "chi2.h"
-#include "scene.h"
-#include "strategy.h"
+#include "scene/scene.h"
+#include "sampling/strategy.h"
 #include "testlib.h"
 
 #define TS_MAX 16

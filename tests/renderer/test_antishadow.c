@@ -7,11 +7,11 @@
 #include <string.h>
 #include <time.h>
 
-#include "antishadow.h"
-#include "config.h"
-#include "polygon.h"
-#include "rng.h"
-#include "target.h"
+#include "geometry/antishadow.h"
+#include "config/config.h"
+#include "geometry/polygon.h"
+#include "base/rng.h"
+#include "geometry/target.h"
 #include "testlib.h"
 
 /* Rotation of v about the unit axis by angle (Rodrigues). */

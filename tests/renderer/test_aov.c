@@ -4,8 +4,8 @@
    at each pixel's hits, fractions sum to 1 (also with dropped samples), the
    radiance channels are the same bits with the AOV on or off, and the AOV
    is the same for every thread count and strategy. */
-#include "aov.h"
-#include "camera.h"
+#include "render/aov.h"
+#include "scene/camera.h"
 #include "render_util.h"
 #include "scene_util.h"
 #include "testlib.h"

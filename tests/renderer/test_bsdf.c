@@ -1,7 +1,7 @@
 /* BSDF models: sampled directions follow the reported pdf (chi-square),
    sample() agrees with eval()/pdf(), reciprocity, and energy: a white
    Lambertian reflects exactly its albedo, GGX never more than 1. */
-#include "bsdf.h"
+#include "scene/bsdf.h"
 #include "chi2.h"
 #include "testlib.h"
 

@@ -4,7 +4,7 @@
 #include <dirent.h>
 
 #include "cli_util.h"
-#include "film.h"
+#include "render/film.h"
 #include "testlib.h"
 
 static void test_help_and_version(void)

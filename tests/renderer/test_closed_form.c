@@ -8,11 +8,11 @@
    estimate (plus, for the brute force, its own discretisation error). */
 #include <string.h>
 
-#include "config.h"
-#include "integrator.h"
-#include "scene.h"
+#include "config/config.h"
+#include "sampling/integrator.h"
+#include "scene/scene.h"
 #include "scene_util.h"
-#include "strategy.h"
+#include "sampling/strategy.h"
 #include "testlib.h"
 
 struct estimate {

@@ -8,8 +8,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "config.h"
-#include "expr.h"
+#include "config/config.h"
+#include "config/expr.h"
 #include "testlib.h"
 
 #define LAMPSHADE   "configs/scenes/lampshade.yaml"

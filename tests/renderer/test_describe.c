@@ -5,16 +5,16 @@
    event printed is listed. EXR headers are read here without OpenEXR. */
 #include <stdint.h>
 
-#include "aov.h"
+#include "render/aov.h"
 #include "cli_util.h"
-#include "config.h"
-#include "exit_code.h"
-#include "film.h"
+#include "config/config.h"
+#include "cli/exit_code.h"
+#include "render/film.h"
 #include "json_util.h"
-#include "render_events.h"
-#include "sampler.h"
+#include "render/render_events.h"
+#include "sampling/sampler.h"
 #include "testlib.h"
-#include "version.h"
+#include "base/version.h"
 
 #define COUNT(a) ((int)(sizeof(a) / sizeof((a)[0])))
 

@@ -10,9 +10,9 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "fastmath.h"
+#include "base/fastmath.h"
 #include "testlib.h"
-#include "vec.h"
+#include "base/vec.h"
 
 /* Doubles mapped to integers in the order of their values (-0 and +0 both
    to 0), so that the difference of two is their distance in ulps, across

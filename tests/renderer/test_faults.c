@@ -5,8 +5,8 @@
 #include <dirent.h>
 
 #include "cli_util.h"
-#include "film.h"
-#include "rng.h"
+#include "render/film.h"
+#include "base/rng.h"
 #include "testlib.h"
 
 /* Every *.exr in dir reads back; returns how many, or -1 on a bad one. */

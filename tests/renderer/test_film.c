@@ -1,8 +1,8 @@
 /* Tests of film.c: Welford accumulation against a two-pass reference, the
    variance-of-the-mean snapshot, the EXR round trip and its failure modes
    (missing directory, full disk, damaged files). */
-#include "film.h"
-#include "rng.h"
+#include "render/film.h"
+#include "base/rng.h"
 #include "testlib.h"
 
 #include <dirent.h>

@@ -7,12 +7,12 @@
    render_row builds them. */
 #include <string.h>
 
-#include "camera.h"
-#include "config.h"
-#include "integrator.h"
-#include "scene.h"
+#include "scene/camera.h"
+#include "config/config.h"
+#include "sampling/integrator.h"
+#include "scene/scene.h"
 #include "scene_util.h"
-#include "strategy.h"
+#include "sampling/strategy.h"
 #include "testlib.h"
 
 #define SCENE "configs/scenes/lampshade.yaml"

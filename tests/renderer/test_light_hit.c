@@ -4,10 +4,10 @@
    its limits, and which scenes use it. */
 #include <math.h>
 
-#include "light_hit.h"
-#include "polygon.h"
+#include "scene/light_hit.h"
+#include "geometry/polygon.h"
 #include "polygon_util.h"
-#include "rng.h"
+#include "base/rng.h"
 #include "scene_util.h"
 #include "testlib.h"
 

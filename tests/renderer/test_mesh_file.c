@@ -11,12 +11,12 @@
 #include <unistd.h>
 
 #include "cli_util.h"
-#include "config.h"
-#include "mesh_file.h"
-#include "ply_check.h"
+#include "config/config.h"
+#include "config/mesh_file.h"
+#include "config/ply_check.h"
 #include "render_util.h"
 #include "testlib.h"
-#include "transform.h"
+#include "base/transform.h"
 
 #define MESHES     "tests/configs/meshes"
 #define BAD_MESHES "tests/configs/bad/meshes"

@@ -4,8 +4,8 @@
    limits (1 or 0, or ~1e-150 in the ratio form), never NaN. */
 #include <math.h>
 
-#include "mis.h"
-#include "rng.h"
+#include "sampling/mis.h"
+#include "base/rng.h"
 #include "testlib.h"
 
 static const enum mis_kind heuristics[] = { MIS_BALANCE, MIS_POWER };

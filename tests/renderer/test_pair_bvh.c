@@ -3,8 +3,8 @@
    few items (the flat search) it must also return them in the order the
    tree's traversal would, since a point's candidate order fixes which
    pair a uniform picks and images must not change with the search. */
-#include "pair_bvh.h"
-#include "rng.h"
+#include "geometry/pair_bvh.h"
+#include "base/rng.h"
 #include "testlib.h"
 
 enum { MAX_ITEMS = 64 };

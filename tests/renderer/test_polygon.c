@@ -5,7 +5,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "polygon.h"
+#include "geometry/polygon.h"
 #include "testlib.h"
 
 static struct polygon poly_make(int n, const double (*xyz)[3])

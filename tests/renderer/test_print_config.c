@@ -7,8 +7,8 @@
 #include <inttypes.h>
 
 #include "cli_util.h"
-#include "config.h"
-#include "exit_code.h"
+#include "config/config.h"
+#include "cli/exit_code.h"
 #include "json_util.h"
 #include "testlib.h"
 

@@ -8,9 +8,9 @@
 #include <math.h>
 #include <string.h>
 
-#include "polygon.h"
-#include "rng.h"
-#include "scene.h"
+#include "geometry/polygon.h"
+#include "base/rng.h"
+#include "scene/scene.h"
 #include "scene_util.h"
 #include "testlib.h"
 

@@ -5,9 +5,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_events.h"
+#include "render/render_events.h"
 #include "testlib.h"
-#include "version.h"
+#include "base/version.h"
 
 /* What one event function wrote, as a string (free it). */
 struct capture {

@@ -6,9 +6,9 @@
 #include <dirent.h>
 
 #include "cli_util.h"
-#include "config.h"
-#include "film.h"
-#include "film_state.h"
+#include "config/config.h"
+#include "render/film.h"
+#include "render/film_state.h"
 #include "testlib.h"
 
 /* ---- the state file --------------------------------------------------- */

@@ -3,7 +3,7 @@
    change here changes every image, and must bump RENDERER_VERSION), and
    the value functions the vectorised loops use (rng_seeded, rng_draw)
    agree with the pointer API. */
-#include "rng.h"
+#include "base/rng.h"
 #include "testlib.h"
 
 struct golden {

@@ -7,16 +7,16 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "antishadow.h"
+#include "geometry/antishadow.h"
 #include "chi2.h"
-#include "config.h"
-#include "integrator.h"
+#include "config/config.h"
+#include "sampling/integrator.h"
 #include "render_util.h"
-#include "sampler.h"
-#include "scene.h"
+#include "sampling/sampler.h"
+#include "scene/scene.h"
 #include "scene_util.h"
-#include "sobol.h"
-#include "strategy.h"
+#include "sampling/sobol.h"
+#include "sampling/strategy.h"
 #include "testlib.h"
 
 #define SCENE "configs/scenes/lampshade.yaml"

@@ -11,8 +11,8 @@
    draws, its weight f cos / pdf = albedo. */
 #include <string.h>
 
-#include "rng.h"
-#include "shading.h"
+#include "base/rng.h"
+#include "sampling/shading.h"
 #include "testlib.h"
 
 enum { N_POINTS = 1003, N_MATERIALS = 4, N_LIGHTS = 2 };

@@ -8,7 +8,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "snapshot_schedule.h"
+#include "render/snapshot_schedule.h"
 #include "testlib.h"
 
 static struct snapshot_schedule none(void)

@@ -9,10 +9,10 @@
 #include <string.h>
 
 #include "chi2.h"
-#include "polygon.h"
-#include "rng.h"
-#include "spherical.h"
-#include "target.h"
+#include "geometry/polygon.h"
+#include "base/rng.h"
+#include "geometry/spherical.h"
+#include "geometry/target.h"
 #include "testlib.h"
 
 /* Chi-square tests expected to pass in this file: Bonferroni over them. */

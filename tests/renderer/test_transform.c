@@ -1,9 +1,9 @@
 /* test_transform.c: the affine transforms of `transform:` against closed
    forms: composition order, right-handed rotation, the inverse transpose
    of normals, singular matrices. */
-#include "polygon.h"
+#include "geometry/polygon.h"
 #include "testlib.h"
-#include "transform.h"
+#include "base/transform.h"
 
 static void check_vec(struct vec3 a, struct vec3 b, double tol)
 {

@@ -5,13 +5,13 @@
    firefly of pixel (130, 204) (tools/firefly/README.md) is gone. */
 #include "testlib.h"
 
-#include "camera.h"
-#include "integrator.h"
-#include "rng.h"
+#include "scene/camera.h"
+#include "sampling/integrator.h"
+#include "base/rng.h"
 #include "scene_util.h"
-#include "shading.h"
-#include "strategy.h"
-#include "watertight.h"
+#include "sampling/shading.h"
+#include "sampling/strategy.h"
+#include "geometry/watertight.h"
 
 #define LAMPSHADE "configs/scenes/lampshade.yaml"
 

@@ -20,8 +20,8 @@ import numpy as np
 import yaml
 from floor_model import LampshadeModel, ModelMismatch, PixelModel, expected_pixels
 
-from portal_harness import exr
-from portal_harness.metrics import REL_EPSILON, efficiency
+from portal_harness.core import exr
+from portal_harness.core.metrics import REL_EPSILON, efficiency
 
 FLOOR_SET = "floor"  # every pixel of the mask
 LIT_SET = "lit"  # the mask's pixels that receive light (closed form > 0)

@@ -69,7 +69,7 @@ class ModelMismatch(ValueError):
 
 @dataclass(frozen=True)
 class Camera:
-    """The renderer's pinhole camera (renderer/src/camera.c): the direction
+    """The renderer's pinhole camera (renderer/src/scene/camera.c): the direction
     through film position (px, py), in pixels, row 0 at the top, is
     normalize(top_left + px * dx + py * dy)."""
 

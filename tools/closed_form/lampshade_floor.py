@@ -19,7 +19,7 @@ from typing import TextIO
 from floor_check import FLOOR_SET, Inset, Row, evaluate, find_runs
 from floor_model import ModelMismatch
 
-from portal_harness.store import finite_or_none
+from portal_harness.execution.store import finite_or_none
 
 
 def _fmt(v: float, spec: str = ".4g") -> str:

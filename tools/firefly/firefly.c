@@ -6,13 +6,13 @@
 #include <stdlib.h>
 #include <math.h>
 
-#include "camera.h"
-#include "config.h"
-#include "integrator.h"
-#include "rng.h"
-#include "scene.h"
-#include "shading.h"
-#include "strategy.h"
+#include "scene/camera.h"
+#include "config/config.h"
+#include "sampling/integrator.h"
+#include "base/rng.h"
+#include "scene/scene.h"
+#include "sampling/shading.h"
+#include "sampling/strategy.h"
 
 static bool hits_box(struct vec3 o, struct vec3 d, struct vec3 lo, struct vec3 hi)
 {

@@ -7,10 +7,10 @@
 #include <stdlib.h>
 #include <math.h>
 
-#include "config.h"
-#include "scene.h"
-#include "shading.h"
-#include "strategy.h"
+#include "config/config.h"
+#include "scene/scene.h"
+#include "sampling/shading.h"
+#include "sampling/strategy.h"
 
 int main(int argc, char **argv)
 {
