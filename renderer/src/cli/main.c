@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "config/config.h"
+#include "cli/args.h"
 #include "cli/describe.h"
 #include "cli/exit_code.h"
 #include "config/print_config.h"
@@ -16,55 +17,6 @@
 #include "render/resume.h"
 #include "scene/scene.h"
 #include "base/version.h"
-
-static const char usage[] = "usage: render CONFIG [options]\n"
-                            "       render --resume DIR [--spp N] [--time S] [--threads N|auto] [--quiet]\n"
-                            "       render --print-config CONFIG [options] [--format yaml|json]\n"
-                            "       render --describe\n"
-                            "\n"
-                            "Renders the scene described by the YAML file CONFIG progressively, writing\n"
-                            "timed OpenEXR snapshots and DIR/final.exr, and one JSON line per snapshot on\n"
-                            "stdout. --resume continues the render in DIR (made with --resumable) with the\n"
-                            "passes it did not draw, to the same bits as one uninterrupted render; --spp\n"
-                            "and --time are then totals, and only render.spp, render.time, render.threads,\n"
-                            "render.snapshots.* and render.resumable may be overridden.\n"
-                            "\n"
-                            "--print-config loads CONFIG as a render would (includes, params, overrides,\n"
-                            "defaults, every check, same messages and exit status) and prints the\n"
-                            "effective configuration instead of rendering: YAML (the config.yaml a render\n"
-                            "writes) or, with --format json, one JSON object {config, params, files,\n"
-                            "hash, image_hash}; nothing is created, render.output is not touched.\n"
-                            "\n"
-                            "--describe prints the renderer's contract as one JSON object (strategies,\n"
-                            "integrators, materials, AOV and EXR channels, EXR attributes, snapshot\n"
-                            "keys, exit codes, JSON events), read from the tables the renderer uses.\n"
-                            "\n"
-                            "options (each overrides the config's value):\n"
-                            "  --set KEY.PATH=VALUE  override any scalar of the config, e.g.\n"
-                            "                        --set params.s_L=0.15  --set camera.position.1=2.5\n"
-                            "                        --set render.aov.region=true (region.* AOV channels)\n"
-                            "  --out DIR             output folder (render.output); created if missing\n"
-                            "  --spp N               stop after N samples per pixel (render.spp; 0 = no limit)\n"
-                            "  --time SECONDS        stop after this render time (render.time; 0 = no limit)\n"
-                            "  --seed N              random seed (render.seed)\n"
-                            "  --threads N|auto      render threads (render.threads)\n"
-                            "  --strategy NAME       light sampling strategy (render.strategy; the names:\n"
-                            "                        render --describe)\n"
-                            "  --integrator NAME     direct or path (render.integrator)\n"
-                            "  --resumable           also write DIR/final.state, so that --resume can\n"
-                            "                        continue the render (render.resumable=true)\n"
-                            "  --resume DIR          continue the render in DIR (no CONFIG)\n"
-                            "  --quiet               no progress messages on stderr\n"
-                            "  --print-config        print the effective configuration, do not render\n"
-                            "  --format yaml|json    the form of --print-config (default yaml)\n"
-                            "  --describe            print the contract as JSON (no other arguments)\n"
-                            "  --help, --version\n"
-                            "\n"
-                            "exit status: 0 done, 1 runtime error, 2 usage or config error, including an\n"
-                            "output folder that cannot be created or written, a malformed fault hook, and\n"
-                            "a --resume that cannot continue (nothing is written or changed), 3\n"
-                            "interrupted by SIGINT/SIGTERM (final.exr, and final.state if resumable, hold\n"
-                            "the passes done).\n";
 
 /* The folders make_dirs created, deepest last, so that a failure can
    remove them again. */
@@ -184,182 +136,28 @@ static int render_and_report(const struct config *cfg, const struct scene *scene
     return res.interrupted ? EXIT_INTERRUPTED : EXIT_DONE;
 }
 
-int main(int argc, char **argv)
+/* Loads the config (or the state to resume), builds the scene and renders
+   or prints the configuration; returns the exit status. */
+static int run(const struct args *a)
 {
-    const char *config_path = NULL, *resume_dir = NULL;
-    bool quiet = false, describe = false, print_config = false;
-    const char *format_name = NULL;
-    enum print_config_format format = PRINT_CONFIG_YAML;
-    struct config_override *ov = calloc((size_t)argc, sizeof *ov);
-    const char **ov_flag = calloc((size_t)argc, sizeof *ov_flag); /* the shorthand that set it, or NULL */
-    char **owned = calloc((size_t)argc, sizeof *owned);
-    int n_ov = 0;
-    int status = EXIT_USAGE;
-    if (!ov || !ov_flag || !owned) {
-        fprintf(stderr, "render: out of memory\n");
-        return EXIT_RUNTIME;
-    }
-
-    static const struct {
-        const char *flag, *key;
-    } shorthands[] = {
-        { "--out", "render.output" },
-        { "--spp", "render.spp" },
-        { "--time", "render.time" },
-        { "--seed", "render.seed" },
-        { "--threads", "render.threads" },
-        { "--strategy", "render.strategy" },
-        { "--integrator", "render.integrator" },
-    };
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            fputs(usage, stdout);
-            status = EXIT_DONE;
-            goto done;
-        }
-        if (!strcmp(a, "--version")) {
-            printf("render %s\n", RENDERER_VERSION);
-            status = EXIT_DONE;
-            goto done;
-        }
-        if (!strcmp(a, "--describe")) {
-            describe = true;
-            continue;
-        }
-        if (!strcmp(a, "--print-config")) {
-            print_config = true;
-            continue;
-        }
-        if (!strcmp(a, "--format")) {
-            if (i + 1 >= argc) {
-                fprintf(stderr, "render: --format needs yaml or json\n%s", usage);
-                goto done;
-            }
-            format_name = argv[++i];
-            int k = 0;
-            while (k < PRINT_CONFIG_FORMAT_COUNT && strcmp(format_name, print_config_format_names[k])) ++k;
-            if (k == PRINT_CONFIG_FORMAT_COUNT) {
-                fprintf(stderr, "render: unknown --format %s (expected yaml or json)\n%s", format_name, usage);
-                goto done;
-            }
-            format = (enum print_config_format)k;
-            continue;
-        }
-        if (!strcmp(a, "--quiet")) {
-            quiet = true;
-            continue;
-        }
-        if (!strcmp(a, "--resumable")) {
-            ov[n_ov].path = "render.resumable";
-            ov[n_ov].value = "true";
-            ov_flag[n_ov] = a;
-            ++n_ov;
-            continue;
-        }
-        if (!strcmp(a, "--resume")) {
-            if (i + 1 >= argc) {
-                fprintf(stderr, "render: --resume needs a folder\n%s", usage);
-                goto done;
-            }
-            if (resume_dir) {
-                fprintf(stderr, "render: more than one --resume (%s and %s)\n%s", resume_dir, argv[i + 1], usage);
-                goto done;
-            }
-            resume_dir = argv[++i];
-            continue;
-        }
-        if (!strcmp(a, "--set")) {
-            if (i + 1 >= argc || !strchr(argv[i + 1], '=') || argv[i + 1][0] == '=') {
-                fprintf(stderr, "render: --set needs KEY.PATH=VALUE\n%s", usage);
-                goto done;
-            }
-            char *kv = owned[n_ov] = strdup(argv[++i]);
-            if (!kv) goto oom;
-            char *eq = strchr(kv, '=');
-            *eq = '\0';
-            ov[n_ov].path = kv;
-            ov[n_ov].value = eq + 1;
-            ++n_ov;
-            continue;
-        }
-        bool matched = false;
-        for (size_t k = 0; k < sizeof shorthands / sizeof shorthands[0]; ++k) {
-            if (strcmp(a, shorthands[k].flag)) continue;
-            if (i + 1 >= argc) {
-                fprintf(stderr, "render: %s needs a value\n%s", a, usage);
-                goto done;
-            }
-            ov[n_ov].path = shorthands[k].key;
-            ov[n_ov].value = argv[++i];
-            ov_flag[n_ov] = shorthands[k].flag;
-            ++n_ov;
-            matched = true;
-        }
-        if (matched) continue;
-        if (a[0] == '-') {
-            fprintf(stderr, "render: unknown option %s\n%s", a, usage);
-            goto done;
-        }
-        if (config_path) {
-            fprintf(stderr, "render: more than one CONFIG (%s and %s)\n%s", config_path, a, usage);
-            goto done;
-        }
-        config_path = a;
-    }
-    if (describe && argc != 2) {
-        fprintf(stderr, "render: --describe takes no other arguments\n%s", usage);
-        goto done;
-    }
-    if (describe) {
-        describe_write(stdout);
-        status = fflush(stdout) == 0 && !ferror(stdout) ? EXIT_DONE : EXIT_RUNTIME;
-        if (status != EXIT_DONE) fprintf(stderr, "render: --describe: cannot write to stdout\n");
-        goto done;
-    }
-    if (format_name && !print_config) {
-        fprintf(stderr, "render: --format %s is for --print-config only\n%s", format_name, usage);
-        goto done;
-    }
-    if (print_config && resume_dir) {
-        fprintf(stderr, "render: --print-config takes a CONFIG, not --resume %s\n%s", resume_dir, usage);
-        goto done;
-    }
-    if (resume_dir && config_path) {
-        fprintf(stderr, "render: --resume %s takes no CONFIG (it continues %s/config.yaml), got %s\n%s", resume_dir,
-                resume_dir, config_path, usage);
-        goto done;
-    }
-    if (!resume_dir && !config_path) {
-        fputs(usage, stderr);
-        goto done;
-    }
-    for (int k = 0; resume_dir && k < n_ov; ++k) {
-        if (resume_override_allowed(ov[k].path)) continue;
-        if (ov_flag[k])
-            fprintf(stderr, "render: --resume: %s (%s) cannot be changed when resuming (only %s can)\n", ov_flag[k],
-                    ov[k].path, RESUME_ALLOWED_KEYS);
-        else
-            fprintf(stderr, "render: --resume: --set %s cannot be changed when resuming (only %s can)\n", ov[k].path,
-                    RESUME_ALLOWED_KEYS);
-        goto done;
-    }
-
     struct error err = { { 0 } };
     struct render_faults faults;
     struct config cfg;
     struct film_state start;
+    bool print_config = a->action == ARGS_PRINT_CONFIG;
+    const char *resume_dir = a->resume_dir;
+    int status = EXIT_USAGE;
     /* The test hooks: read here, so that the library never reads the environment. */
     if (!print_config && !render_faults_parse(getenv("PORTAL_LIGHTS_FAULT_NONFINITE"),
                                               getenv("PORTAL_LIGHTS_FAULT_BIAS"), &faults, &err)) {
         fprintf(stderr, "render: %s\n", err.message);
-        goto done;
+        return status;
     }
-    bool loaded = resume_dir ? resume_load(resume_dir, ov, n_ov, &cfg, &start, &err)
-                             : config_load(config_path, ov, n_ov, &cfg, &err);
+    bool loaded = resume_dir ? resume_load(resume_dir, a->ov, a->n_ov, &cfg, &start, &err)
+                             : config_load(a->config_path, a->ov, a->n_ov, &cfg, &err);
     if (!loaded) {
         fprintf(stderr, "%s%s\n", resume_dir ? "render: " : "", err.message);
-        goto done;
+        return status;
     }
     struct scene scene;
     if (!scene_create(&cfg, &scene, &err)) {
@@ -368,27 +166,59 @@ int main(int argc, char **argv)
         /* A resume rewrites config.yaml with the new totals only now that
            everything has been checked. --print-config has checked all a
            render checks before it makes the output folder, and stops. */
-        bool ready =
-            print_config || (resume_dir ? write_effective_config(&cfg, &err) : prepare_output(&cfg, ov, ov_flag, &err));
+        bool ready = print_config ||
+                     (resume_dir ? write_effective_config(&cfg, &err) : prepare_output(&cfg, a->ov, a->ov_flag, &err));
         if (print_config) {
-            status = print_config_write(&cfg, format, stdout, &err) ? EXIT_DONE : EXIT_RUNTIME;
+            status = print_config_write(&cfg, a->format, stdout, &err) ? EXIT_DONE : EXIT_RUNTIME;
             if (status != EXIT_DONE) fprintf(stderr, "render: --print-config: %s\n", err.message);
         } else if (!ready && resume_dir)
             fprintf(stderr, "render: --resume %s: output folder %s\n", resume_dir, err.message);
         else if (!ready) fprintf(stderr, "%s\n", err.message);
-        else status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, &faults, quiet);
+        else status = render_and_report(&cfg, &scene, resume_dir ? &start : NULL, &faults, a->quiet);
         scene_destroy(&scene);
     }
     if (resume_dir) film_state_free(&start);
     config_free(&cfg);
-    goto done;
-oom:
-    fprintf(stderr, "render: out of memory\n");
-    status = EXIT_RUNTIME;
-done:
-    for (int i = 0; i < argc; ++i) free(owned[i]);
-    free(owned);
-    free(ov_flag);
-    free(ov);
+    return status;
+}
+
+int main(int argc, char **argv)
+{
+    struct args a;
+    struct error err;
+    int status = EXIT_USAGE;
+    switch (args_parse(argc, argv, &a, &err)) {
+    case ARGS_NO_MEMORY:
+        fprintf(stderr, "render: out of memory\n");
+        status = EXIT_RUNTIME;
+        break;
+    case ARGS_USAGE:
+        if (err.message[0]) fprintf(stderr, "render: %s\n", err.message);
+        fputs(args_usage, stderr);
+        break;
+    case ARGS_OK:
+        switch (a.action) {
+        case ARGS_HELP:
+            fputs(args_usage, stdout);
+            status = EXIT_DONE;
+            break;
+        case ARGS_VERSION:
+            printf("render %s\n", RENDERER_VERSION);
+            status = EXIT_DONE;
+            break;
+        case ARGS_DESCRIBE:
+            describe_write(stdout);
+            status = fflush(stdout) == 0 && !ferror(stdout) ? EXIT_DONE : EXIT_RUNTIME;
+            if (status != EXIT_DONE) fprintf(stderr, "render: --describe: cannot write to stdout\n");
+            break;
+        case ARGS_RENDER:
+        case ARGS_PRINT_CONFIG:
+            if (a.resume_dir && !args_check_resume(&a, &err)) fprintf(stderr, "render: %s\n", err.message);
+            else status = run(&a);
+            break;
+        }
+        break;
+    }
+    args_free(&a);
     return status;
 }
