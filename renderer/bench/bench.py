@@ -1151,7 +1151,7 @@ def section_mitsuba(ctx: Context) -> dict[str, Any]:
     mits_passes = 3 if q else 4  # the first (compiling) one and the steady ones
     # 64 spp everywhere: at 16, the multi-lamp and Little Lamp renders took
     # 0.1-0.25 s on 2 threads, where the machine's slow first 0.1 s spread
-    # the cost ratio's rounds by 0.3-0.9 (results/bench/README.md, "Sixth pass").
+    # the cost ratio's rounds by 0.3-0.9 (results/bench/NOTEBOOK.md, "Sixth pass").
     cost_spp = {"lampshade": 16 if q else 64, "multi_lamp": 4 if q else 64, "little_lamp": 4 if q else 64}
     max_depth = 8
     python, env = mitsuba_env()

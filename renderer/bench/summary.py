@@ -154,7 +154,7 @@ def throughput(d: dict[str, Any]) -> list[str]:
         f"alone. Raw limit next to the `direct/light` runs, M rays/CPU-s: {lim_txt}; their % raw: "
         f"{runs_txt or 'n/a'}. '% raw best-of' = the fastest run's rate / the largest raw limit measured "
         "next to the runs: interference only slows a run, so the fastest of several is the closest to the "
-        "machine's undisturbed speed (README). "
+        "machine's undisturbed speed (NOTEBOOK.md). "
         "Cost = time per sample / that of `light`, same integrator and round (section 5).",
         "",
     ]
@@ -961,7 +961,7 @@ def main() -> int:
             f"Renderer {meta['renderer_version']} ({meta['renderer']}), suite started {meta['suite_started']}, "
             f"{'quick (BENCH_QUICK=1)' if meta['quick'] else 'full'} run.",
             f"Machine: {m['nproc']} CPUs, {m['cpu_model']}, Embree {m.get('embree_version', m['embree_package'])}, "
-            f"load average at start {m['loadavg_1_5_15']}. See README.md for how to read the numbers.",
+            f"load average at start {m['loadavg_1_5_15']}. See NOTEBOOK.md for how to read the numbers.",
             "",
         ]
         lines[2:2] = head

@@ -109,7 +109,7 @@ bool scene_collect_faces(const struct config *cfg, struct watertight_face **out,
    same as a quad geometry's, bit for bit (80 renders compared), but traced
    as triangles: Embree 3.13 traced the lampshade's camera rays 1.8x and
    bounce rays 1.3x faster so, at high and medium build quality alike
-   (results/bench/README.md, "Sixth pass"). The geometry carries the
+   (results/bench/NOTEBOOK.md, "Sixth pass"). The geometry carries the
    shape's info, so hits map back to its material. */
 static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct watertight *w, int face0,
                       struct geometry_info info, struct error *err)
