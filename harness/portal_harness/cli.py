@@ -13,20 +13,22 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from tqdm import tqdm
-
-from portal_harness import __version__, exr, index, measure, runs, store
-from portal_harness.config import Experiment, load_experiment
-from portal_harness.errors import ConfigError, CorruptExrError, HarnessError
-from portal_harness.metrics import Region
-from portal_harness.paths import ResultsLayout, RunLayout, default_renderer, default_results
-from portal_harness.regions import DEFAULT_LIT_THRESHOLD, regions_of
-from portal_harness.renderer import renderer_version
-from portal_harness.scene import spec_from_scene
-from portal_harness.spec import NO_SNAPSHOTS
-from portal_harness.sweep import SweepOptions, sweep
+from portal_harness import __version__
+from portal_harness.analysis.run_metrics import measure_runs, reindex
+from portal_harness.analysis.sweep import sweep
+from portal_harness.core.errors import ConfigError, HarnessError
+from portal_harness.core.metrics import Region
+from portal_harness.core.paths import ResultsLayout, default_renderer, default_results
+from portal_harness.core.regions import DEFAULT_LIT_THRESHOLD
+from portal_harness.execution import index, store
+from portal_harness.execution.batch import SweepOptions
+from portal_harness.execution.renderer import renderer_version
+from portal_harness.execution.single import run_and_index
+from portal_harness.experiment.loader import load_experiment
+from portal_harness.experiment.model import Experiment
+from portal_harness.experiment.scene import spec_from_scene
+from portal_harness.experiment.spec import NO_SNAPSHOTS
 
 REFERENCE_SPP = 1024
 
@@ -276,43 +278,6 @@ def _parse_sets(sets: list[str], flag: str = "--set") -> dict[str, str]:
     return out
 
 
-class _RunProgress:
-    """Live bar of one render: render time (or spp) against the target, with
-    spp and the current snapshot as postfix. Created on the renderer's start
-    event, so a cached run shows no bar."""
-
-    def __init__(self, time_s: float, spp: int, enabled: bool = True) -> None:
-        self.by_time = time_s > 0
-        self.total = time_s if self.by_time else float(spp)
-        self.enabled = enabled
-        self.bar: tqdm[Any] | None = None
-
-    def __call__(self, event: dict[str, Any]) -> None:
-        kind = event.get("event")
-        if kind == "start":
-            self.bar = tqdm(
-                total=self.total,
-                unit="s" if self.by_time else "spp",
-                disable=not self.enabled,
-                file=sys.stderr,
-                dynamic_ncols=True,
-                bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}{postfix}]",
-            )
-            self.bar.set_description(f"{event.get('strategy')} {event.get('width')}x{event.get('height')}")
-            return
-        if kind not in ("snapshot", "final") or self.bar is None:
-            return
-        value = float(event.get("time_s", 0.0)) if self.by_time else float(event.get("spp", 0))
-        self.bar.n = min(value, self.total) if kind == "snapshot" else self.total
-        snap = f"snapshot {event.get('index')}" if kind == "snapshot" else "final"
-        self.bar.set_postfix_str(f"t={float(event.get('time_s', 0)):.2f}s spp={event.get('spp')} {snap}", refresh=False)
-        self.bar.refresh()
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
     overrides = _parse_sets(args.sets)
     snapshots = None
@@ -339,19 +304,8 @@ def cmd_run(args: argparse.Namespace, reference: bool = False) -> int:
         snapshots=snapshots,
         reference=reference,
     )
-    layout = _layout(args)
     key = spec.key(version)
-    progress = _RunProgress(spec.time_s, spec.spp)
-    try:
-        manifest = runs.execute(spec, layout, renderer, version, on_event=progress, force=args.force)
-    finally:
-        progress.close()
-    run = layout.run(key, reference)
-    conn = index.connect(layout.index_path)
-    try:
-        index.record_run(conn, manifest, run.dir)
-    finally:
-        conn.close()
+    manifest, run = run_and_index(spec, _layout(args), renderer, version, force=args.force)
     what = "reference" if reference else "run"
     cached = " (cached: nothing rendered)" if manifest.get("cached") else ""
     print(f"{what} {key}: {manifest['status']}{cached}")
@@ -394,7 +348,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_regress(args: argparse.Namespace) -> int:
-    from portal_harness.regress import regress
+    from portal_harness.analysis.regress import regress
 
     experiment = _experiment(args, args.experiment)
     if experiment.regress is None:
@@ -403,7 +357,7 @@ def cmd_regress(args: argparse.Namespace) -> int:
 
 
 def cmd_figures(args: argparse.Namespace) -> int:
-    from portal_harness.figures import make_all
+    from portal_harness.figures.make_all import make_all
 
     experiment = _experiment(args, args.experiment)
     for path in make_all(experiment, _layout(args)):
@@ -418,17 +372,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     experiment = _experiment(args, args.experiment)
     print(write_report(_layout(args), experiment, args.out))
     return 0
-
-
-def _resolve_run(layout: ResultsLayout, name: str) -> RunLayout:
-    p = Path(name)
-    if p.is_dir():
-        return RunLayout(p.resolve())
-    for reference in (False, True):
-        run = layout.run(name, reference)
-        if run.dir.is_dir():
-            return run
-    raise ConfigError(name, "", "no such run folder or run key")
 
 
 def _parse_insets(items: list[str]) -> tuple[Region, ...]:
@@ -446,55 +389,10 @@ def _parse_insets(items: list[str]) -> tuple[Region, ...]:
 
 
 def cmd_metrics(args: argparse.Namespace) -> int:
-    layout = _layout(args)
     experiment = _experiment(args, args.experiment) if args.experiment else None
     insets = (experiment.insets if experiment else ()) + _parse_insets(args.inset)
     lit_threshold = experiment.lit_threshold if experiment else DEFAULT_LIT_THRESHOLD
-    conn = index.connect(layout.index_path)
-    status = 0
-    results: list[dict[str, Any]] = []
-    try:
-        for name in args.runs:
-            run = _resolve_run(layout, name)
-            manifest = store.read_manifest(run)
-            if manifest is None or manifest.get("status") != store.STATUS_DONE:
-                print(
-                    f"{run.dir}: not a finished run (status {(manifest or {}).get('status', 'no manifest')}): skipped",
-                    file=sys.stderr,
-                )
-                status = 1
-                continue
-            ref_run = _reference_for(layout, conn, manifest, args.reference)
-            ref_manifest = store.read_manifest(ref_run)
-            ref_key = (ref_manifest or {}).get("key", ref_run.dir.name)
-            try:
-                reference = exr.read_snapshot(ref_run.final)
-            except CorruptExrError as e:
-                raise HarnessError(f"reference unusable: {e}") from None
-            for r in insets:
-                if not r.fits(reference.header.width, reference.header.height):
-                    raise ConfigError(
-                        "--inset", r.name, f"does not fit the {reference.header.width}x{reference.header.height} image"
-                    )
-            regions = regions_of(reference, insets, lit_threshold)
-            rows = measure.compute(run, manifest, reference, regions)
-            measure.write_files(run, manifest["key"], ref_key, regions, rows)
-            index.record_run(conn, manifest, run.dir)
-            index.record_metrics(conn, manifest["key"], ref_key, rows)
-            for row in rows:
-                if row.error:
-                    print(f"corrupt: {row.error}", file=sys.stderr)
-                    status = 1
-                results.append(
-                    {
-                        "run": manifest["key"],
-                        "reference": ref_key,
-                        "strategy": manifest["spec"]["strategy"],
-                        **row.__dict__,
-                    }
-                )
-    finally:
-        conn.close()
+    status, results = measure_runs(_layout(args), args.runs, args.reference, insets, lit_threshold, sys.stderr)
     if args.json:
         json.dump(results, sys.stdout, indent=1)
         print()
@@ -503,23 +401,6 @@ def cmd_metrics(args: argparse.Namespace) -> int:
         writer.writeheader()
         writer.writerows(results)
     return status
-
-
-def _reference_for(layout: ResultsLayout, conn: Any, manifest: dict[str, Any], given: str | None) -> RunLayout:
-    if given:
-        return _resolve_run(layout, given)
-    row = conn.execute(
-        "SELECT reference_key FROM experiment_runs WHERE key = ? AND reference_key IS NOT NULL", (manifest["key"],)
-    ).fetchone()
-    if row is not None and store.is_done(layout.run(row["reference_key"], True)):
-        return layout.run(row["reference_key"], True)
-    found = index.find_reference(conn, manifest["scene_hash"])
-    if found is None:
-        raise HarnessError(
-            f"no reference for run {manifest['key']} (scene hash {manifest['scene_hash']}): "
-            "make one with `portal-harness reference` or pass --reference"
-        )
-    return RunLayout(Path(found["run_dir"]))
 
 
 def cmd_query(args: argparse.Namespace) -> int:
@@ -548,25 +429,7 @@ def cmd_query(args: argparse.Namespace) -> int:
 
 
 def cmd_reindex(args: argparse.Namespace) -> int:
-    layout = _layout(args)
-    conn = index.connect(layout.index_path)
-    count = 0
-    try:
-        for parent in (layout.runs_dir, layout.references_dir):
-            if not parent.is_dir():
-                continue
-            for folder in sorted(parent.iterdir()):
-                run = RunLayout(folder)
-                manifest = store.read_manifest(run)
-                if manifest is None:
-                    continue
-                index.record_run(conn, manifest, folder)
-                count += 1
-                if run.metrics_json.exists():
-                    data = json.loads(run.metrics_json.read_text())
-                    index.record_metrics(conn, manifest["key"], data["reference_key"], measure.read_rows(run))
-    finally:
-        conn.close()
+    count = reindex(_layout(args))
     print(f"indexed {count} run folders")
     return 0
 
@@ -587,7 +450,7 @@ def cmd_import_mitsuba(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    from portal_harness.paths import find_repo_root
+    from portal_harness.core.paths import find_repo_root
     from portal_harness.service.server import serve, settings_from
 
     renderer, _ = _renderer(args)

@@ -265,7 +265,7 @@ def run_json(cmd: list[str]) -> dict[str, Any]:
 
 def read_exr(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """(rgb, variance, header attributes) as float64 (H, W, 3) arrays, through
-    portal_harness.exr, the project's one EXR reader (the bench runs in the
+    portal_harness.core.exr, the project's one EXR reader (the bench runs in the
     harness venv)."""
     import dataclasses
 

@@ -41,7 +41,9 @@ def mitsuba_python() -> str | None:
         return sys.executable
     venv = REPO / ".venv-xcheck" / "bin" / "python"
     if venv.exists():
-        ok = subprocess.run([str(venv), "-c", "import mitsuba, OpenEXR, yaml, portal_harness.exr"], capture_output=True)
+        ok = subprocess.run(
+            [str(venv), "-c", "import mitsuba, OpenEXR, yaml, portal_harness.core.exr"], capture_output=True
+        )
         if ok.returncode == 0:
             return str(venv)
     return None

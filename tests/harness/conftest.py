@@ -1,6 +1,6 @@
 """Shared, seeded fixtures of the harness tests.
 
-Most tests drive the harness with tests/harness/fake_render.py (the renderer
+Most tests drive the harness with tests/support/fake_render.py (the renderer
 contract in milliseconds); tests marked `real` use renderer/build/render at a
 tiny resolution and are skipped until it exists.
 """
@@ -22,7 +22,9 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 # The real renderer: $PORTAL_RENDERER if set (as for the harness), else the build's.
 REAL_RENDERER = Path(os.environ.get("PORTAL_RENDERER") or REPO / "renderer" / "build" / "render")
-sys.path.insert(0, str(HERE))
+# The test helpers (exrwrite.py, fake_render.py, browser.py, viewer_sweep.py).
+SUPPORT = REPO / "tests" / "support"
+sys.path.insert(0, str(SUPPORT))
 
 from exrwrite import write_snapshot  # noqa: E402
 
@@ -57,7 +59,7 @@ def fake_renderer(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("fake-renderer")
     path = folder / "render"
     path.write_text(
-        f'#!/bin/sh\nFAKE_RENDER_REAL="{REAL_RENDERER}" exec "{sys.executable}" "{HERE / "fake_render.py"}" "$@"\n'
+        f'#!/bin/sh\nFAKE_RENDER_REAL="{REAL_RENDERER}" exec "{sys.executable}" "{SUPPORT / "fake_render.py"}" "$@"\n'
     )
     path.chmod(path.stat().st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
     return path

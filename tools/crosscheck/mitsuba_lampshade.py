@@ -45,7 +45,7 @@ from obj_to_ply import write_ply  # the same directory: a script's sys.path[0]
 if TYPE_CHECKING:  # annotations only: the module imports the standard library alone
     import numpy as np
 
-    from portal_harness.exr import Snapshot
+    from portal_harness.core.exr import Snapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 XCHECK_VENV = ROOT / ".venv-xcheck"
@@ -217,11 +217,11 @@ def run_ours(args: argparse.Namespace, out_dir: Path) -> dict[str, Any]:
 
 
 def read_ours(path: Path) -> Snapshot:
-    """Our EXR through the harness's reader (portal_harness.exr, the one
+    """Our EXR through the harness's reader (portal_harness.core.exr, the one
     EXR reader): the snapshot, whose rgb and variance (of the mean) are
     (H, W, 3) float64."""
-    from portal_harness import exr
-    from portal_harness.errors import CorruptExrError
+    from portal_harness.core import exr
+    from portal_harness.core.errors import CorruptExrError
 
     try:
         return exr.read_snapshot(path)
@@ -231,7 +231,7 @@ def read_ours(path: Path) -> Snapshot:
 
 def write_exr(path: Path, mean: np.ndarray, var: np.ndarray) -> None:
     """Same channel layout as our renderer's EXR (R, G, B, variance.*), no attributes."""
-    from portal_harness import exr
+    from portal_harness.core import exr
 
     channels: dict[str, np.ndarray] = {}
     for i, c in enumerate(exr.RGB_CHANNELS):

@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
     import yaml
 
-    from portal_harness import exr
+    from portal_harness.core import exr
 
     mi.set_variant("scalar_rgb")
     ours_dir = args.run / "ours"

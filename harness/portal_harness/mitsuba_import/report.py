@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from portal_harness.errors import HarnessError
+from portal_harness.core.errors import HarnessError
 
 
 class MitsubaImportError(HarnessError):

@@ -24,8 +24,9 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Streamin
 from fastapi.staticfiles import StaticFiles
 
 from portal_harness import __version__
-from portal_harness.config import load_experiment
-from portal_harness.renderer import renderer_version
+from portal_harness.execution.plan import plan_runs
+from portal_harness.execution.renderer import renderer_version
+from portal_harness.experiment.loader import load_experiment
 from portal_harness.service import events, images, submission
 from portal_harness.service import queue as q
 from portal_harness.service.dispatcher import Dispatcher
@@ -34,7 +35,6 @@ from portal_harness.service.progress import Views
 from portal_harness.service.security import token_matches
 from portal_harness.service.settings import ServiceSettings
 from portal_harness.service.worker import LOG_NAME, bundle_dir, write_viewer_bundle
-from portal_harness.sweep import plan_runs
 
 STATIC = Path(__file__).resolve().parent / "static"
 VIEWER_STATIC = Path(__file__).resolve().parent.parent / "viewer" / "static"

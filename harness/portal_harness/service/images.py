@@ -10,8 +10,8 @@ import threading
 from collections import OrderedDict
 from pathlib import Path
 
-from portal_harness import display, exr
-from portal_harness.paths import ResultsLayout, RunLayout
+from portal_harness.core import display, exr
+from portal_harness.core.paths import ResultsLayout, RunLayout
 
 _KEY = re.compile(r"^[A-Za-z0-9_]{1,64}$")
 CACHE_ENTRIES = 64

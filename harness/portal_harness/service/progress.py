@@ -16,10 +16,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from portal_harness import store
-from portal_harness.index import ROLE_RUN
-from portal_harness.paths import ResultsLayout, RunLayout
-from portal_harness.renderer import parse_events
+from portal_harness.core.paths import ResultsLayout, RunLayout
+from portal_harness.execution import store
+from portal_harness.execution.index import ROLE_RUN
+from portal_harness.execution.renderer import parse_events
 from portal_harness.service import queue as q
 
 TAIL_BYTES = 8192

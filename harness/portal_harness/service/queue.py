@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from portal_harness import index
+from portal_harness.execution import index
 
 QUEUED = "queued"
 RUNNING = "running"

@@ -10,7 +10,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from portal_harness.errors import ConfigError
+from portal_harness.core.errors import ConfigError
 
 TOKEN_ENV = "PORTAL_HARNESS_TOKEN"
 

@@ -9,9 +9,9 @@ import secrets
 import sys
 from pathlib import Path
 
-from portal_harness.errors import ConfigError
-from portal_harness.paths import ResultsLayout
-from portal_harness.renderer import renderer_version
+from portal_harness.core.errors import ConfigError
+from portal_harness.core.paths import ResultsLayout
+from portal_harness.execution.renderer import renderer_version
 from portal_harness.service.security import TOKEN_ENV, is_loopback, read_token
 from portal_harness.service.settings import DEFAULT_MAX_BODY_BYTES, ServiceSettings
 

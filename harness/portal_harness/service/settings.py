@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from portal_harness.paths import ResultsLayout
+from portal_harness.core.paths import ResultsLayout
 
 DEFAULT_MAX_BODY_BYTES = 256 * 1024
 DEFAULT_PORT = 8750

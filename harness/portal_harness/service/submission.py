@@ -19,10 +19,11 @@ from typing import Any
 
 import yaml
 
-from portal_harness import contract
-from portal_harness.config import Experiment, load_experiment, point_overrides
-from portal_harness.errors import ConfigError, HarnessError
-from portal_harness.facets import SWEEPABLE_HARNESS_KEYS
+from portal_harness.core.errors import ConfigError, HarnessError
+from portal_harness.experiment import contract
+from portal_harness.experiment.facets import SWEEPABLE_HARNESS_KEYS
+from portal_harness.experiment.loader import load_experiment
+from portal_harness.experiment.model import Experiment, point_overrides
 from portal_harness.service.security import PathEscape, inside, resolve_in_roots
 
 SUBMITTED_NAME = "experiment.yaml"

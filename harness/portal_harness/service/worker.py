@@ -25,13 +25,15 @@ import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
-from portal_harness.config import Experiment, load_experiment
-from portal_harness.errors import HarnessError
-from portal_harness.paths import ResultsLayout
-from portal_harness.renderer import renderer_version
+from portal_harness.analysis.sweep import sweep
+from portal_harness.core.errors import HarnessError
+from portal_harness.core.paths import ResultsLayout
+from portal_harness.execution.batch import SweepOptions
+from portal_harness.execution.renderer import renderer_version
+from portal_harness.experiment.loader import load_experiment
+from portal_harness.experiment.model import Experiment
 from portal_harness.service import queue as q
 from portal_harness.service.submission import SubmissionError, check_files
-from portal_harness.sweep import SweepOptions, sweep
 
 LOG_NAME = "sweep.log"
 
@@ -115,7 +117,7 @@ def _figures(layout: ResultsLayout, experiment: Experiment) -> list[str]:
     a partial sweep may fail: the sweep's status stands)."""
     problems = []
     try:
-        from portal_harness.figures import make_all
+        from portal_harness.figures.make_all import make_all
 
         for path in make_all(experiment, layout):
             print(f"figure: {path}")

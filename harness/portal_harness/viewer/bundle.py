@@ -16,10 +16,10 @@ taints canvases drawn from file images, so every file is a script:
 
 The same files serve the report (report.py) and the HTTP service. Every
 fact comes from the module that owns it: the strategy images and their
-per-image relMSE are the inset figure's (figures.choose_image at
-figures.equal_time), the curves the error figure's (figures.run_curve,
-figures.mean_curve), the regions regions.py's with the sweep's region map,
-the exposure display.py's, the summary sweep.py's summary.json.
+per-image relMSE are the inset figure's (figures/data.py: choose_image at
+equal_time), the curves the error figure's (figures/data.py: run_curve,
+mean_curve), the regions regions.py's with the sweep's region map,
+the exposure display.py's, the summary analysis/sweep_summary.py's summary.json.
 """
 
 from __future__ import annotations
@@ -34,14 +34,18 @@ from typing import Any
 import numpy as np
 from matplotlib import colormaps
 
-from portal_harness import __version__, class_style, display, exr, figures, index
-from portal_harness.config import Experiment, Point
-from portal_harness.errors import CorruptExrError
-from portal_harness.index import ROLE_REGION_MAP
-from portal_harness.metrics import REL_EPSILON, Region
-from portal_harness.paths import ResultsLayout, RunLayout
-from portal_harness.region_figures import read_fractions, region_renders
-from portal_harness.regions import NamedRegion, regions_of
+from portal_harness import __version__
+from portal_harness.core import class_style, display, exr
+from portal_harness.core.errors import CorruptExrError
+from portal_harness.core.metrics import REL_EPSILON, Region
+from portal_harness.core.paths import ResultsLayout, RunLayout
+from portal_harness.core.regions import NamedRegion, regions_of
+from portal_harness.execution import index
+from portal_harness.execution.index import ROLE_REGION_MAP
+from portal_harness.experiment.model import Experiment, Point
+from portal_harness.figures import data as figure_data
+from portal_harness.figures import style as figure_style
+from portal_harness.figures.regions import read_fractions, region_renders
 from portal_harness.viewer import flip
 
 FORMAT = 1
@@ -110,7 +114,7 @@ class _Images:
 
 
 def _inset_entries(insets: tuple[Region, ...]) -> list[dict[str, Any]]:
-    colours = figures.INSET_COLOURS
+    colours = figure_style.INSET_COLOURS
     return [
         {
             "name": r.name,
@@ -126,7 +130,7 @@ def _inset_entries(insets: tuple[Region, ...]) -> list[dict[str, Any]]:
 
 def _point_images(
     experiment: Experiment,
-    data: figures.ExperimentData,
+    data: figure_data.ExperimentData,
     conn: sqlite3.Connection,
     point: Point,
     reference: exr.Snapshot,
@@ -148,18 +152,20 @@ def _point_images(
             "rel_mse": {},
         }
     ]
-    t_eq = figures.equal_time(experiment, conn, data, point)
+    t_eq = figure_data.equal_time(experiment, conn, data, point)
     for strategy in experiment.strategies:
         cell = data.runs.get((point.id, strategy))
         entry: dict[str, Any] = {
             "name": strategy,
-            "label": figures.strategy_label(strategy),
+            "label": figure_style.strategy_label(strategy),
             "status": (cell.status if cell is not None else None) or "missing",
             "image": None,
             "rel_mse": {},
             "run": cell.key if cell is not None else None,  # the service's /api/runs/{run}/...
         }
-        chosen = figures.choose_image(conn, cell, t_eq) if cell is not None and figures.cell_done(cell) else None
+        chosen = (
+            figure_data.choose_image(conn, cell, t_eq) if cell is not None and figure_data.cell_done(cell) else None
+        )
         if chosen is not None:
             try:
                 snapshot = exr.read_snapshot(chosen.image)
@@ -187,7 +193,7 @@ def _region_entries(regions: list[NamedRegion]) -> list[dict[str, Any]]:
         {
             "name": r.name,
             "kind": r.kind,
-            "title": figures.region_title(r.name),
+            "title": figure_style.region_title(r.name),
             "pixels": r.pixels,
             "mask": encode_mask(r.mask),
         }
@@ -196,7 +202,7 @@ def _region_entries(regions: list[NamedRegion]) -> list[dict[str, Any]]:
 
 
 def _point_curves(
-    experiment: Experiment, data: figures.ExperimentData, conn: sqlite3.Connection, point: Point, regions: list[str]
+    experiment: Experiment, data: figure_data.ExperimentData, conn: sqlite3.Connection, point: Point, regions: list[str]
 ) -> dict[str, Any]:
     """region -> {"floor", "strategies": strategy -> mean curve over replicates and its range}."""
     metric = experiment.curve_metric
@@ -205,11 +211,11 @@ def _point_curves(
         floor: float | None = None
         lines: dict[str, Any] = {}
         for strategy in experiment.strategies:
-            cells = [c for c in data.replicates.get((point.id, strategy), []) if figures.cell_done(c)]
-            curves = [c for c in (figures.run_curve(conn, cell, region, metric) for cell in cells) if c]
+            cells = [c for c in data.replicates.get((point.id, strategy), []) if figure_data.cell_done(c)]
+            curves = [c for c in (figure_data.run_curve(conn, cell, region, metric) for cell in cells) if c]
             if not curves:
                 continue
-            t, v, lo, hi = figures.mean_curve(curves)
+            t, v, lo, hi = figure_data.mean_curve(curves)
             lines[strategy] = {
                 "t": t.tolist(),
                 "v": v.tolist(),
@@ -233,7 +239,7 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
     """Writes the images into out/img/ and returns the bundle's data."""
     conn = index.connect(layout.index_path)
     try:
-        data = figures.load(experiment, conn, layout)
+        data = figure_data.load(experiment, conn, layout)
         maps = region_renders(conn, experiment)
         images = _Images(out)
         points: list[dict[str, Any]] = []
@@ -241,7 +247,7 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
         for point in data.points:
             entry: dict[str, Any] = {
                 "id": point.id,
-                "title": figures.point_title(experiment, point),
+                "title": figure_style.point_title(experiment, point),
                 "axis": None if math.isnan(point.axis_value) else point.axis_value,
                 "facets": [[k, v] for k, v in point.facets],
                 "images": [],
@@ -249,7 +255,7 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
             }
             points.append(entry)
             ref_cell = data.references.get(point.id)
-            if not figures.cell_done(ref_cell):
+            if not figure_data.cell_done(ref_cell):
                 entry["missing"] = "reference missing"
                 continue
             assert ref_cell is not None and ref_cell.run_dir is not None
@@ -258,7 +264,7 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
             except CorruptExrError as e:
                 entry["missing"] = f"reference unreadable: {e.reason}"
                 continue
-            t_eq = figures.equal_time(experiment, conn, data, point)
+            t_eq = figure_data.equal_time(experiment, conn, data, point)
             exposure = display.exposure_from_reference(reference.rgb)
             # The point's regions as regions.py makes them for the sweep's metrics.
             fractions = read_fractions(maps.get((point.id, ROLE_REGION_MAP)))
@@ -280,18 +286,18 @@ def build(layout: ResultsLayout, experiment: Experiment, out: Path) -> dict[str,
             "height": experiment.height,
             "axis_label": axis.label if axis is not None else None,
             "curve_metric": experiment.curve_metric,
-            "curve_metric_label": figures.METRIC_LABELS[experiment.curve_metric],
+            "curve_metric_label": figure_style.METRIC_LABELS[experiment.curve_metric],
             "strategies": [
                 {
                     "name": s,
-                    "label": figures.strategy_label(s),
-                    "colour": figures.strategy_colour(s, experiment.strategies),
+                    "label": figure_style.strategy_label(s),
+                    "colour": figure_style.strategy_colour(s, experiment.strategies),
                 }
                 for s in experiment.strategies
             ],
             "facet_keys": list(experiment.facets),
             # Without an axis, the efficiency figure colours each facet combination.
-            "facet_colours": list(figures.FACET_COLOURS),
+            "facet_colours": list(figure_style.FACET_COLOURS),
             "insets": _inset_entries(experiment.insets),
             "class_colours": {c: class_style.class_colour(c, exr.REGION_CLASSES) for c in exr.REGION_CLASSES},
             "luminance_weights": display.luminance(np.eye(3)).tolist(),

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import flip_evaluator
 import numpy as np
 
-from portal_harness import display
-from portal_harness.regions import NamedRegion
+from portal_harness.core import display
+from portal_harness.core.regions import NamedRegion
 
 DYNAMIC_RANGE = "LDR"
 # Pixels per degree of visual angle: FLIP's default viewing conditions

@@ -22,9 +22,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from portal_harness import __version__
-from portal_harness.config import Experiment
-from portal_harness.errors import ConfigError
-from portal_harness.paths import ResultsLayout
+from portal_harness.core.errors import ConfigError
+from portal_harness.core.paths import ResultsLayout
+from portal_harness.experiment.model import Experiment
 from portal_harness.viewer.bundle import write_bundle
 
 STATIC = Path(__file__).resolve().parent / "static"

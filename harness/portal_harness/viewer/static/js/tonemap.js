@@ -1,5 +1,5 @@
 // Tone mapping and the relative-error map of the viewer: the browser's
-// copy of portal_harness.display.to_srgb8, which the browser tests pin
+// copy of portal_harness.core.display.to_srgb8, which the browser tests pin
 // pixel for pixel against the Python function.
 "use strict";
 window.Portal = window.Portal || {};
