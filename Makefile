@@ -176,7 +176,10 @@ $(VENV_STAMP): harness/pyproject.toml
 	$(VENV)/bin/pip install -q --upgrade pip
 	$(VENV)/bin/pip install -q -e harness[test]
 	@touch $@
+# The commit-msg hook (.githooks/commit-msg: a subject of at most 72
+# characters and a body) is on in every clone that makes the venv.
 venv: $(VENV_STAMP)
+	@if git rev-parse --git-dir >/dev/null 2>&1; then git config core.hooksPath .githooks; fi
 
 # A real browser for the page tests of the service and the viewer
 # (tests/harness/browser.py): Debian's
@@ -195,14 +198,14 @@ browser: $(CHROMIUM_STAMP)
 
 test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
-	  $(VENV)/bin/python -m pytest -q tests/harness; fi
+	  $(VENV)/bin/python -m pytest -q tests/harness tests/bench tests/tools tests/docs; fi
 
 # Linters of every Python file of the project: the harness, its tests, the tools
 # and the benchmark scripts (configured in harness/pyproject.toml). ruff and
 # mypy --strict cover the same files; mitsuba is not installed in this venv
 # (tools/crosscheck runs in .venv-xcheck), so mypy takes its imports as missing.
 # A Python file that git tracks outside these folders fails the target.
-PY_LINT := harness tests/harness tests/crosscheck tools/closed_form tools/crosscheck tools/little_lamp tools/sobol renderer/bench tests/configs/meshes \
+PY_LINT := harness tests/harness tests/support tests/bench tests/tools tests/docs tests/crosscheck tools/closed_form tools/crosscheck tools/little_lamp tools/sobol renderer/bench tests/configs/meshes \
            tools/service_load
 PY_MYPY := harness/portal_harness $(filter-out harness,$(PY_LINT))
 SPACE := $(eval) $(eval)
