@@ -57,6 +57,11 @@ struct light_desc {
     struct rgb radiance;
     bool two_sided;
     struct source_loc loc;
+    /* `portals: auto`, or a `{light: <name>, auto: true}` entry: the scene
+       finds this light's portals (scene/portal_finder.h); auto_loc is where
+       it was asked for. Never together with hand-written portals. */
+    bool auto_portals;
+    struct source_loc auto_loc;
 };
 
 /* An opening through which every path of its light leaves (not geometry). */
@@ -129,6 +134,7 @@ struct config {
     struct light_desc *lights;
     int n_portals;
     struct portal_desc *portals;
+    bool portals_auto; /* `portals: auto`: every light's auto_portals */
     struct render_desc render;
     /* Canonical YAML of the effective configuration (params substituted,
        overrides applied, defaults filled); loads back to the same config. */

@@ -234,7 +234,19 @@ static void emit_lights_portals(struct text *t, const struct config *c, const st
         emit_rgb(t, l->radiance);
         text_printf(t, "\n    two_sided: %s\n", l->two_sided ? "true" : "false");
     }
-    text_printf(t, "portals:%s\n", c->n_portals ? "" : " []");
+    int n_auto = 0;
+    for (int i = 0; i < c->n_lights; ++i) n_auto += c->lights[i].auto_portals;
+    if (c->portals_auto) {
+        text_printf(t, "portals: auto\n");
+        return;
+    }
+    text_printf(t, "portals:%s\n", c->n_portals + n_auto ? "" : " []");
+    for (int i = 0; i < c->n_lights; ++i)
+        if (c->lights[i].auto_portals) {
+            text_printf(t, "  - light: ");
+            emit_string(t, c->lights[i].name);
+            text_printf(t, "\n    auto: true\n");
+        }
     for (int i = 0; i < c->n_portals; ++i) {
         const struct portal_desc *p = &c->portals[i];
         text_printf(t, "  - name: ");

@@ -34,7 +34,8 @@ static const char *const digest_keys[] = { "fnv1a64", "bytes" };
 static const char *const light_keys[] = { "name", "vertices", "radiance", "two_sided", "transform" };
 static const char *const mesh_light_keys[] = { "name", "mesh", "radiance", "two_sided" };
 static const char *const light_mesh_keys[] = { "file", "transform", "digest" };
-static const char *const portal_keys[] = { "name", "light", "vertices", "transform" };
+static const char *const portal_keys[] = { "name", "light", "vertices", "transform", "auto" };
+static const char *const auto_portal_keys[] = { "light", "auto" };
 
 #define PARALLEL_TOL 1e-9 /* |sin| of the angle between up and the view direction */
 
@@ -610,50 +611,125 @@ static bool check_portal_placement(struct loader *L, const yaml_node_t *n, const
     return true;
 }
 
-static bool load_portal(struct loader *L, const yaml_node_t *map, int index, struct config *c)
+/* The light a portal entry names, into *light. */
+static bool get_portal_light(struct loader *L, const yaml_node_t *n, const char *what, const struct config *c,
+                             int *light)
 {
-    struct portal_desc *p = &c->portals[index];
-    char where[CONFIG_NAME_MAX + 16], light[CONFIG_NAME_MAX];
+    char name[CONFIG_NAME_MAX];
+    if (!config_get_string(L, n, name, sizeof name)) return false;
+    *light = -1;
+    for (int i = 0; i < c->n_lights; ++i)
+        if (strcmp(c->lights[i].name, name) == 0) *light = i;
+    if (*light >= 0) return true;
+    struct config_line list = { "", 0 };
+    for (int i = 0; i < c->n_lights; ++i) config_line_add(&list, c->lights[i].name);
+    return config_fail(L, n, "%s refers to unknown light \"%s\" (expected one of: %s)", what, name, list.s);
+}
+
+/* An entry {light: <name>, auto: true}: that light's portals are found
+   from the geometry at scene build. */
+static bool load_auto_portal(struct loader *L, const yaml_node_t *map, int index, struct config *c)
+{
+    yaml_node_t *n = config_map_get(L, map, "auto");
+    bool on = false;
+    char where[48];
+    snprintf(where, sizeof where, "portal %d (auto)", index);
+    if (!config_get_bool(L, n, &on)) return false;
+    if (!on)
+        return config_fail(L, n,
+                           "portal %d has auto: false (expected auto: true, or a hand-written portal with "
+                           "vertices and no auto key)",
+                           index);
+    if (config_map_get(L, map, "vertices") || config_map_get(L, map, "name") || config_map_get(L, map, "transform"))
+        if (!config_check_keys(L, map, "an auto portal entry {light: <name>, auto: true}", auto_portal_keys,
+                               COUNT(auto_portal_keys)))
+            return false;
+    int light;
+    if (!(n = config_need(L, map, "light", where)) || !get_portal_light(L, n, "auto portal entry", c, &light))
+        return false;
+    struct light_desc *l = &c->lights[light];
+    for (int i = 0; i < c->n_portals; ++i)
+        if (c->portals[i].light == light)
+            return config_fail(L, map,
+                               "light \"%s\" has auto portals and the hand-written portal \"%s\" (at line %d, "
+                               "column %d) (expected either {light: %s, auto: true} or hand-written portals)",
+                               l->name, c->portals[i].name, c->portals[i].loc.line, c->portals[i].loc.column, l->name);
+    if (l->auto_portals)
+        return config_fail(L, map, "light \"%s\" has auto portals twice (first at line %d, column %d)", l->name,
+                           l->auto_loc.line, l->auto_loc.column);
+    l->auto_portals = true;
+    l->auto_loc = config_loc_of(L, map);
+    return true;
+}
+
+static bool load_portal(struct loader *L, const yaml_node_t *map, struct portal_desc *p, int index, struct config *c)
+{
+    char where[CONFIG_NAME_MAX + 16];
     yaml_node_t *n, *verts;
     p->loc = config_loc_of(L, map);
     snprintf(where, sizeof where, "portal %d", index);
-    if (!config_expect_type(L, map, YAML_MAPPING_NODE, "a mapping") ||
-        !config_check_keys(L, map, where, portal_keys, COUNT(portal_keys)))
-        return false;
     snprintf(p->name, sizeof p->name, "portal%d", index);
     if ((n = config_map_get(L, map, "name")) && !config_get_string(L, n, p->name, sizeof p->name)) return false;
-    for (int i = 0; i < index; ++i)
-        if (strcmp(c->portals[i].name, p->name) == 0)
+    for (const struct portal_desc *q = c->portals; q < p; ++q)
+        if (strcmp(q->name, p->name) == 0)
             return config_fail(L, n ? n : map, "duplicate portal name \"%s\" (first at line %d, column %d)", p->name,
-                               c->portals[i].loc.line, c->portals[i].loc.column);
+                               q->loc.line, q->loc.column);
     snprintf(where, sizeof where, "portal \"%s\"", p->name);
-    if (!(n = config_need(L, map, "light", where)) || !config_get_string(L, n, light, sizeof light)) return false;
-    p->light = -1;
-    for (int i = 0; i < c->n_lights; ++i)
-        if (strcmp(c->lights[i].name, light) == 0) p->light = i;
-    if (p->light < 0) {
-        struct config_line list = { "", 0 };
-        for (int i = 0; i < c->n_lights; ++i) config_line_add(&list, c->lights[i].name);
-        return config_fail(L, n, "portal \"%s\" refers to unknown light \"%s\" (expected one of: %s)", p->name, light,
-                           list.s);
-    }
+    char what[CONFIG_NAME_MAX + 16];
+    snprintf(what, sizeof what, "portal \"%s\"", p->name);
+    if (!(n = config_need(L, map, "light", where)) || !get_portal_light(L, n, what, c, &p->light)) return false;
     if (!(verts = config_need(L, map, "vertices", where)) ||
         !get_polygon(L, map, verts, where, 3, POLYGON_INPUT_MAX, &p->polygon))
         return false;
     return check_portal_placement(L, verts, p, &c->lights[p->light]);
 }
 
+/* `portals:` is a list of hand-written portals and {light: <name>, auto:
+   true} entries, or the word `auto` for every light. */
 static bool load_portals(struct loader *L, const yaml_node_t *root, struct config *c)
 {
-    yaml_node_t *seq;
-    if (!config_get_optional(L, root, "portals", YAML_SEQUENCE_NODE, &seq)) return false;
+    yaml_node_t *seq = config_map_get(L, root, "portals");
+    if (seq && config_is_null(seq)) seq = NULL;
+    if (seq && seq->type == YAML_SCALAR_NODE && strcmp(config_text(seq), "auto") == 0) {
+        c->portals_auto = true;
+        for (int i = 0; i < c->n_lights; ++i) {
+            c->lights[i].auto_portals = true;
+            c->lights[i].auto_loc = config_loc_of(L, seq);
+        }
+        return true;
+    }
+    if (seq && seq->type != YAML_SEQUENCE_NODE) {
+        char buf[64];
+        return config_fail(L, seq,
+                           "expected `auto` or a sequence of portals (hand-written {name, light, vertices} or "
+                           "{light: <name>, auto: true}), got %s",
+                           config_describe_node(seq, buf, sizeof buf));
+    }
     int n = seq ? config_seq_count(seq) : 0;
     if (n == 0) return true;
     c->portals = calloc((size_t)n, sizeof *c->portals);
     if (!c->portals) return error_set(L->err, "%s: out of memory", L->file);
-    c->n_portals = n;
-    for (int i = 0; i < n; ++i)
-        if (!load_portal(L, config_seq_item(L, seq, i), i, c)) return false;
+    for (int i = 0; i < n; ++i) {
+        yaml_node_t *map = config_seq_item(L, seq, i);
+        char where[32];
+        snprintf(where, sizeof where, "portal %d", i);
+        if (!config_expect_type(L, map, YAML_MAPPING_NODE, "a mapping") ||
+            !config_check_keys(L, map, where, portal_keys, COUNT(portal_keys)))
+            return false;
+        if (config_map_get(L, map, "auto")) {
+            if (!load_auto_portal(L, map, i, c)) return false;
+            continue;
+        }
+        struct portal_desc *p = &c->portals[c->n_portals];
+        if (!load_portal(L, map, p, i, c)) return false;
+        const struct light_desc *l = &c->lights[p->light];
+        if (l->auto_portals)
+            return config_fail(L, map,
+                               "portal \"%s\" is hand-written for light \"%s\", which has auto portals (at line %d, "
+                               "column %d) (expected either {light: %s, auto: true} or hand-written portals)",
+                               p->name, l->name, l->auto_loc.line, l->auto_loc.column, l->name);
+        ++c->n_portals;
+    }
     return true;
 }
 

@@ -32,6 +32,14 @@ static struct aabb shade_box(const struct scene *sc, const struct emitter *e)
     double grow = vec3_length(vec3_sub(b.hi, b.lo));
     b.lo = vec3_sub(b.lo, vec3_make(grow, grow, grow));
     b.hi = vec3_add(b.hi, vec3_make(grow, grow, grow));
+    /* Auto portals lie on a convex hull P around the light (portal_finder.h)
+       and every point inside P must count as inside: a shade's inner face
+       sees the light directly, not through a portal. */
+    const struct auto_portal_report *ap = sc->auto_portals ? &sc->auto_portals[first->emitter] : NULL;
+    if (ap && ap->enclosed) {
+        b.lo = vec3_make(fmin(b.lo.x, ap->box_lo.x), fmin(b.lo.y, ap->box_lo.y), fmin(b.lo.z, ap->box_lo.z));
+        b.hi = vec3_make(fmax(b.hi.x, ap->box_hi.x), fmax(b.hi.y, ap->box_hi.y), fmax(b.hi.z, ap->box_hi.z));
+    }
     return b;
 }
 

@@ -10,6 +10,7 @@
 #include "base/fastmath.h"
 #include "scene/light_hit.h"
 #include "geometry/watertight.h"
+#include "scene/portal_finder.h"
 
 /* Embree reports device errors through a callback; the first one is kept in
    the struct error the callback points at, so it reaches the caller. */
@@ -286,7 +287,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     if (!stitched) goto fail;
     for (int i = 0, face0 = 0; i < cfg->n_shapes; ++i) {
         const struct shape_desc *sh = &cfg->shapes[i];
-        struct geometry_info info = { sh->material, -1, false };
+        struct geometry_info info = { sh->material, -1, false, i };
         for (int v = 0; v < sh->n_vertices; ++v) bounds_add(&lo, &hi, sh->vertices[v]);
         if (!add_shape(s, sh, &w, face0, info, err)) {
             watertight_free(&w);
@@ -302,7 +303,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
         const struct shape_desc *mesh = &cfg->lights[i].mesh;
         if (mesh->n_triangles > 0) {
             /* One geometry for the whole mesh: its primitive k is light k. */
-            struct geometry_info info = { -1, e->first_light, true };
+            struct geometry_info info = { -1, e->first_light, true, -1 };
             for (int v = 0; v < mesh->n_vertices; ++v) bounds_add(&lo, &hi, mesh->vertices[v]);
             if (!add_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, info, err))
                 goto fail;
@@ -319,7 +320,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
             continue;
         }
         const struct polygon *poly = &s->lights[e->first_light].target.polygon;
-        struct geometry_info info = { -1, e->first_light, false };
+        struct geometry_info info = { -1, e->first_light, false, -1 };
         int fan[3 * (POLYGON_MAX - 2)];
         for (int k = 0; k + 2 < poly->n; ++k) fan[3 * k] = 0, fan[3 * k + 1] = k + 1, fan[3 * k + 2] = k + 2;
         for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
@@ -339,6 +340,10 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
         goto fail;
     }
     rtcSetDeviceErrorFunction(s->device, NULL, NULL);
+    if (!portal_finder_run(s, cfg, err)) {
+        scene_destroy(s);
+        return false;
+    }
     return true;
 oom:
     error_set(err, "out of memory building the scene");
@@ -361,6 +366,8 @@ void scene_destroy(struct scene *s)
     free(s->emitters);
     free(s->portals);
     free(s->geometries);
+    for (int i = 0; s->auto_portals && i < s->n_emitters; ++i) free(s->auto_portals[i].planes);
+    free(s->auto_portals);
     memset(s, 0, sizeof *s);
 }
 
@@ -439,6 +446,60 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
     struct RTCRayHit rh;
     if (!trace_closest(s->rtc_scene, o, d, tmax, &rh)) return false;
     hit_from_embree(s, o, d, &rh, h);
+    return true;
+}
+
+bool scene_intersect_geometry(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h,
+                              int *geometry)
+{
+    struct RTCRayHit rh;
+    if (!trace_closest(s->rtc_scene, o, d, tmax, &rh)) return false;
+    hit_from_embree(s, o, d, &rh, h);
+    *geometry = (int)rh.hit.geomID;
+    return true;
+}
+
+bool scene_add_portals(struct scene *s, int emitter, const struct polygon *portals, int n, struct error *err)
+{
+    const struct emitter *e = &s->emitters[emitter];
+    size_t total = (size_t)s->n_portals + (size_t)n * (size_t)e->n_lights;
+    if (n == 0) return true;
+    if (total > INT_MAX / 2) return error_set(err, "too many light/portal pairs (%zu)", total);
+    struct portal *all = calloc(total, sizeof *all);
+    int *first = malloc(sizeof *first * (size_t)s->n_lights);
+    if (!all || !first) {
+        free(all);
+        free(first);
+        return error_set(err, "out of memory for %zu portals", total);
+    }
+    int k = 0;
+    for (int i = 0; i < s->n_lights; ++i) {
+        struct light *l = &s->lights[i];
+        first[i] = k;
+        for (int j = 0; j < l->n_portals; ++j) all[k++] = s->portals[l->first_portal + j];
+        if (l->emitter != emitter) continue;
+        for (int j = 0; j < n; ++j, ++k) {
+            struct portal *pt = &all[k];
+            struct error aerr;
+            pt->light = i;
+            bool ok = target_init(&pt->target, &portals[j]) || error_set(&aerr, "portal %d is degenerate", j);
+            pt->centroid = polygon_centroid(&portals[j]);
+            ok = ok && antishadow_build(&l->target.polygon, &portals[j], &pt->antishadow, &aerr);
+            if (!ok) {
+                free(all);
+                free(first);
+                return error_set(err, "found portal %d with light %d: %s", j, i - e->first_light, aerr.message);
+            }
+        }
+    }
+    for (int i = 0; i < s->n_lights; ++i) {
+        if (s->lights[i].emitter == emitter) s->lights[i].n_portals = n;
+        s->lights[i].first_portal = first[i];
+    }
+    free(first);
+    free(s->portals);
+    s->portals = all;
+    s->n_portals = k;
     return true;
 }
 

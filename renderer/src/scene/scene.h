@@ -43,6 +43,7 @@ struct geometry_info {
     int material;        /* -1 for lights */
     int light;           /* -1 for surfaces; the first light of a mesh light */
     bool light_per_prim; /* a mesh light: primitive k is light `light + k` */
+    int shape;           /* index into config.shapes, -1 for lights */
 };
 
 /* The light a hit on primitive prim of geometry g found, -1 for a surface. */
@@ -50,6 +51,22 @@ static inline int geometry_light(const struct geometry_info *g, unsigned prim)
 {
     return g->light < 0 ? -1 : g->light + (g->light_per_prim ? (int)prim : 0);
 }
+
+/* What `portals: auto` found for one config light (portal_finder.h): the
+   enclosure P, a convex hull strictly around the light, and its portals,
+   which are the emitter's portals in the scene. */
+struct auto_portal_report {
+    bool requested; /* the config asked for auto portals */
+    bool enclosed;  /* P was found and its portals added */
+    int n_portals;
+    double area;                /* of the portals, m^2 */
+    double hull_area;           /* of P's boundary */
+    int n_planes;               /* P's facets' planes, outward normals */
+    struct plane *planes;       /* owned */
+    struct vec3 box_lo, box_hi; /* P's bounding box */
+    bool warn;                  /* note is a warning (a stated fallback), not just information */
+    char note[640];             /* what was decided and why, one line */
+};
 
 struct scene {
     int n_materials;
@@ -72,6 +89,9 @@ struct scene {
     /* The same lights as planes (light_hit.h), which scene_first_light
        tests instead when they are a few polygons; NULL otherwise. */
     struct light_hit_set *light_hits;
+    /* Per emitter, what `portals: auto` found (requested false for lights
+       without it). */
+    struct auto_portal_report *auto_portals;
 };
 
 struct hit {
@@ -92,6 +112,17 @@ bool scene_collect_faces(const struct config *cfg, struct watertight_face **out,
 /* Builds Embree geometry for every shape and light; precomputes portals. */
 bool scene_create(const struct config *cfg, struct scene *out, struct error *err);
 void scene_destroy(struct scene *s);
+
+/* Adds n portals (3..POLYGON_INPUT_MAX vertices, convex, planar) to every
+   light of emitter `emitter`, which must have none yet, with their
+   antishadows. On failure (a portal the antishadow rejects, memory) the
+   scene is unchanged and err says why. */
+bool scene_add_portals(struct scene *s, int emitter, const struct polygon *portals, int n, struct error *err);
+
+/* scene_intersect that also gives the index (into s->geometries) of the
+   geometry hit, for the portal finder. */
+bool scene_intersect_geometry(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h,
+                              int *geometry);
 
 /* Closest hit along o + t d, t in (0, tmax) (d unit). False on a miss. */
 bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h);

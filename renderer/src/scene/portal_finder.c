@@ -1,0 +1,623 @@
+#include "scene/portal_finder.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/rng.h"
+#include "config/config.h"
+#include "geometry/convex_hull.h"
+#include "geometry/polygon_subtract.h"
+
+/* The seed of the finder's rays (a constant: the portals must not depend
+   on render.seed, which a resumed or repeated run may change). */
+#define FINDER_SEED 0x706f7274616c73ull
+/* Light vertices must lie this far inside every facet of P, relative to
+   P's size: well beyond the antishadow's own side test (1e-9). */
+#define INSIDE_REL 1e-7
+/* A triangle covers a facet when its vertices are within this distance of
+   the facet's plane, relative to P's size. */
+#define COVER_REL 1e-8
+/* Pieces of a facet smaller than this (relative to P's size squared) are
+   rounding debris of the subtraction, not openings. */
+#define DEBRIS_REL 1e-12
+/* Pieces per facet beyond which the greedy merge is skipped. */
+#define MERGE_MAX 256
+
+bool emission_sampler_init(struct emission_sampler *es, const struct scene *s, int emitter, struct error *err)
+{
+    const struct emitter *e = &s->emitters[emitter];
+    es->scene = s;
+    es->emitter = emitter;
+    es->cdf = malloc(sizeof *es->cdf * (size_t)e->n_lights);
+    if (!es->cdf) return error_set(err, "out of memory for the emission sampler");
+    double sum = 0.0;
+    for (int i = 0; i < e->n_lights; ++i) es->cdf[i] = sum += s->lights[e->first_light + i].target.area;
+    for (int i = 0; i < e->n_lights; ++i) es->cdf[i] /= sum;
+    return true;
+}
+
+void emission_sampler_free(struct emission_sampler *es)
+{
+    free(es->cdf);
+    es->cdf = NULL;
+}
+
+void emission_sample(const struct emission_sampler *es, const double u[EMISSION_UNIFORMS], struct vec3 *p,
+                     struct vec3 *n, struct vec3 *d)
+{
+    const struct scene *s = es->scene;
+    const struct emitter *e = &s->emitters[es->emitter];
+    int lo = 0, hi = e->n_lights - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (es->cdf[mid] > u[0]) hi = mid;
+        else lo = mid + 1;
+    }
+    const struct light *l = &s->lights[e->first_light + lo];
+    const struct polygon *poly = &l->target.polygon;
+    /* A triangle of the fan by area, then a uniform point in it. */
+    double r = u[1] * l->target.area, acc = 0.0;
+    int k = 1;
+    for (; k + 2 < poly->n; ++k) {
+        acc += 0.5 * vec3_length(vec3_cross(vec3_sub(poly->v[k], poly->v[0]), vec3_sub(poly->v[k + 1], poly->v[0])));
+        if (r < acc) break;
+    }
+    double su = sqrt(u[2]);
+    double b0 = 1.0 - su, b1 = su * (1.0 - u[3]), b2 = su * u[3];
+    *p = vec3_add(vec3_add(vec3_scale(poly->v[0], b0), vec3_scale(poly->v[k], b1)), vec3_scale(poly->v[k + 1], b2));
+    struct vec3 normal = l->target.normal;
+    if (l->two_sided && u[6] < 0.5) normal = vec3_neg(normal);
+    /* Cosine-weighted (Malley): a uniform point of the unit disc lifted
+       onto the hemisphere. */
+    double radius = sqrt(u[4]), phi = 2.0 * M_PI * u[5];
+    double x = radius * cos(phi), y = radius * sin(phi), z = sqrt(fmax(0.0, 1.0 - u[4]));
+    struct frame f = frame_from_normal(normal);
+    *n = normal;
+    *d = vec3_normalize(frame_to_world(&f, vec3_make(x, y, z)));
+}
+
+/* The distance along d from p (inside P) to P's boundary. */
+static double exit_distance(const struct plane *planes, int n, struct vec3 p, struct vec3 d)
+{
+    double t = INFINITY;
+    for (int i = 0; i < n; ++i) {
+        double c = vec3_dot(planes[i].normal, d);
+        if (c > 0.0) t = fmin(t, fmax(0.0, -plane_distance(&planes[i], p)) / c);
+    }
+    return t;
+}
+
+static void draw_uniforms(struct rng *r, double u[EMISSION_UNIFORMS])
+{
+    for (int k = 0; k < EMISSION_UNIFORMS; ++k) u[k] = rng_uniform(r);
+}
+
+bool portal_finder_coverage(const struct scene *s, int emitter, const struct plane *planes, int n_planes,
+                            const struct polygon *portals, int n_portals, long n_rays, uint64_t seed,
+                            struct portal_coverage *out, struct error *err)
+{
+    memset(out, 0, sizeof *out);
+    struct emission_sampler es;
+    if (!emission_sampler_init(&es, s, emitter, err)) return false;
+    struct rng r = rng_seeded(seed, (uint64_t)emitter, 0);
+    for (long i = 0; i < n_rays; ++i) {
+        double u[EMISSION_UNIFORMS];
+        struct vec3 p, n, d;
+        draw_uniforms(&r, u);
+        emission_sample(&es, u, &p, &n, &d);
+        /* A grazing ray's offset origin can land beyond a wall close to
+           the light (the step grows as 1 / cos): such a ray tests the
+           offset, not the portals, and is not counted. */
+        double step = scene_offset_step(s, p, n, d), t_exit = exit_distance(planes, n_planes, p, d) - step;
+        struct vec3 o = vec3_madd(p, d, step);
+        if (!isfinite(t_exit) || !(t_exit > 0.0)) continue;
+        bool on_portal = false;
+        for (int k = 0; k < n_portals && !on_portal; ++k) {
+            double t;
+            on_portal = polygon_intersect_ray(&portals[k], o, d, &t);
+        }
+        struct hit h;
+        /* Blocked: a surface before P's boundary, or on it (a covering
+           surface lies in P's facet): the test reaches slightly beyond. */
+        double reach = t_exit + scene_offset_height(s, vec3_madd(o, d, t_exit));
+        bool blocked = scene_intersect(s, o, d, reach, &h);
+        ++out->n_rays;
+        out->n_portal += on_portal;
+        if (!blocked) {
+            ++out->n_escaped;
+            out->n_through += on_portal;
+            out->n_missed += !on_portal;
+        }
+    }
+    emission_sampler_free(&es);
+    out->blocked_fraction = out->n_portal > 0 ? 1.0 - (double)out->n_through / (double)out->n_portal : 0.0;
+    out->bound = out->n_escaped > 0 ? 3.0 / (double)out->n_escaped : INFINITY;
+    return true;
+}
+
+int portal_finder_portals(const struct scene *s, int emitter, const struct polygon **out, int max)
+{
+    const struct light *l = &s->lights[s->emitters[emitter].first_light];
+    int n = 0;
+    for (int k = 0; k < l->n_portals && n < max; ++k) out[n++] = &s->portals[l->first_portal + k].target.polygon;
+    return n;
+}
+
+/* A growing array of polygons. */
+struct polys {
+    int n, cap;
+    struct polygon *p;
+};
+
+static bool polys_push(struct polys *ps, const struct polygon *p)
+{
+    if (ps->n == ps->cap) {
+        int cap = ps->cap ? 2 * ps->cap : 16;
+        struct polygon *q = realloc(ps->p, sizeof *q * (size_t)cap);
+        if (!q) return false;
+        ps->p = q;
+        ps->cap = cap;
+    }
+    polygon_copy(&ps->p[ps->n++], p);
+    return true;
+}
+
+/* The finder's state for one light. */
+struct finder {
+    struct scene *s;
+    const struct config *cfg;
+    int emitter;
+    struct auto_portal_report *rep;
+    struct vec3 *light_pts; /* every vertex of the emitter's lights */
+    int n_light_pts;
+};
+
+struct candidate {
+    int shape;
+    double t_min;
+};
+
+static int compare_candidates(const void *a, const void *b)
+{
+    const struct candidate *p = a, *q = b;
+    if (p->t_min != q->t_min) return p->t_min < q->t_min ? -1 : 1;
+    return p->shape - q->shape;
+}
+
+/* The shapes the light's rays meet first, nearest first, without the
+   room-sized ones. Returns the count (into *out, owned), -1 on memory. */
+static int find_candidates(const struct finder *f, struct candidate **out)
+{
+    const struct scene *s = f->s;
+    const struct config *cfg = f->cfg;
+    double *t_min = malloc(sizeof *t_min * (size_t)(cfg->n_shapes > 0 ? cfg->n_shapes : 1));
+    struct emission_sampler es;
+    struct error err;
+    if (!t_min || !emission_sampler_init(&es, s, f->emitter, &err)) {
+        free(t_min);
+        return -1;
+    }
+    for (int i = 0; i < cfg->n_shapes; ++i) t_min[i] = INFINITY;
+    struct rng r = rng_seeded(FINDER_SEED, (uint64_t)f->emitter, 1);
+    for (int i = 0; i < PORTAL_FINDER_RAYS; ++i) {
+        double u[EMISSION_UNIFORMS];
+        struct vec3 p, n, d;
+        draw_uniforms(&r, u);
+        emission_sample(&es, u, &p, &n, &d);
+        struct hit h;
+        int g;
+        if (!scene_intersect_geometry(s, scene_offset_origin(s, p, n, d), d, INFINITY, &h, &g)) continue;
+        int shape = s->geometries[g].shape;
+        if (shape >= 0) t_min[shape] = fmin(t_min[shape], h.t);
+    }
+    emission_sampler_free(&es);
+    struct candidate *c = malloc(sizeof *c * (size_t)(cfg->n_shapes > 0 ? cfg->n_shapes : 1));
+    int n = 0;
+    for (int i = 0; c && i < cfg->n_shapes; ++i) {
+        if (!isfinite(t_min[i])) continue;
+        const struct shape_desc *sh = &cfg->shapes[i];
+        struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
+        for (int v = 0; v < sh->n_vertices; ++v) {
+            struct vec3 x = sh->vertices[v];
+            lo = vec3_make(fmin(lo.x, x.x), fmin(lo.y, x.y), fmin(lo.z, x.z));
+            hi = vec3_make(fmax(hi.x, x.x), fmax(hi.y, x.y), fmax(hi.z, x.z));
+        }
+        if (vec3_length(vec3_sub(hi, lo)) > PORTAL_FINDER_MAX_SHAPE_FRACTION * s->scale) continue;
+        c[n++] = (struct candidate){ i, t_min[i] };
+    }
+    free(t_min);
+    if (!c) return -1;
+    qsort(c, (size_t)n, sizeof *c, compare_candidates);
+    *out = c;
+    return n;
+}
+
+/* How the light sits in the hull: the largest plane distance of a light
+   vertex over the facets (negative: strictly inside by that much), and
+   whether some vertex lies inside or on it. */
+static double light_depth(const struct finder *f, const struct convex_hull *h, bool *some_inside)
+{
+    double worst = -INFINITY;
+    *some_inside = false;
+    for (int i = 0; i < f->n_light_pts; ++i) {
+        double d = -INFINITY;
+        for (int k = 0; k < h->n_facets; ++k) d = fmax(d, plane_distance(&h->facets[k].plane, f->light_pts[i]));
+        worst = fmax(worst, d);
+        if (d <= INSIDE_REL * h->size) *some_inside = true;
+    }
+    return worst;
+}
+
+/* The hull of the first k candidates' vertices, into points (room for
+   all of them). */
+static bool hull_of(const struct finder *f, const struct candidate *c, int k, struct vec3 *points, int *n_points,
+                    struct convex_hull *h, struct error *err)
+{
+    int n = 0;
+    for (int i = 0; i < k; ++i) {
+        const struct shape_desc *sh = &f->cfg->shapes[c[i].shape];
+        memcpy(points + n, sh->vertices, sizeof *points * (size_t)sh->n_vertices);
+        n += sh->n_vertices;
+    }
+    *n_points = n;
+    return convex_hull_build(points, n, h, err);
+}
+
+/* One facet's uncovered part: its chunks minus every covering triangle. */
+static bool uncovered_part(const struct convex_hull *h, const struct vec3 *points, int fi, const struct vec3 (*tris)[3],
+                           int n_tris, struct polys *out)
+{
+    const struct hull_facet *hf = &h->facets[fi];
+    struct plane pl = hf->plane;
+    double cover = COVER_REL * h->size, debris = DEBRIS_REL * h->size * h->size;
+    struct polys cur = { 0, 0, NULL }, next = { 0, 0, NULL };
+    bool ok = true;
+    /* Chunks of at most POLYGON_INPUT_MAX corners: a fan of the facet. */
+    for (int a = 1; ok && a + 1 < hf->n; a += POLYGON_INPUT_MAX - 2) {
+        struct polygon chunk;
+        chunk.n = 0;
+        chunk.v[chunk.n++] = points[h->index[hf->first]];
+        for (int b = a; b < hf->n && chunk.n < POLYGON_INPUT_MAX; ++b)
+            chunk.v[chunk.n++] = points[h->index[hf->first + b]];
+        if (chunk.n >= 3) ok = polys_push(&cur, &chunk);
+        if (a + POLYGON_INPUT_MAX - 2 >= hf->n - 1) break;
+    }
+    for (int t = 0; ok && t < n_tris && cur.n > 0; ++t) {
+        const struct vec3 *tri = tris[t];
+        bool in_plane = true;
+        for (int v = 0; v < 3 && in_plane; ++v) in_plane = fabs(plane_distance(&pl, tri[v])) <= cover;
+        if (!in_plane) continue;
+        next.n = 0;
+        for (int k = 0; ok && k < cur.n; ++k) {
+            struct polygon pieces[3];
+            if (cur.p[k].n > POLYGON_MAX - 3) {
+                ok = polys_push(&next, &cur.p[k]);
+                continue;
+            }
+            int m = polygon_subtract_triangle(&cur.p[k], pl.normal, tri, debris, pieces);
+            for (int j = 0; ok && j < m; ++j) ok = polys_push(&next, &pieces[j]);
+        }
+        struct polys tmp = cur;
+        cur = next;
+        next = tmp;
+    }
+    /* Greedy merge of pieces whose union is convex. */
+    for (bool merged = ok && cur.n <= MERGE_MAX; merged;) {
+        merged = false;
+        for (int i = 0; i < cur.n && !merged; ++i)
+            for (int j = i + 1; j < cur.n && !merged; ++j) {
+                struct polygon m;
+                if (polygon_merge_convex(&cur.p[i], &cur.p[j], pl.normal, h->tol, 1e-9, POLYGON_INPUT_MAX, &m)) {
+                    polygon_copy(&cur.p[i], &m);
+                    polygon_copy(&cur.p[j], &cur.p[cur.n - 1]);
+                    --cur.n;
+                    merged = true;
+                }
+            }
+    }
+    for (int k = 0; ok && k < cur.n; ++k) ok = polys_push(out, &cur.p[k]);
+    free(cur.p);
+    free(next.p);
+    return ok;
+}
+
+/* The scene's shape triangles that touch the box lo..hi. */
+static int gather_triangles(const struct config *cfg, struct vec3 lo, struct vec3 hi, struct vec3 (**out)[3])
+{
+    size_t cap = 0;
+    for (int i = 0; i < cfg->n_shapes; ++i)
+        cap += (size_t)cfg->shapes[i].n_triangles + 2 * (size_t)cfg->shapes[i].n_quads;
+    struct vec3(*t)[3] = malloc(sizeof *t * (cap > 0 ? cap : 1));
+    if (!t) return -1;
+    int n = 0;
+    for (int i = 0; i < cfg->n_shapes; ++i) {
+        const struct shape_desc *sh = &cfg->shapes[i];
+        for (int f = 0; f < sh->n_triangles + 2 * sh->n_quads; ++f) {
+            struct vec3 v[3];
+            if (f < sh->n_triangles) {
+                for (int k = 0; k < 3; ++k) v[k] = sh->vertices[sh->triangles[f][k]];
+            } else {
+                const int *q = sh->quads[(f - sh->n_triangles) / 2];
+                int second = (f - sh->n_triangles) % 2;
+                v[0] = sh->vertices[q[0]];
+                v[1] = sh->vertices[q[second ? 2 : 1]];
+                v[2] = sh->vertices[q[second ? 3 : 2]];
+            }
+            bool out_box = false;
+            out_box = out_box || (v[0].x < lo.x && v[1].x < lo.x && v[2].x < lo.x);
+            out_box = out_box || (v[0].y < lo.y && v[1].y < lo.y && v[2].y < lo.y);
+            out_box = out_box || (v[0].z < lo.z && v[1].z < lo.z && v[2].z < lo.z);
+            out_box = out_box || (v[0].x > hi.x && v[1].x > hi.x && v[2].x > hi.x);
+            out_box = out_box || (v[0].y > hi.y && v[1].y > hi.y && v[2].y > hi.y);
+            out_box = out_box || (v[0].z > hi.z && v[1].z > hi.z && v[2].z > hi.z);
+            if (out_box) continue;
+            for (int k = 0; k < 3; ++k) t[n][k] = v[k];
+            ++n;
+        }
+    }
+    *out = t;
+    return n;
+}
+
+/* The portals of P: every facet's uncovered part, clipped for a one-sided
+   polygon light to the half-space it emits into (nothing it emits crosses
+   the rest), split to at most POLYGON_INPUT_MAX corners. */
+static bool portals_of_hull(const struct finder *f, const struct convex_hull *h, const struct vec3 *points,
+                            struct polys *out, double *open_area, double *hull_area)
+{
+    struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
+    for (int i = 0; i < h->n_index; ++i) {
+        struct vec3 x = points[h->index[i]];
+        lo = vec3_make(fmin(lo.x, x.x), fmin(lo.y, x.y), fmin(lo.z, x.z));
+        hi = vec3_make(fmax(hi.x, x.x), fmax(hi.y, x.y), fmax(hi.z, x.z));
+    }
+    double g = COVER_REL * h->size * 10.0;
+    lo = vec3_sub(lo, vec3_make(g, g, g));
+    hi = vec3_add(hi, vec3_make(g, g, g));
+    struct vec3(*tris)[3] = NULL;
+    int n_tris = gather_triangles(f->cfg, lo, hi, &tris);
+    if (n_tris < 0) return false;
+    struct polys open = { 0, 0, NULL };
+    bool ok = true;
+    *hull_area = 0.0;
+    for (int fi = 0; ok && fi < h->n_facets; ++fi) {
+        const struct hull_facet *hf = &h->facets[fi];
+        struct vec3 a = points[h->index[hf->first]];
+        for (int k = 1; k + 1 < hf->n; ++k)
+            *hull_area += 0.5 * vec3_length(vec3_cross(vec3_sub(points[h->index[hf->first + k]], a),
+                                                       vec3_sub(points[h->index[hf->first + k + 1]], a)));
+        ok = uncovered_part(h, points, fi, (const struct vec3(*)[3])tris, n_tris, &open);
+    }
+    free(tris);
+    *open_area = 0.0;
+    const struct emitter *e = &f->s->emitters[f->emitter];
+    const struct light *l0 = &f->s->lights[e->first_light];
+    bool clip = e->n_lights == 1 && !l0->two_sided;
+    struct plane front = { l0->target.normal, vec3_dot(l0->target.normal, l0->target.polygon.v[0]) };
+    for (int k = 0; ok && k < open.n; ++k) {
+        struct polygon piece;
+        *open_area += polygon_area(&open.p[k]);
+        if (clip) {
+            if (polygon_clip_plane(&open.p[k], &front, &piece) < 3) continue;
+        } else {
+            polygon_copy(&piece, &open.p[k]);
+        }
+        if (!(polygon_area(&piece) > DEBRIS_REL * h->size * h->size)) continue;
+        /* Fans of at most POLYGON_INPUT_MAX corners. */
+        for (int a = 1; ok && a + 1 < piece.n; a += POLYGON_INPUT_MAX - 2) {
+            struct polygon chunk;
+            chunk.n = 0;
+            chunk.v[chunk.n++] = piece.v[0];
+            for (int b = a; b < piece.n && chunk.n < POLYGON_INPUT_MAX; ++b) chunk.v[chunk.n++] = piece.v[b];
+            if (chunk.n >= 3 && polygon_check(&chunk) == POLYGON_DEFECT_NONE) ok = polys_push(out, &chunk);
+            if (a + POLYGON_INPUT_MAX - 2 >= piece.n - 1) break;
+        }
+    }
+    free(open.p);
+    return ok;
+}
+
+/* Decides and applies the portals of one light. False only on memory. */
+static bool find_for_light(struct finder *f, struct error *err)
+{
+    struct auto_portal_report *rep = f->rep;
+    const char *name = f->cfg->lights[f->emitter].name;
+    struct candidate *c = NULL;
+    int n_c = find_candidates(f, &c);
+    if (n_c < 0) return error_set(err, "out of memory finding the portals of light \"%s\"", name);
+    size_t n_pts = 0;
+    for (int i = 0; i < n_c; ++i) n_pts += (size_t)f->cfg->shapes[c[i].shape].n_vertices;
+    struct vec3 *points = malloc(sizeof *points * (n_pts > 0 ? n_pts : 1));
+    if (!points) {
+        free(c);
+        return error_set(err, "out of memory finding the portals of light \"%s\"", name);
+    }
+    struct convex_hull h = { 0 };
+    int k = 0, n_points = 0;
+    bool found = false, touches = false;
+    for (k = 1; k <= n_c && !found; ++k) {
+        struct error herr;
+        if (!hull_of(f, c, k, points, &n_points, &h, &herr)) continue;
+        bool some;
+        double depth = light_depth(f, &h, &some);
+        found = depth < -INSIDE_REL * h.size;
+        touches = !found && some;
+        if (!found) convex_hull_free(&h);
+    }
+    --k;
+    if (!found) {
+        if (touches) {
+            rep->warn = true;
+            snprintf(rep->note, sizeof rep->note,
+                     "light \"%s\" touches or pierces the hull of the %d shape(s) around it: no portals "
+                     "(sampled as `light` samples it)",
+                     name, n_c);
+        } else {
+            snprintf(rep->note, sizeof rep->note, "light \"%s\": no shape encloses it: no portals", name);
+        }
+        free(points);
+        free(c);
+        return true;
+    }
+    struct polys ports = { 0, 0, NULL };
+    double open_area = 0.0, hull_area = 0.0;
+    bool ok = portals_of_hull(f, &h, points, &ports, &open_area, &hull_area);
+    /* The tightest of the hulls that add the next nearby shapes (met
+       within twice the distance of the last one taken): the least open
+       area. Each is complete; more shapes only make P fit them better. */
+    double reach = 2.0 * c[k - 1].t_min;
+    for (int more = k + 1; ok && more <= n_c && more <= k + PORTAL_FINDER_MAX_EXTRA && c[more - 1].t_min <= reach;
+         ++more) {
+        struct convex_hull h2;
+        struct error herr;
+        int n2;
+        struct vec3 *points2 = malloc(sizeof *points2 * (n_pts > 0 ? n_pts : 1));
+        if (!points2) {
+            ok = false;
+            break;
+        }
+        bool some;
+        if (!hull_of(f, c, more, points2, &n2, &h2, &herr) || !(light_depth(f, &h2, &some) < -INSIDE_REL * h2.size)) {
+            free(points2);
+            continue;
+        }
+        struct polys ports2 = { 0, 0, NULL };
+        double open2 = 0.0, hull2 = 0.0;
+        ok = portals_of_hull(f, &h2, points2, &ports2, &open2, &hull2);
+        if (ok && open2 < open_area) {
+            convex_hull_free(&h);
+            free(points);
+            free(ports.p);
+            h = h2, points = points2, ports = ports2, open_area = open2, hull_area = hull2, k = more;
+        } else {
+            convex_hull_free(&h2);
+            free(points2);
+            free(ports2.p);
+        }
+    }
+    if (!ok) {
+        convex_hull_free(&h);
+        free(points);
+        free(c);
+        free(ports.p);
+        return error_set(err, "out of memory finding the portals of light \"%s\"", name);
+    }
+    rep->hull_area = hull_area;
+    if (open_area > PORTAL_FINDER_MAX_OPEN_FRACTION * hull_area) {
+        snprintf(rep->note, sizeof rep->note,
+                 "light \"%s\": the hull of the %d nearest shape(s) around it is %.0f%% open: no portals", name, k,
+                 100.0 * open_area / hull_area);
+    } else if (ports.n > PORTAL_FINDER_MAX_PORTALS) {
+        rep->warn = true;
+        snprintf(rep->note, sizeof rep->note,
+                 "light \"%s\": the hull of the %d nearest shape(s) around it leaves %d open pieces (more than %d): "
+                 "no portals (sampled as `light` samples it)",
+                 name, k, ports.n, PORTAL_FINDER_MAX_PORTALS);
+    } else {
+        struct error aerr = { { 0 } };
+        if (!scene_add_portals(f->s, f->emitter, ports.p, ports.n, &aerr)) {
+            rep->warn = true;
+            snprintf(rep->note, sizeof rep->note, "light \"%s\": %.300s: no portals (sampled as `light` samples it)",
+                     name, aerr.message);
+        } else {
+            rep->enclosed = true;
+            rep->n_portals = ports.n;
+            for (int i = 0; i < ports.n; ++i) rep->area += polygon_area(&ports.p[i]);
+            rep->n_planes = h.n_facets;
+            rep->planes = malloc(sizeof *rep->planes * (size_t)h.n_facets);
+            ok = rep->planes != NULL;
+            for (int i = 0; ok && i < h.n_facets; ++i) rep->planes[i] = h.facets[i].plane;
+            rep->box_lo = vec3_make(INFINITY, INFINITY, INFINITY);
+            rep->box_hi = vec3_neg(rep->box_lo);
+            for (int i = 0; i < h.n_index; ++i) {
+                struct vec3 x = points[h.index[i]];
+                rep->box_lo = vec3_make(fmin(rep->box_lo.x, x.x), fmin(rep->box_lo.y, x.y), fmin(rep->box_lo.z, x.z));
+                rep->box_hi = vec3_make(fmax(rep->box_hi.x, x.x), fmax(rep->box_hi.y, x.y), fmax(rep->box_hi.z, x.z));
+            }
+            snprintf(rep->note, sizeof rep->note, "light \"%s\": %d portal(s) on the hull of %d shape(s)", name,
+                     ports.n, k);
+        }
+    }
+    convex_hull_free(&h);
+    free(points);
+    free(c);
+    free(ports.p);
+    return ok || error_set(err, "out of memory finding the portals of light \"%s\"", name);
+}
+
+bool portal_finder_run(struct scene *s, const struct config *cfg, struct error *err)
+{
+    bool any = false;
+    for (int i = 0; i < cfg->n_lights; ++i) any = any || cfg->lights[i].auto_portals;
+    if (!any) return true;
+    s->auto_portals = calloc((size_t)s->n_emitters, sizeof *s->auto_portals);
+    if (!s->auto_portals) return error_set(err, "out of memory for the auto portals");
+    for (int i = 0; i < cfg->n_lights; ++i) {
+        if (!cfg->lights[i].auto_portals) continue;
+        s->auto_portals[i].requested = true;
+        const struct emitter *e = &s->emitters[i];
+        struct finder f = { s, cfg, i, &s->auto_portals[i], NULL, 0 };
+        f.light_pts = malloc(sizeof *f.light_pts * (size_t)e->n_lights * POLYGON_INPUT_MAX);
+        if (!f.light_pts) return error_set(err, "out of memory for the auto portals");
+        for (int m = 0; m < e->n_lights; ++m) {
+            const struct polygon *p = &s->lights[e->first_light + m].target.polygon;
+            for (int v = 0; v < p->n && v < POLYGON_INPUT_MAX; ++v) f.light_pts[f.n_light_pts++] = p->v[v];
+        }
+        bool ok = find_for_light(&f, err);
+        free(f.light_pts);
+        if (!ok) return false;
+    }
+    return true;
+}
+
+static void write_polygon(FILE *out, const struct polygon *p)
+{
+    fputs("[", out);
+    for (int v = 0; v < p->n; ++v) fprintf(out, "%s[%.9g, %.9g, %.9g]", v ? ", " : "", p->v[v].x, p->v[v].y, p->v[v].z);
+    fputs("]", out);
+}
+
+bool portal_finder_write_summary(const struct scene *s, const struct config *cfg, long n_rays, FILE *out,
+                                 struct error *err)
+{
+    if (!s->auto_portals) return true;
+    fputs("# portals: auto found, per light (blocked: the fraction of the light's rays aimed through a portal\n"
+          "# that something inside the enclosure stops; bound: 3/N over N escaping rays, none of which missed\n"
+          "# the portals, bounds the escaping flux the portals could miss at 95% confidence):\n",
+          out);
+    for (int i = 0; i < s->n_emitters; ++i) {
+        const struct auto_portal_report *rep = &s->auto_portals[i];
+        if (!rep->requested) continue;
+        if (!rep->enclosed) {
+            fprintf(out, "#   %s%s\n", rep->warn ? "warning: " : "", rep->note);
+            continue;
+        }
+        const struct light *l = &s->lights[s->emitters[i].first_light];
+        int n = l->n_portals;
+        struct polygon *copy = malloc(sizeof *copy * (size_t)(n > 0 ? n : 1));
+        if (!copy) return error_set(err, "out of memory");
+        for (int k = 0; k < n; ++k) polygon_copy(&copy[k], &s->portals[l->first_portal + k].target.polygon);
+        struct portal_coverage cov;
+        bool ok = portal_finder_coverage(s, i, rep->planes, rep->n_planes, copy, n, n_rays, FINDER_SEED + 1, &cov, err);
+        free(copy);
+        if (!ok) return false;
+        fprintf(out,
+                "#   %s: %d portal(s), area %.6g m^2 (%.1f%% of the enclosure's %.6g m^2), blocked %.4f, bound %.3g "
+                "(%ld of %ld rays escaped, %ld missed)\n",
+                cfg->lights[i].name, rep->n_portals, rep->area, 100.0 * rep->area / rep->hull_area, rep->hull_area,
+                cov.blocked_fraction, cov.bound, cov.n_escaped, cov.n_rays, cov.n_missed);
+    }
+    fputs("# To freeze them, replace the auto entries by:\n# portals:\n", out);
+    for (int i = 0; i < s->n_emitters; ++i) {
+        const struct auto_portal_report *rep = &s->auto_portals[i];
+        if (!rep->enclosed) continue;
+        const struct light *l = &s->lights[s->emitters[i].first_light];
+        for (int k = 0; k < l->n_portals; ++k) {
+            fprintf(out, "#   - {name: %s_auto%d, light: %s, vertices: ", cfg->lights[i].name, k, cfg->lights[i].name);
+            write_polygon(out, &s->portals[l->first_portal + k].target.polygon);
+            fputs("}\n", out);
+        }
+    }
+    return true;
+}

@@ -1,0 +1,764 @@
+/* `portals: auto` (scene/portal_finder.h): the convex hull and the facet
+   subtraction it is built on, then the proof that the found portals miss
+   no path, from both ends of the segments, with a negative control that
+   shows the tests see a gap; the lampshade's hole found exactly; renders
+   with the found portals against the closed form and against `light`,
+   with defensive 0 and no BSDF sampling (MIS off), so that a gap cannot
+   hide behind MIS; robustness of the set to how a shade is meshed; the
+   stated fallbacks; determinism. Monte Carlo with fixed seeds. */
+#include <string.h>
+#include <unistd.h>
+
+#include "config/config.h"
+#include "geometry/convex_hull.h"
+#include "geometry/polygon_subtract.h"
+#include "sampling/integrator.h"
+#include "sampling/strategy.h"
+#include "scene/portal_finder.h"
+#include "scene/scene.h"
+#include "scene_util.h"
+#include "testlib.h"
+
+/* ---- helpers */
+
+/* The text of a scene file with its portals section replaced by
+   `portals: auto` (the section runs to the next top-level key), and a
+   relative include made absolute, written to a temporary file. */
+static bool write_auto_copy(const char *path, char *out, size_t out_size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return false;
+    static char text[1 << 16], edited[1 << 16];
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = '\0';
+    char *p = strstr(text, "\nportals:");
+    if (!p) return false;
+    char *end = p + 1;
+    while ((end = strchr(end, '\n')) && (end[1] == ' ' || end[1] == '#' || end[1] == '\n' || end[1] == '-')) ++end;
+    *p = '\0';
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (slash) *slash = '\0';
+    char cwd[512];
+    if (!getcwd(cwd, sizeof cwd)) return false;
+    char *inc = strstr(text, "\ninclude: ");
+    if (inc) {
+        char head[1 << 16];
+        *inc = '\0';
+        if (snprintf(head, sizeof head, "%s\ninclude: %s/%s/%s", text, cwd, dir, inc + 10) >= (int)sizeof head ||
+            snprintf(edited, sizeof edited, "%s\nportals: auto\n%s", head, end ? end + 1 : "") >= (int)sizeof edited)
+            return false;
+    } else {
+        if (snprintf(edited, sizeof edited, "%s\nportals: auto\n%s", text, end ? end + 1 : "") >= (int)sizeof edited)
+            return false;
+    }
+    snprintf(out, out_size, "/tmp/portal-finder-%ld-%s", (long)getpid(), slash ? slash + 1 : path);
+    FILE *g = fopen(out, "wb");
+    if (!g) return false;
+    fputs(edited, g);
+    return fclose(g) == 0;
+}
+
+static bool load_auto(const char *path, const struct config_override *ov, int n_ov, struct config *cfg,
+                      struct scene *sc)
+{
+    char tmp[600];
+    if (!write_auto_copy(path, tmp, sizeof tmp)) {
+        fprintf(stderr, "  cannot make the auto copy of %s\n", path);
+        return false;
+    }
+    bool ok = test_scene_load(tmp, ov, n_ov, cfg, sc);
+    remove(tmp);
+    return ok;
+}
+
+/* The found portals of emitter e, copied. */
+static int portals_of(const struct scene *sc, int e, struct polygon *out, int max)
+{
+    const struct light *l = &sc->lights[sc->emitters[e].first_light];
+    int n = 0;
+    for (int k = 0; k < l->n_portals && n < max; ++k)
+        polygon_copy(&out[n++], &sc->portals[l->first_portal + k].target.polygon);
+    return n;
+}
+
+/* Light side: rays until at least min_escaped escape (or max_rays). */
+static struct portal_coverage light_side(const struct scene *sc, int e, const struct polygon *ports, int n_ports,
+                                         long min_escaped, long max_rays, uint64_t seed)
+{
+    const struct auto_portal_report *rep = &sc->auto_portals[e];
+    struct portal_coverage total;
+    memset(&total, 0, sizeof total);
+    for (uint64_t batch = 0; total.n_escaped < min_escaped && total.n_rays < max_rays; ++batch) {
+        struct portal_coverage c;
+        struct error err;
+        if (!portal_finder_coverage(sc, e, rep->planes, rep->n_planes, ports, n_ports, 1 << 17, seed + batch, &c,
+                                    &err)) {
+            fprintf(stderr, "  %s\n", err.message);
+            break;
+        }
+        total.n_rays += c.n_rays, total.n_escaped += c.n_escaped, total.n_missed += c.n_missed;
+        total.n_portal += c.n_portal, total.n_through += c.n_through;
+    }
+    total.blocked_fraction = total.n_portal ? 1.0 - (double)total.n_through / (double)total.n_portal : 0.0;
+    total.bound = total.n_escaped ? 3.0 / (double)total.n_escaped : INFINITY;
+    return total;
+}
+
+static bool outside_hull(const struct auto_portal_report *rep, struct vec3 x)
+{
+    for (int k = 0; k < rep->n_planes; ++k)
+        if (plane_distance(&rep->planes[k], x) > 0.0) return true;
+    return false;
+}
+
+/* Receiver side: n segments from random points outside P (in the scene's
+   box) to random points of the light; returns how many were unoccluded
+   and crossed no portal (*n_open: how many were unoccluded). */
+static long receiver_side(const struct scene *sc, int e, const struct polygon *ports, int n_ports, long n,
+                          uint64_t seed, long *n_open)
+{
+    const struct auto_portal_report *rep = &sc->auto_portals[e];
+    struct emission_sampler es;
+    struct error err;
+    if (!emission_sampler_init(&es, sc, e, &err)) return -1;
+    struct rng r = rng_seeded(seed, 7, 0);
+    long missed = 0;
+    *n_open = 0;
+    struct vec3 lo = sc->bounds_lo, hi = sc->bounds_hi;
+    for (long i = 0; i < n; ++i) {
+        struct vec3 x;
+        /* Half the points anywhere in the scene, half near P. */
+        bool near = i % 2;
+        struct vec3 blo = near ? vec3_sub(rep->box_lo, vec3_scale(vec3_sub(rep->box_hi, rep->box_lo), 0.5)) : lo;
+        struct vec3 bhi = near ? vec3_add(rep->box_hi, vec3_scale(vec3_sub(rep->box_hi, rep->box_lo), 0.5)) : hi;
+        do {
+            x = vec3_make(blo.x + rng_uniform(&r) * (bhi.x - blo.x), blo.y + rng_uniform(&r) * (bhi.y - blo.y),
+                          blo.z + rng_uniform(&r) * (bhi.z - blo.z));
+        } while (!outside_hull(rep, x));
+        double u[EMISSION_UNIFORMS];
+        for (int k = 0; k < EMISSION_UNIFORMS; ++k) u[k] = rng_uniform(&r);
+        struct vec3 y, ny, d;
+        emission_sample(&es, u, &y, &ny, &d);
+        struct vec3 to_x = vec3_sub(x, y);
+        double len = vec3_length(to_x);
+        struct vec3 w = vec3_scale(to_x, 1.0 / len);
+        const struct light *l = &sc->lights[sc->emitters[e].first_light];
+        if (!l->two_sided && vec3_dot(w, ny) <= 0.0) continue; /* a one-sided light sends nothing that way */
+        /* Traced from x (in free space) towards y, stopping just short of
+           the light's plane: no offset at the light, whose step would
+           carry a grazing ray through a nearby wall. */
+        if (scene_occluded(sc, x, vec3_neg(w), len * (1.0 - 1e-6))) continue;
+        ++*n_open;
+        bool crosses = false;
+        for (int k = 0; k < n_ports && !crosses; ++k) {
+            double t;
+            crosses = polygon_intersect_ray(&ports[k], y, w, &t) && t <= len;
+        }
+        missed += !crosses;
+    }
+    emission_sampler_free(&es);
+    return missed;
+}
+
+/* ---- geometry */
+
+static void test_hull_box(void)
+{
+    /* A unit cube's corners, each twice, its face centres and edge
+       midpoints (coplanar points), and inner points. */
+    struct vec3 pts[64];
+    int n = 0;
+    for (int rep = 0; rep < 2; ++rep)
+        for (int i = 0; i < 8; ++i) pts[n++] = vec3_make(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+    for (int a = 0; a < 3; ++a)
+        for (int s = 0; s < 2; ++s) {
+            double c[3] = { 0.5, 0.5, 0.5 };
+            c[a] = s;
+            pts[n++] = vec3_make(c[0], c[1], c[2]);
+        }
+    pts[n++] = vec3_make(0.5, 0, 0), pts[n++] = vec3_make(1, 0.5, 1), pts[n++] = vec3_make(0.3, 0.4, 0.6);
+    struct convex_hull h;
+    struct error err;
+    CHECK(convex_hull_build(pts, n, &h, &err));
+    CHECK_MSG(h.n_facets == 6, "%d facets", h.n_facets);
+    double area = 0.0;
+    for (int f = 0; f < h.n_facets; ++f) {
+        struct polygon p;
+        CHECK(convex_hull_facet_polygon(&h, pts, f, &p));
+        CHECK_MSG(p.n == 4, "facet %d has %d corners", f, p.n);
+        CHECK(polygon_check(&p) == POLYGON_DEFECT_NONE);
+        /* Wound counter-clockwise from outside: along the outward normal. */
+        CHECK(vec3_dot(polygon_normal(&p), h.facets[f].plane.normal) > 0.999);
+        area += polygon_area(&p);
+    }
+    CHECK_NEAR(area, 6.0, 1e-12);
+    convex_hull_free(&h);
+    /* Degenerate sets: fewer than four points, coplanar, collinear. */
+    struct vec3 flat[5] = { { 0, 0, 0 }, { 1, 0, 0 }, { 0, 1, 0 }, { 1, 1, 0 }, { 0.5, 0.5, 0 } };
+    CHECK(!convex_hull_build(flat, 5, &h, &err) && strstr(err.message, "degenerate"));
+    struct vec3 line[4] = { { 0, 0, 0 }, { 1, 1, 1 }, { 2, 2, 2 }, { 3, 3, 3 } };
+    CHECK(!convex_hull_build(line, 4, &h, &err) && strstr(err.message, "degenerate"));
+    CHECK(!convex_hull_build(line, 3, &h, &err));
+}
+
+static void test_hull_sphere_points(void)
+{
+    /* Random points on and in a sphere: every point inside every facet's
+       plane, Euler's formula on the facets' corners. */
+    enum { N = 3000 };
+    static struct vec3 pts[N];
+    struct rng r = rng_seeded(5, 0, 0);
+    for (int i = 0; i < N; ++i) {
+        double z = 2.0 * rng_uniform(&r) - 1.0, phi = 2.0 * M_PI * rng_uniform(&r), s = sqrt(1.0 - z * z);
+        double rad = i % 3 ? 1.0 : rng_uniform(&r);
+        pts[i] = vec3_make(rad * s * cos(phi) + 3.0, rad * s * sin(phi) - 2.0, rad * z);
+    }
+    struct convex_hull h;
+    struct error err;
+    CHECK(convex_hull_build(pts, N, &h, &err));
+    int worst = 0;
+    for (int f = 0; f < h.n_facets; ++f)
+        for (int i = 0; i < N; ++i) worst += plane_distance(&h.facets[f].plane, pts[i]) > h.tol;
+    CHECK_MSG(worst == 0, "%d point-facet pairs outside", worst);
+    CHECK(h.n_facets > 100);
+    convex_hull_free(&h);
+}
+
+static void test_subtract_triangle(void)
+{
+    struct polygon sq = { 4, { { 0, 0, 0 }, { 2, 0, 0 }, { 2, 2, 0 }, { 0, 2, 0 } } };
+    struct vec3 nz = vec3_make(0, 0, 1);
+    struct vec3 t1[3] = { { 0, 0, 0 }, { 2, 0, 0 }, { 2, 2, 0 } }, t2[3] = { { 0, 0, 0 }, { 2, 2, 0 }, { 0, 2, 0 } };
+    struct polygon out[3], out2[3];
+    int n = polygon_subtract_triangle(&sq, nz, t1, 1e-15, out);
+    double area = 0.0;
+    for (int i = 0; i < n; ++i) area += polygon_area(&out[i]);
+    CHECK_NEAR(area, 2.0, 1e-12);
+    /* The rest covered by the other half (wound the other way): nothing left. */
+    int left = 0;
+    for (int i = 0; i < n; ++i) left += polygon_subtract_triangle(&out[i], nz, t2, 1e-15, out2);
+    CHECK_MSG(left == 0, "%d pieces left", left);
+    /* A small triangle inside: three pieces, area conserved, and the
+       pieces merge back to nothing smaller than the square minus it. */
+    struct vec3 t3[3] = { { 0.5, 0.5, 1e-12 }, { 1.5, 0.5, 0 }, { 1.0, 1.5, 0 } };
+    n = polygon_subtract_triangle(&sq, nz, t3, 1e-15, out);
+    area = 0.0;
+    for (int i = 0; i < n; ++i) area += polygon_area(&out[i]);
+    CHECK_NEAR(area, 4.0 - 0.5, 1e-9);
+    CHECK(n == 3);
+    /* Two halves of a square merge into it; two pieces whose union is not convex do not. */
+    struct polygon a = { 4, { { 0, 0, 0 }, { 1, 0, 0 }, { 1, 2, 0 }, { 0, 2, 0 } } };
+    struct polygon b = { 4, { { 1, 0, 0 }, { 2, 0, 0 }, { 2, 2, 0 }, { 1, 2, 0 } } };
+    struct polygon c = { 4, { { 1, 0, 0 }, { 2, 0, 0 }, { 2, 1, 0 }, { 1, 1, 0 } } }, m;
+    CHECK(polygon_merge_convex(&a, &b, nz, 1e-12, 1e-9, POLYGON_INPUT_MAX, &m) && m.n == 4);
+    CHECK_NEAR(polygon_area(&m), 4.0, 1e-12);
+    CHECK(!polygon_merge_convex(&a, &c, nz, 1e-12, 1e-9, POLYGON_INPUT_MAX, &m));
+}
+
+/* ---- the shipped scenes */
+
+static bool same_polygon(const struct polygon *a, const struct polygon *b, double tol)
+{
+    if (a->n != b->n) return false;
+    for (int i = 0; i < a->n; ++i) {
+        bool found = false;
+        for (int j = 0; j < b->n && !found; ++j) found = vec3_length(vec3_sub(a->v[i], b->v[j])) <= tol;
+        if (!found) return false;
+    }
+    return true;
+}
+
+/* The lampshade at several light sizes: one portal, the hole; no escaping
+   ray misses it (rule-of-three bound below 1e-5 at 3e5 escapes). */
+static void test_lampshade_hole_and_light_side(void)
+{
+    static const char *sizes[] = { "0.075", "0.3", "1.2" };
+    for (int i = 0; i < 3; ++i) {
+        struct config cfg;
+        struct scene sc;
+        struct config_override ov[] = { { "params.s_L", sizes[i] } };
+        if (!load_auto("configs/scenes/lampshade.yaml", ov, 1, &cfg, &sc)) {
+            CHECK(false);
+            continue;
+        }
+        struct polygon hole = {
+            4, { { -0.15, 2.2, -0.15 }, { 0.15, 2.2, -0.15 }, { 0.15, 2.2, 0.15 }, { -0.15, 2.2, 0.15 } }
+        };
+        struct polygon ports[8];
+        int n = portals_of(&sc, 0, ports, 8);
+        CHECK_MSG(n == 1 && same_polygon(&ports[0], &hole, 1e-12), "s_L=%s: %d portals", sizes[i], n);
+        struct portal_coverage c = light_side(&sc, 0, ports, n, 300000, 1L << 23, 11);
+        printf("  lampshade s_L=%s: %d portal, area %.4g, %ld/%ld escaped, missed %ld, bound %.3g, blocked %.4f\n",
+               sizes[i], n, sc.auto_portals[0].area, c.n_escaped, c.n_rays, c.n_missed, c.bound, c.blocked_fraction);
+        CHECK(c.n_missed == 0);
+        CHECK_MSG(c.bound <= 1e-5, "bound %.3g", c.bound);
+        scene_destroy(&sc);
+        config_free(&cfg);
+    }
+}
+
+/* multi_lamp: each shaded lamp's portals are its hand-made ones, the
+   ceiling panel gets none; light side and receiver side for each. */
+static void test_multi_lamp_both_sides(void)
+{
+    struct config cfg, hand;
+    struct scene sc;
+    struct error err;
+    if (!load_auto("configs/scenes/multi_lamp.yaml", NULL, 0, &cfg, &sc) ||
+        !config_load("configs/scenes/multi_lamp.yaml", NULL, 0, &hand, &err)) {
+        CHECK(false);
+        return;
+    }
+    for (int e = 0; e < sc.n_emitters; ++e) {
+        const struct auto_portal_report *rep = &sc.auto_portals[e];
+        struct polygon ports[16];
+        int n = portals_of(&sc, e, ports, 16), n_hand = 0;
+        for (int k = 0; k < hand.n_portals; ++k) {
+            if (hand.portals[k].light != e) continue;
+            bool matched = false;
+            for (int j = 0; j < n && !matched; ++j) matched = same_polygon(&ports[j], &hand.portals[k].polygon, 1e-9);
+            CHECK_MSG(matched, "%s: hand portal %s not found", cfg.lights[e].name, hand.portals[k].name);
+            ++n_hand;
+        }
+        CHECK_MSG(n == n_hand, "%s: %d portals found, %d by hand", cfg.lights[e].name, n, n_hand);
+        if (!rep->enclosed) {
+            CHECK(n_hand == 0 && !rep->warn);
+            printf("  multi_lamp %s: %s\n", cfg.lights[e].name, rep->note);
+            continue;
+        }
+        struct portal_coverage c = light_side(&sc, e, ports, n, 300000, 1L << 22, 21);
+        long n_open = 0, missed = receiver_side(&sc, e, ports, n, 100000, 23, &n_open);
+        printf("  multi_lamp %s: %d portal(s), area %.4g, light side %ld/%ld escaped, missed %ld, bound %.3g, "
+               "blocked %.4f; receiver side %ld open segments, missed %ld\n",
+               cfg.lights[e].name, n, rep->area, c.n_escaped, c.n_rays, c.n_missed, c.bound, c.blocked_fraction, n_open,
+               missed);
+        CHECK(c.n_missed == 0 && c.bound <= 1e-5);
+        CHECK(missed == 0 && n_open > 1000);
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+    config_free(&hand);
+}
+
+/* Little Lamp: the hull around the bulb is mostly open (the head is a
+   curved shell), so auto gives it no portals, a stated fallback: the bulb
+   is then sampled as `light` samples it. */
+static void test_little_lamp_fallback(void)
+{
+    struct config cfg;
+    struct scene sc;
+    if (!load_auto("configs/scenes/little_lamp.yaml", NULL, 0, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    const struct auto_portal_report *rep = &sc.auto_portals[0];
+    printf("  little_lamp: %s\n", rep->note);
+    CHECK(rep->requested);
+    CHECK(!rep->enclosed && sc.lights[0].n_portals == 0 && sc.n_portals == 0);
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
+/* Negative control: without one found portal both sides see the gap. */
+static void test_negative_control(void)
+{
+    struct config cfg;
+    struct scene sc;
+    if (!load_auto("configs/scenes/multi_lamp.yaml", NULL, 0, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    /* lamp_b (emitter 1): two openings; drop each in turn. */
+    for (int drop = 0; drop < 2; ++drop) {
+        struct polygon ports[4];
+        int n = portals_of(&sc, 1, ports, 4);
+        CHECK(n == 2);
+        polygon_copy(&ports[drop], &ports[n - 1]);
+        struct portal_coverage c = light_side(&sc, 1, ports, n - 1, 20000, 1L << 18, 31);
+        long n_open = 0, missed = receiver_side(&sc, 1, ports, n - 1, 20000, 33, &n_open);
+        printf("  without portal %d of lamp_b: light side missed %ld of %ld escaped, receiver side %ld of %ld\n", drop,
+               c.n_missed, c.n_escaped, missed, n_open);
+        CHECK(c.n_missed > 100);
+        CHECK(missed > 100);
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
+/* ---- renders */
+
+struct estimate {
+    double mean, se;
+};
+
+static struct estimate estimate_at(const struct scene *sc, const struct render_desc *rd, struct vec3 p, struct vec3 ng,
+                                   int material, int n, uint64_t seed)
+{
+    struct strategy s;
+    struct strategy_scratch scratch;
+    struct error err;
+    struct estimate e = { NAN, NAN };
+    if (!strategy_init(&s, sc, rd, &err) || !strategy_scratch_init(&s, &scratch, &err)) {
+        fprintf(stderr, "  %s\n", err.message);
+        return e;
+    }
+    struct integrator it;
+    integrator_init(&it, rd, sc, &s);
+    struct integrator_stats stats;
+    memset(&stats, 0, sizeof stats);
+    double mean = 0.0, m2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+        struct sampler r = sampler_of_rng(rng_seeded(seed, 0, (uint64_t)i));
+        struct rgb c = integrator_direct_at(&it, &scratch, p, ng, material, ng, &r, &stats);
+        double d = c.r - mean;
+        mean += d / (i + 1);
+        m2 += d * (c.r - mean);
+    }
+    e.mean = mean;
+    e.se = sqrt(m2 / (n - 1) / n);
+    strategy_scratch_free(&scratch);
+    strategy_free(&s);
+    return e;
+}
+
+static struct render_desc strict_desc(const struct config *cfg, enum strategy_kind k)
+{
+    struct render_desc rd = cfg->render;
+    rd.integrator = INTEGRATOR_DIRECT;
+    rd.mis = MIS_NONE; /* light sampling alone: no BSDF ray can fill a gap */
+    rd.defensive = 0.0;
+    rd.strategy = k;
+    return rd;
+}
+
+/* Lampshade with auto portals, antishadow_exact: the closed form on the
+   floor (the light seen through the found hole) and inside the shade (the
+   light seen whole), within 5 standard errors. */
+static void test_rendered_lampshade(void)
+{
+    static const struct {
+        const char *s_l;
+        struct vec3 p, n;
+        bool inside;
+    } cases[] = {
+        { "0.6", { 0, 0, 0 }, { 0, 1, 0 }, false },         { "0.6", { -1.0, 0, 0.4 }, { 0, 1, 0 }, false },
+        { "0.075", { 0.3, 0, -0.2 }, { 0, 1, 0 }, false },  { "1.2", { -1.6, 0, 1.2 }, { 0, 1, 0 }, false },
+        { "0.6", { -0.35, 2.4, 0.05 }, { 1, 0, 0 }, true }, { "0.6", { 0.1, 2.2, 0.3 }, { 0, 1, 0 }, true },
+        { "0.3", { -0.2, 2.3, 0.0 }, { 1, 0, 0 }, true },
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        struct config cfg;
+        struct scene sc;
+        struct config_override ov[] = { { "params.s_L", cases[i].s_l } };
+        if (!load_auto("configs/scenes/lampshade.yaml", ov, 1, &cfg, &sc)) {
+            CHECK(false);
+            continue;
+        }
+        int white = 0;
+        const struct light *l = &sc.lights[0];
+        struct vec3 p = cases[i].p, n = cases[i].n;
+        double exact;
+        if (cases[i].inside) {
+            exact = cfg.materials[white].albedo.r / M_PI * l->radiance.r *
+                    polygon_projected_solid_angle(&l->target.polygon, p, n);
+        } else {
+            struct polygon vis;
+            exact =
+                antishadow_visible_polygon(&sc.portals[0].antishadow, p, &vis) < 3
+                    ? 0.0
+                    : cfg.materials[white].albedo.r / M_PI * l->radiance.r * polygon_projected_solid_angle(&vis, p, n);
+        }
+        struct render_desc rd = strict_desc(&cfg, STRATEGY_ANTISHADOW_EXACT);
+        struct estimate e = estimate_at(&sc, &rd, p, n, white, 20000, 41 + i);
+        CHECK_MSG(fabs(e.mean - exact) <= 5.0 * e.se + 1e-12 * exact, "s_L=%s (%g, %g, %g): %.6g +- %.2g vs exact %.6g",
+                  cases[i].s_l, p.x, p.y, p.z, e.mean, e.se, exact);
+        if (exact > 0.0) CHECK(e.mean > 0.0);
+        scene_destroy(&sc);
+        config_free(&cfg);
+    }
+}
+
+/* multi_lamp with auto portals, antishadow_exact against `light`, point
+   by point (z-test at 5 standard errors): floor, walls, under each shade,
+   on the shades' inner and outer faces. */
+static void test_rendered_multi_lamp(void)
+{
+    struct config cfg;
+    struct scene sc;
+    if (!load_auto("configs/scenes/multi_lamp.yaml", NULL, 0, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    static const struct {
+        struct vec3 p, n;
+    } pts[] = {
+        { { -1.5, 0, -1.0 }, { 0, 1, 0 } },     { { 1.6, 0, -1.6 }, { 0, 1, 0 } },
+        { { -1.6, 0, 1.4 }, { 0, 1, 0 } },      { { 0.0, 0, 1.0 }, { 0, 1, 0 } },
+        { { 0.5, 0, 2.0 }, { 0, 1, 0 } },       { { -3, 1.5, -1.0 }, { 1, 0, 0 } },
+        { { 0, 2.0, -3 }, { 0, 0, 1 } },        { { 1.6, 4, -1.6 }, { 0, -1, 0 } },
+        { { -1.5, 2.6, -1.0 }, { 0, 1, 0 } },   { { -1.84, 2.8, -1.0 }, { 1, 0, 0 } },
+        { { -1.86, 2.8, -1.0 }, { -1, 0, 0 } }, { { 1.6, 2.4, -1.6 }, { 0, 1, 0 } },
+        { { -1.6, 2.0, 1.4 }, { 0, 1, 0 } },    { { 0.29, 2.9, 1.0 }, { -1, 0, 0 } },
+    };
+    int worst_i = -1;
+    double worst_z = 0.0;
+    for (size_t i = 0; i < sizeof pts / sizeof pts[0]; ++i) {
+        struct render_desc ra = strict_desc(&cfg, STRATEGY_ANTISHADOW_EXACT), rl = strict_desc(&cfg, STRATEGY_LIGHT);
+        struct estimate a = estimate_at(&sc, &ra, pts[i].p, pts[i].n, 0, 8000, 51 + i);
+        struct estimate b = estimate_at(&sc, &rl, pts[i].p, pts[i].n, 0, 8000, 151 + i);
+        double se = sqrt(a.se * a.se + b.se * b.se);
+        double z = se > 0.0 ? fabs(a.mean - b.mean) / se : (a.mean == b.mean ? 0.0 : INFINITY);
+        if (z > worst_z) worst_z = z, worst_i = (int)i;
+        CHECK_MSG(z <= 5.0, "(%g, %g, %g): antishadow_exact %.6g +- %.2g, light %.6g +- %.2g", pts[i].p.x, pts[i].p.y,
+                  pts[i].p.z, a.mean, a.se, b.mean, b.se);
+    }
+    printf("  multi_lamp: %zu points, largest z %.2f (point %d)\n", sizeof pts / sizeof pts[0], worst_z, worst_i);
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
+/* ---- robustness and fallbacks */
+
+/* A box shade with a square hole in its bottom around a light, meshed in
+   several ways; the hole must come out (area s^2) and no escaping ray
+   may miss the portals. */
+static const char *shade_scene_head = "camera: {position: [0, 1, 6], look_at: [0, 1, 0], up: [0, 1, 0], fov_y: 40}\n"
+                                      "film: {width: 8, height: 8}\n"
+                                      "materials: {grey: {type: diffuse, albedo: [0.5, 0.5, 0.5]}}\n"
+                                      "render: {spp: 1}\n";
+/* The room around the shades: a floor far larger than a shade (shapes of
+   more than half the scene's size are never taken as a shade). */
+static const char *floor_shape =
+    "  - {type: quad, material: grey, vertices: [[-20, -2, -20], [-20, -2, 20], [20, -2, 20], [20, -2, -20]]}\n";
+
+static bool build_text(const char *text, struct config *cfg, struct scene *sc)
+{
+    return test_scene_load_string(text, strlen(text), "shade.yaml", cfg, sc);
+}
+
+static void check_shade(const char *what, const char *shapes, const char *light, double hole_area, int expect_ports)
+{
+    static char text[1 << 16];
+    snprintf(text, sizeof text, "%sshapes:\n%s%slights:\n%sportals: auto\n", shade_scene_head, floor_shape, shapes,
+             light);
+    struct config cfg;
+    struct scene sc;
+    if (!build_text(text, &cfg, &sc)) {
+        CHECK_MSG(false, "%s", what);
+        return;
+    }
+    const struct auto_portal_report *rep = &sc.auto_portals[0];
+    struct polygon ports[64];
+    int n = portals_of(&sc, 0, ports, 64);
+    if (expect_ports >= 0) CHECK_MSG(n == expect_ports, "%s: %d portals (%s)", what, n, rep->note);
+    if (hole_area > 0.0) CHECK_MSG(fabs(rep->area - hole_area) <= 1e-9, "%s: area %.9g", what, rep->area);
+    if (rep->enclosed) {
+        struct portal_coverage c = light_side(&sc, 0, ports, n, 20000, 1L << 18, 61);
+        long n_open, missed = receiver_side(&sc, 0, ports, n, 20000, 63, &n_open);
+        CHECK_MSG(c.n_missed == 0 && missed == 0, "%s: missed %ld (light side), %ld (receiver side)", what, c.n_missed,
+                  missed);
+    }
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
+static void test_robust_meshing(void)
+{
+    const char *light =
+        "  - {name: bulb, vertices: [[-0.2, 0.9, -0.2], [0.2, 0.9, -0.2], [0.2, 0.9, 0.2], [-0.2, 0.9, 0.2]],"
+        " radiance: [1, 1, 1], two_sided: true}\n";
+    /* Welded: one mesh, shared vertices; bottom with a hole of 0.4 x 0.4. */
+    const char *welded = "  - {type: mesh, material: grey,\n"
+                         "     vertices: [[-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 0, 0.5], [-0.5, 0, 0.5],\n"
+                         "                [-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5],\n"
+                         "                [-0.2, 0, -0.2], [0.2, 0, -0.2], [0.2, 0, 0.2], [-0.2, 0, 0.2]],\n"
+                         "     quads: [[4, 7, 6, 5], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7],\n"
+                         "             [0, 8, 9, 1], [1, 9, 10, 2], [2, 10, 11, 3], [3, 11, 8, 0]]}\n";
+    check_shade("welded quads", welded, light, 0.16, 1);
+    /* The same surfaces as separate quads (unwelded), with the top split
+       into triangles, a duplicate face and flipped windings. */
+    const char *unwelded =
+        "  - {type: quad, material: grey, vertices: [[-0.5, 1, -0.5], [-0.5, 1, 0.5], [0.5, 1, 0.5], [0.5, 1, -0.5]]}\n"
+        "  - {type: quad, material: grey, vertices: [[-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 1, -0.5], [-0.5, 1, "
+        "-0.5]]}\n"
+        "  - {type: quad, material: grey, vertices: [[-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 1, -0.5], [-0.5, 1, "
+        "-0.5]]}\n"
+        "  - {type: quad, material: grey, vertices: [[0.5, 0, -0.5], [0.5, 0, 0.5], [0.5, 1, 0.5], [0.5, 1, -0.5]]}\n"
+        "  - {type: mesh, material: grey, vertices: [[-0.5, 0, 0.5], [0.5, 0, 0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5], [0, "
+        "0.5, 0.5]],\n"
+        "     triangles: [[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]}\n"
+        "  - {type: quad, material: grey, vertices: [[-0.5, 0, -0.5], [-0.5, 1, -0.5], [-0.5, 1, 0.5], [-0.5, 0, "
+        "0.5]]}\n"
+        "  - {type: quad, material: grey, vertices: [[-0.5, 0, -0.5], [-0.2, 0, -0.2], [0.2, 0, -0.2], [0.5, 0, "
+        "-0.5]]}\n"
+        "  - {type: quad, material: grey, vertices: [[0.5, 0, -0.5], [0.2, 0, -0.2], [0.2, 0, 0.2], [0.5, 0, 0.5]]}\n"
+        "  - {type: quad, material: grey, vertices: [[0.5, 0, 0.5], [0.2, 0, 0.2], [-0.2, 0, 0.2], [-0.5, 0, 0.5]]}\n"
+        "  - {type: mesh, material: grey, vertices: [[-0.5, 0, 0.5], [-0.2, 0, 0.2], [-0.2, 0, -0.2], [-0.5, 0, -0.5], "
+        "[-0.2, 0, 0]],\n"
+        "     triangles: [[0, 1, 4], [0, 4, 3], [4, 2, 3]]}\n";
+    check_shade("unwelded, split, duplicate, flipped", unwelded, light, 0.16, 1);
+    /* Transformed (rotated and moved): the same shade. */
+    char moved[4096];
+    snprintf(moved, sizeof moved,
+             "%.*s, transform: [{rotate: {axis: [1, 2, 0.5], angle: 30}}, {translate: [0.3, 1.2, -0.4]}]}\n",
+             (int)(strlen(welded) - 2), welded);
+    char moved_light[512];
+    snprintf(moved_light, sizeof moved_light,
+             "%.*s, transform: [{rotate: {axis: [1, 2, 0.5], angle: 30}}, {translate: [0.3, 1.2, -0.4]}]}\n",
+             (int)(strlen(light) - 2), light);
+    check_shade("transformed", moved, moved_light, 0.16, 1);
+    /* A one-sided light facing up in the same shade: nothing it emits goes
+       down, so no portal (the hole is behind it). */
+    const char *up =
+        "  - {name: bulb, vertices: [[-0.2, 0.5, -0.2], [-0.2, 0.5, 0.2], [0.2, 0.5, 0.2], [0.2, 0.5, -0.2]],"
+        " radiance: [1, 1, 1]}\n";
+    check_shade("one-sided, facing away from the hole", welded, up, 0.0, 0);
+}
+
+static void test_fallbacks(void)
+{
+    const char *welded = "  - {type: mesh, material: grey,\n"
+                         "     vertices: [[-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 0, 0.5], [-0.5, 0, 0.5],\n"
+                         "                [-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5],\n"
+                         "                [-0.2, 0, -0.2], [0.2, 0, -0.2], [0.2, 0, 0.2], [-0.2, 0, 0.2]],\n"
+                         "     quads: [[4, 7, 6, 5], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7],\n"
+                         "             [0, 8, 9, 1], [1, 9, 10, 2], [2, 10, 11, 3], [3, 11, 8, 0]]}\n";
+    static const struct {
+        const char *what, *light, *note;
+        bool warn;
+    } cases[] = {
+        { "piercing",
+          "  - {name: bulb, vertices: [[-0.8, 0.5, -0.2], [0.2, 0.5, -0.2], [0.2, 0.5, 0.2], [-0.8, 0.5, 0.2]], "
+          "radiance: [1, 1, 1], two_sided: true}\n",
+          "touches or pierces", true },
+        { "touching the top",
+          "  - {name: bulb, vertices: [[-0.2, 1, -0.2], [0.2, 1, -0.2], [0.2, 1, 0.2], [-0.2, 1, 0.2]], radiance: [1, "
+          "1, 1]}\n",
+          "touches or pierces", true },
+        { "outside",
+          "  - {name: bulb, vertices: [[2, 0.5, -0.2], [2, 0.5, 0.2], [2.4, 0.5, 0.2], [2.4, 0.5, -0.2]], radiance: "
+          "[1, 1, 1], two_sided: true}\n",
+          "no shape encloses it", false },
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        static char text[1 << 14];
+        snprintf(text, sizeof text, "%sshapes:\n%s%slights:\n%sportals: auto\n", shade_scene_head, floor_shape, welded,
+                 cases[i].light);
+        struct config cfg;
+        struct scene sc;
+        if (!build_text(text, &cfg, &sc)) {
+            CHECK_MSG(false, "%s", cases[i].what);
+            continue;
+        }
+        const struct auto_portal_report *rep = &sc.auto_portals[0];
+        CHECK_MSG(!rep->enclosed && sc.n_portals == 0 && rep->warn == cases[i].warn && strstr(rep->note, cases[i].note),
+                  "%s: %s", cases[i].what, rep->note);
+        scene_destroy(&sc);
+        config_free(&cfg);
+    }
+    /* Coplanar geometry only (a degenerate hull): no enclosure. */
+    static char text[1 << 14];
+    snprintf(text, sizeof text,
+             "%sshapes:\n  - {type: quad, material: grey, vertices: [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]]}\n"
+             "  - {type: quad, material: grey, vertices: [[-9, -1, -9], [9, -1, -9], [9, -1, 9], [-9, -1, 9]]}\n"
+             "lights:\n  - {name: l, vertices: [[-0.2, 0.5, -0.2], [0.2, 0.5, -0.2], [0.2, 0.5, 0.2], [-0.2, 0.5, "
+             "0.2]], radiance: [1, 1, 1], two_sided: true}\n"
+             "portals: auto\n",
+             shade_scene_head);
+    struct config cfg;
+    struct scene sc;
+    if (build_text(text, &cfg, &sc)) {
+        CHECK(!sc.auto_portals[0].enclosed && sc.n_portals == 0);
+        scene_destroy(&sc);
+        config_free(&cfg);
+    } else {
+        CHECK(false);
+    }
+    /* Nested shades: a small closed-but-for-a-hole box inside the big one:
+       the inner shade is the enclosure. */
+    const char *inner = "  - {type: mesh, material: grey,\n"
+                        "     vertices: [[-0.3, 0.3, -0.3], [0.3, 0.3, -0.3], [0.3, 0.3, 0.3], [-0.3, 0.3, 0.3],\n"
+                        "                [-0.3, 0.8, -0.3], [0.3, 0.8, -0.3], [0.3, 0.8, 0.3], [-0.3, 0.8, 0.3],\n"
+                        "                [-0.1, 0.3, -0.1], [0.1, 0.3, -0.1], [0.1, 0.3, 0.1], [-0.1, 0.3, 0.1]],\n"
+                        "     quads: [[4, 7, 6, 5], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7],\n"
+                        "             [0, 8, 9, 1], [1, 9, 10, 2], [2, 10, 11, 3], [3, 11, 8, 0]]}\n";
+    char both[4096];
+    snprintf(both, sizeof both, "%s%s", welded, inner);
+    check_shade("nested shades", both,
+                "  - {name: bulb, vertices: [[-0.1, 0.6, -0.1], [0.1, 0.6, -0.1], [0.1, 0.6, 0.1], [-0.1, 0.6, 0.1]],"
+                " radiance: [1, 1, 1], two_sided: true}\n",
+                0.04, 1);
+}
+
+/* Same scene, same portals bit for bit, whatever render.threads. */
+static void test_deterministic(void)
+{
+    struct config a, b;
+    struct scene sa, sb;
+    struct config_override one[] = { { "render.threads", "1" } }, four[] = { { "render.threads", "4" } };
+    if (!load_auto("configs/scenes/multi_lamp.yaml", one, 1, &a, &sa)) {
+        CHECK(false);
+        return;
+    }
+    if (!load_auto("configs/scenes/multi_lamp.yaml", four, 1, &b, &sb)) {
+        CHECK(false);
+        scene_destroy(&sa);
+        config_free(&a);
+        return;
+    }
+    CHECK(sa.n_portals == sb.n_portals);
+    for (int i = 0; i < sa.n_portals && i < sb.n_portals; ++i) {
+        const struct polygon *p = &sa.portals[i].target.polygon, *q = &sb.portals[i].target.polygon;
+        CHECK(p->n == q->n && memcmp(p->v, q->v, sizeof p->v[0] * (size_t)p->n) == 0);
+    }
+    scene_destroy(&sa);
+    scene_destroy(&sb);
+    config_free(&a);
+    config_free(&b);
+}
+
+/* The config: `portals: auto` and per-light entries load back from the
+   effective YAML; without auto nothing is requested. */
+static void test_config_round_trip(void)
+{
+    const char *text = "camera: {position: [0, 1, 6], look_at: [0, 1, 0], up: [0, 1, 0], fov_y: 40}\n"
+                       "film: {width: 8, height: 8}\n"
+                       "materials: {grey: {type: diffuse, albedo: [0.5, 0.5, 0.5]}}\n"
+                       "render: {spp: 1}\n"
+                       "lights:\n"
+                       "  - {name: a, vertices: [[0, 2, 0], [1, 2, 0], [1, 2, 1]], radiance: [1, 1, 1]}\n"
+                       "  - {name: b, vertices: [[0, 3, 0], [1, 3, 0], [1, 3, 1]], radiance: [1, 1, 1]}\n"
+                       "portals:\n"
+                       "  - {light: b, auto: true}\n"
+                       "  - {name: pa, light: a, vertices: [[0, 1, 0], [1, 1, 1], [1, 1, 0]]}\n";
+    struct config c, d;
+    struct error err;
+    CHECK(config_load_string(text, strlen(text), "t.yaml", NULL, 0, &c, &err));
+    CHECK(!c.lights[0].auto_portals && c.lights[1].auto_portals && c.n_portals == 1 && !c.portals_auto);
+    CHECK(strstr(c.effective_yaml, "auto: true") != NULL);
+    CHECK(config_load_string(c.effective_yaml, strlen(c.effective_yaml), "e.yaml", NULL, 0, &d, &err));
+    CHECK(d.hash == c.hash && d.lights[1].auto_portals && d.n_portals == 1);
+    config_free(&c);
+    config_free(&d);
+}
+
+static const struct test_case tests[] = {
+    { "hull_box", test_hull_box },
+    { "hull_sphere_points", test_hull_sphere_points },
+    { "subtract_triangle", test_subtract_triangle },
+    { "config_round_trip", test_config_round_trip },
+    { "lampshade_hole_and_light_side", test_lampshade_hole_and_light_side },
+    { "multi_lamp_both_sides", test_multi_lamp_both_sides },
+    { "little_lamp_fallback", test_little_lamp_fallback },
+    { "negative_control", test_negative_control },
+    { "rendered_lampshade", test_rendered_lampshade },
+    { "rendered_multi_lamp", test_rendered_multi_lamp },
+    { "robust_meshing", test_robust_meshing },
+    { "fallbacks", test_fallbacks },
+    { "deterministic", test_deterministic },
+};
+
+TEST_MAIN(tests)
