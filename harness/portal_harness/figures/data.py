@@ -93,15 +93,38 @@ class Chosen:
     rel_mse: dict[str, float | None]
 
 
-def choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> Chosen | None:
-    """The run's last image rendered within `time_s` (the earliest if none is)."""
-    assert cell.run_dir is not None
-    rows = [m for m in index.metrics_of(conn, cell.key, cell.reference_key) if m["error"] is None]
-    times = sorted({m["time_s"] for m in rows})
+# Images compared "at equal time" may differ in time by this fraction. A run
+# stops after the pass that crosses its budget, so runs with one budget end
+# a pass apart (milliseconds, in either order), while consecutive snapshots
+# of a schedule are at least a quarter of their time apart. Without the
+# tolerance, every run that overshot the shortest run's final time by a
+# millisecond was shown at its previous snapshot (1.5 s beside 2.0 s).
+EQUAL_TIME_TOLERANCE = 0.02
+
+
+def pick_time(times: list[float], time_s: float, tolerance: float = EQUAL_TIME_TOLERANCE) -> float | None:
+    """Of a run's image times, the last one within `time_s` up to the
+    tolerance (the earliest if none is); None without images."""
     if not times:
         return None
-    within = [t for t in times if t <= time_s * (1 + 1e-6)]
-    chosen_t = within[-1] if within else times[0]
+    ordered = sorted(times)
+    within = [t for t in ordered if t <= time_s * (1 + tolerance)]
+    return within[-1] if within else ordered[0]
+
+
+def times_agree(times: list[float], tolerance: float = EQUAL_TIME_TOLERANCE) -> bool:
+    """True when images at these times count as rendered at equal time."""
+    return not times or max(times) <= min(times) * (1 + tolerance)
+
+
+def choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> Chosen | None:
+    """The run's image at `time_s`: its last image rendered within `time_s`
+    up to EQUAL_TIME_TOLERANCE (the earliest if none is)."""
+    assert cell.run_dir is not None
+    rows = [m for m in index.metrics_of(conn, cell.key, cell.reference_key) if m["error"] is None]
+    chosen_t = pick_time([m["time_s"] for m in rows], time_s)
+    if chosen_t is None:
+        return None
     at = [m for m in rows if m["time_s"] == chosen_t]
     image = next((m["image"] for m in at if m["is_final"]), at[0]["image"])
     return Chosen(cell.run_dir / image, chosen_t, {m["region"]: m["rel_mse"] for m in at if m["image"] == image})

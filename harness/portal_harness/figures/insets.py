@@ -22,7 +22,14 @@ from portal_harness.core.metrics import WHOLE_IMAGE, Region, crop
 from portal_harness.core.paths import ResultsLayout, RunLayout
 from portal_harness.experiment.model import Experiment, Point
 from portal_harness.figures import layout as figure_layout
-from portal_harness.figures.data import ExperimentData, cell_done, choose_image, equal_time, reference_groups
+from portal_harness.figures.data import (
+    ExperimentData,
+    cell_done,
+    choose_image,
+    equal_time,
+    reference_groups,
+    times_agree,
+)
 from portal_harness.figures.style import INSET_COLOURS, point_title, save_figure, strategy_label
 
 INSET_CELL_IN = 1.0  # width of one inset column, inches
@@ -104,14 +111,18 @@ def build_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Con
         for g_i, point in enumerate(group):
             grid = outer[row_of[point.id], 2].subgridspec(n_sub, len(columns), wspace=0.06, hspace=label_in / inset_h)
             t_eq = equal_time(experiment, conn, data, point)
-            label = point_title(experiment, point) + (f" (strategies at {t_eq:.3g} s)" if math.isfinite(t_eq) else "")
+            shown = {c: _column_image(conn, data, point, c, t_eq, reference) for c in columns}
+            times = [t for c, (_, _, t, _) in shown.items() if c != "reference" and t is not None]
+            label = point_title(experiment, point) + (f" (strategies at {t_eq:.2f} s)" if math.isfinite(t_eq) else "")
+            if not times_agree(times):
+                label += f" UNEQUAL TIMES {min(times):.2f}-{max(times):.2f} s"
             box = outer[row_of[point.id], 1].get_position(fig)
             text, size = figure_layout.fit_text(label, block_h * 72 * 0.95, 8, max_lines=2)
             fig.text(box.x1, (box.y0 + box.y1) / 2, text, rotation=90, ha="right", va="center", fontsize=size)
             for c_i, column in enumerate(columns):
                 if column == "reference" and g_i > 0:
                     continue  # the same reference insets as the group's first point
-                image, values, label_time, missing = _column_image(conn, data, point, column, t_eq, reference)
+                image, values, time_s, missing = shown[column]
                 for r_i, region in enumerate(regions):
                     ax = fig.add_subplot(grid[r_i, c_i])
                     ax.set_xticks([])
@@ -125,7 +136,12 @@ def build_insets(experiment: Experiment, data: ExperimentData, conn: sqlite3.Con
                         continue
                     ax.imshow(display.to_display(crop(image, region), exposure), interpolation="nearest")
                     value = values.get(region.name)
-                    text_ = label_time if column == "reference" else (f"{value:.3g}" if value is not None else "-")
+                    if column == "reference":
+                        text_ = f"{reference.header.spp} spp"
+                    else:
+                        text_ = f"{value:.3g}" if value is not None else "-"
+                        if r_i == len(regions) - 1 and time_s is not None:
+                            text_ += f" at {time_s:.2f} s"  # the time of the image the column shows
                     ax.set_xlabel(text_, fontsize=7, labelpad=1.5)
             if not headers_done:
                 _column_headers(fig, grid, columns, height)
@@ -162,21 +178,21 @@ def _column_image(
     column: str,
     t_eq: float,
     reference: exr.Snapshot,
-) -> tuple[np.ndarray | None, dict[str, float | None], str, str]:
-    """(image, relMSE by region, time label, why missing) of one inset column."""
+) -> tuple[np.ndarray | None, dict[str, float | None], float | None, str]:
+    """(image, relMSE by region, the image's render time, why missing) of one inset column."""
     if column == "reference":
-        return reference.rgb, {}, f"{reference.header.spp} spp", ""
+        return reference.rgb, {}, None, ""
     cell = data.runs.get((point.id, column))
     if not cell_done(cell):
-        return None, {}, "", cell.status if cell and cell.status else "missing"
+        return None, {}, None, cell.status if cell and cell.status else "missing"
     assert cell is not None
     chosen = choose_image(conn, cell, t_eq)
     if chosen is None:
-        return None, {}, "", "no image"
+        return None, {}, None, "no image"
     try:
-        return exr.read_snapshot(chosen.image).rgb, chosen.rel_mse, f"{chosen.time_s:.2g} s", ""
+        return exr.read_snapshot(chosen.image).rgb, chosen.rel_mse, chosen.time_s, ""
     except CorruptExrError:
-        return None, {}, "", "unreadable"
+        return None, {}, chosen.time_s, "unreadable"
 
 
 def figure_insets(

@@ -15,7 +15,11 @@ import yaml
 from conftest import REPO
 
 from portal_harness.core import exr
+from portal_harness.core.paths import ResultsLayout
+from portal_harness.execution import index
 from portal_harness.execution.renderer import renderer_version
+from portal_harness.experiment.loader import load_experiment
+from portal_harness.figures import data as figure_data
 
 pytestmark = pytest.mark.real
 SCENE = REPO / "configs" / "scenes" / "lampshade.yaml"
@@ -107,9 +111,33 @@ def test_02_tiny_sweep_figures_and_resume(
     assert status == 0, err
     for name in ("error_time", "insets", "efficiency"):
         assert (results / "figures" / f"real_tiny_{name}.png").stat().st_size > 5000
+    _assert_images_at_equal_time(exp, results, real_renderer)
     status, out, _ = cli("sweep", str(exp), "--no-progress", renderer=real_renderer)
     rendered_now = int(out.split(" rendered now")[0].split()[-1])
     assert rendered_now == (0 if portal_ok else 2)
+
+
+def _assert_images_at_equal_time(exp: Path, results: Path, renderer: Path) -> None:
+    """The insets' and the viewer's images of one point are at one render
+    time, up to the snapshot tolerance (runs overshoot their 0.3 s budget by
+    a pass, differently; their previous snapshot is 0.1 s earlier)."""
+    experiment = load_experiment(exp, str(renderer))
+    layout = ResultsLayout(results)
+    conn = index.connect(layout.index_path)
+    try:
+        data = figure_data.load(experiment, conn, layout)
+        for point in data.points:
+            t_eq = figure_data.equal_time(experiment, conn, data, point)
+            chosen = [
+                figure_data.choose_image(conn, cell, t_eq)
+                for (p, _), cell in data.runs.items()
+                if p == point.id and figure_data.cell_done(cell)
+            ]
+            times = [c.time_s for c in chosen if c is not None]
+            assert len(times) >= 2 and min(times) >= 0.29, times
+            assert figure_data.times_agree(times), (point.id, times)
+    finally:
+        conn.close()
 
 
 def test_03_renderer_config_error_is_refused_before_rendering(

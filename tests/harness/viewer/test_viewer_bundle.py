@@ -88,7 +88,8 @@ def test_01_images_are_the_exr_values_and_the_figures_choice(
                 cell = fig_data.runs[(point.id, e["name"])]
                 chosen = figure_data.choose_image(conn, cell, t_eq)
                 assert chosen is not None and e["status"] == "done"
-                assert e["file"] == chosen.image.name and e["time_s"] == chosen.time_s <= t_eq * (1 + 1e-6)
+                assert e["file"] == chosen.image.name and e["time_s"] == chosen.time_s
+                assert chosen.time_s <= t_eq * (1 + figure_data.EQUAL_TIME_TOLERANCE)
                 shown = vb.read_image(written, e["image"])
                 assert np.array_equal(shown, exr.read_snapshot(chosen.image).rgb.astype(np.float32))
                 # its relMSE per region is the index's for that very image

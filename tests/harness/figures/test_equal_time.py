@@ -1,0 +1,44 @@
+"""Images compared at equal time (figures/data.py: pick_time, times_agree):
+the inset figure and the viewer show every strategy's image at the same
+render time, up to EQUAL_TIME_TOLERANCE, never one run at its previous
+snapshot because it overshot the shortest run's budget by a millisecond."""
+
+from __future__ import annotations
+
+import pytest
+
+from portal_harness.figures.data import EQUAL_TIME_TOLERANCE, pick_time, times_agree
+
+# The runs of one point of lampshade_ratio (s_L = 0.075) in a fresh
+# `make figures`: snapshots every 0.5 s, finals a pass past the 2 s budget.
+SCHEDULE = [0.5, 1.0, 1.5]
+FINALS = {"light": 2.0001, "portal": 2.0010, "antishadow": 1.9989, "antishadow_exact": 2.0004}
+
+
+def test_01_runs_that_overshoot_by_a_pass_are_shown_at_their_final_image() -> None:
+    t_eq = min(FINALS.values())
+    chosen = {s: pick_time([*SCHEDULE, final], t_eq) for s, final in FINALS.items()}
+    assert chosen == FINALS
+    assert times_agree(list(chosen.values()))
+
+
+def test_02_the_previous_snapshot_is_never_taken_for_equal_time() -> None:
+    # the fault this replaces: the last image at or before the shortest final
+    chosen = [pick_time([*SCHEDULE, final], min(FINALS.values()), tolerance=1e-6) for final in FINALS.values()]
+    assert sorted(chosen) == [1.5, 1.5, 1.5, 1.9989]
+    assert not times_agree([t for t in chosen if t is not None])
+
+
+def test_03_a_later_image_beyond_the_tolerance_is_not_taken() -> None:
+    assert pick_time([1.0, 1.5, 2.1], 2.0) == 1.5
+    assert pick_time([1.0, 1.5, 2.0 * (1 + EQUAL_TIME_TOLERANCE)], 2.0) == pytest.approx(2.04)
+    assert pick_time([3.0, 4.0], 2.0) == 3.0  # none within: the earliest
+    assert pick_time([], 2.0) is None
+
+
+@pytest.mark.parametrize(
+    ("times", "agree"),
+    [([2.0, 2.001, 1.9989], True), ([1.5, 2.0], False), ([7.5, 8.0], False), ([8.0], True), ([], True)],
+)
+def test_04_times_agree_within_the_tolerance(times: list[float], agree: bool) -> None:
+    assert times_agree(times) is agree
