@@ -213,7 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="A long-running HTTP service over the results store: submit experiments (their YAML), "
         "follow their sweeps live, fetch images, summaries and figures; a web page at / and the API's "
         "documentation at /docs. Writes need a bearer token (--token-file or $PORTAL_HARNESS_TOKEN; without "
-        "either, on loopback, one is made in RESULTS/service/token). See README.md, 'The service'.",
+        "either, on loopback, one is made in RESULTS/service/token). See docs/service.md.",
     )
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8750)

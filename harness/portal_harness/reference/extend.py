@@ -2,7 +2,7 @@
 
 The renderer continues the reference's running mean and variance with
 passes it had not drawn, bit-identical to an uninterrupted render of the
-total spp (renderer README, "Resuming a render"). The harness does it in
+total spp (docs/rendering.md, "Resuming a render"). The harness does it in
 a copy: the installed folder is copied to an attempt folder, resumed there,
 checked like any run, given its new manifest (the old one with the new
 final image and an `extensions` entry) and installed in place of the old

@@ -80,7 +80,7 @@ def create_app(settings: ServiceSettings) -> FastAPI:
         title="portal-harness service",
         version=__version__,
         description="Submit experiments (their YAML), follow their sweeps, fetch images, summaries and figures. "
-        "See the README, section 'The service'.",
+        "See docs/service.md.",
         docs_url=None,
         redoc_url=None,
         lifespan=lifespan,
