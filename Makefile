@@ -31,8 +31,9 @@ WARN := -std=c99 -Wall -Wextra -Wpedantic -Wshadow
 MATH := -fno-math-errno -fno-trapping-math -fopenmp-simd
 CPPFLAGS := -D_POSIX_C_SOURCE=200809L -Irenderer/src -MMD -MP
 ALL_CFLAGS := $(WARN) $(MATH) $(CFLAGS) $(SAN_FLAGS) -pthread
-# assimp (mesh_file.c): pkg-config --libs assimp gives -lassimp.
-LDLIBS := -lembree3 -lOpenEXRCore -lyaml -lassimp -lm -pthread
+# assimp (mesh_file.c): pkg-config --libs assimp gives -lassimp; zlib
+# (mesh_serialized.c): -lz.
+LDLIBS := -lembree3 -lOpenEXRCore -lyaml -lassimp -lz -lm -pthread
 
 # The renderer's layers, lowest first: a file may include its own layer and
 # the ones before it (make lint-c runs tests/check_layers.sh). The list is
@@ -54,9 +55,11 @@ FUZZ_MESH_CORPUS := tests/configs/meshes tests/configs/bad/meshes $(wildcard tes
 FUZZ_CC ?= clang
 FUZZ_BUILD := renderer/build-fuzz
 FUZZ_SRCS := $(wildcard renderer/src/config/config*.c) renderer/src/base/kinds.c renderer/src/base/json_write.c \
-             renderer/src/config/mesh_file.c renderer/src/config/ply_check.c renderer/src/base/transform.c \
+             renderer/src/config/mesh_file.c renderer/src/config/ply_check.c renderer/src/config/mesh_serialized.c \
+             renderer/src/base/transform.c \
              renderer/src/config/expr.c renderer/src/geometry/polygon.c renderer/src/base/error.c
-FUZZ_MESH_SRCS := renderer/src/config/mesh_file.c renderer/src/config/ply_check.c renderer/src/base/error.c
+FUZZ_MESH_SRCS := renderer/src/config/mesh_file.c renderer/src/config/ply_check.c renderer/src/config/mesh_serialized.c \
+                  renderer/src/base/error.c
 DEPS_STAMP := renderer/build/.deps-installed
 VENV := .venv
 VENV_STAMP := $(VENV)/.installed
@@ -71,11 +74,11 @@ all: $(BUILD)/render
 $(DEPS_STAMP):
 	@mkdir -p $(@D)
 	@if [ ! -f /usr/include/embree3/rtcore.h ] || [ ! -f /usr/include/OpenEXR/openexr.h ] || \
-	    [ ! -f /usr/include/yaml.h ] || [ ! -f /usr/include/assimp/cimport.h ] || \
+	    [ ! -f /usr/include/yaml.h ] || [ ! -f /usr/include/assimp/cimport.h ] || [ ! -f /usr/include/zlib.h ] || \
 	    ! command -v pkg-config >/dev/null; then \
-	  echo "installing libembree-dev libopenexr-dev libyaml-dev libassimp-dev with apt-get" >&2; \
+	  echo "installing libembree-dev libopenexr-dev libyaml-dev libassimp-dev zlib1g-dev with apt-get" >&2; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
-	    libembree-dev libopenexr-dev libyaml-dev libassimp-dev pkg-config >/dev/null; \
+	    libembree-dev libopenexr-dev libyaml-dev libassimp-dev zlib1g-dev pkg-config >/dev/null; \
 	fi
 	@touch $@
 deps: $(DEPS_STAMP)
@@ -144,20 +147,20 @@ $(BUILD)/fuzz/%.o: renderer/fuzz/%.c $(FLAGS_STAMP) | $(DEPS_STAMP)
 # Linked from FUZZ_SRCS alone, as the libFuzzer build is, so that make test-c
 # notices when that list misses a file the config module needs.
 $(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(FUZZ_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
-	$(CC) $(ALL_CFLAGS) $^ -o $@ -lyaml -lassimp -lm -pthread
+	$(CC) $(ALL_CFLAGS) $^ -o $@ -lyaml -lassimp -lz -lm -pthread
 
 $(FUZZ_MESH_REPLAY): $(BUILD)/fuzz/fuzz_mesh.o $(BUILD)/fuzz/replay.o $(FUZZ_MESH_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
-	$(CC) $(ALL_CFLAGS) $^ -o $@ -lassimp -lm -pthread
+	$(CC) $(ALL_CFLAGS) $^ -o $@ -lassimp -lz -lm -pthread
 
 # libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
 FUZZ_FLAGS := -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
               -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
 $(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard renderer/src/*/*.h)
 	@mkdir -p $(@D)
-	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lyaml -lassimp -lm
+	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lyaml -lassimp -lz -lm
 $(FUZZ_BUILD)/fuzz_mesh: renderer/fuzz/fuzz_mesh.c $(FUZZ_MESH_SRCS) $(wildcard renderer/src/*/*.h)
 	@mkdir -p $(@D)
-	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lassimp -lm
+	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lassimp -lz -lm
 
 # C tests: every tests/renderer/test_*.c is its own executable. The runner
 # also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].

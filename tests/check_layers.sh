@@ -12,7 +12,7 @@ layers=(base geometry config scene sampling render cli)
 declare -A rank
 for i in "${!layers[@]}"; do rank[${layers[$i]}]=$i; done
 # library header prefix -> the one layer that may include it
-declare -A owner=([yaml.h]=config [assimp/]=config [embree3/]=scene [OpenEXR/]=render)
+declare -A owner=([yaml.h]=config [assimp/]=config [zlib.h]=config [embree3/]=scene [OpenEXR/]=render)
 
 bad=0
 report() { echo "check_layers: $*" >&2; bad=1; }

@@ -1,6 +1,7 @@
 /* libFuzzer target: the mesh loaders (mesh_file.c through assimp, and
-   ply_check.c) must reject or accept any bytes, read as an OBJ file and as
-   a PLY file, without crashing or invoking undefined behaviour; what they
+   ply_check.c; mesh_serialized.c through zlib) must reject or accept any
+   bytes, read as an OBJ file, as a PLY file and as every shape of a
+   serialized file, without crashing or invoking undefined behaviour; what they
    accept must be a mesh the renderer can use: at least one triangle, every
    index in range, every vertex finite and used. mesh_file_parse reads from
    memory (assimp's aiImportFileFromMemory), so no temporary file is
@@ -33,16 +34,25 @@ static void check_mesh(const struct mesh_data *m)
     free(used);
 }
 
+static void parse_one(const uint8_t *data, size_t size, enum mesh_format format, int shape)
+{
+    struct mesh_data m;
+    struct error err;
+    bool ok = mesh_file_parse_shape(data, size, format, shape, &m, &err);
+    if (ok) check_mesh(&m);
+    else if (m.vertices || m.triangles || m.n_vertices || m.n_triangles) abort(); /* out must be empty */
+    mesh_data_free(&m);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    static const enum mesh_format formats[2] = { MESH_FORMAT_OBJ, MESH_FORMAT_PLY };
-    for (int f = 0; f < 2; ++f) {
-        struct mesh_data m;
-        struct error err;
-        bool ok = mesh_file_parse(data, size, formats[f], &m, &err);
-        if (ok) check_mesh(&m);
-        else if (m.vertices || m.triangles || m.n_vertices || m.n_triangles) abort(); /* out must be empty */
-        mesh_data_free(&m);
-    }
+    parse_one(data, size, MESH_FORMAT_OBJ, 0);
+    parse_one(data, size, MESH_FORMAT_PLY, 0);
+    /* Every shape the dictionary names (at most 8, to keep an input
+       fast), and the first one past the end, which must be refused. */
+    int n = 0;
+    struct error err;
+    if (!mesh_file_shape_count(data, size, MESH_FORMAT_SERIALIZED, &n, &err)) n = 0;
+    for (int s = 0; s <= n && s <= 8; ++s) parse_one(data, size, MESH_FORMAT_SERIALIZED, s);
     return 0;
 }

@@ -160,6 +160,8 @@ static void emit_shape_file(struct text *t, const struct shape_file *f, const ch
         text_printf(t, "\n%sfile: ", indent);
         emit_string(t, f->path);
     }
+    /* In the image hash too: another shape is another image. */
+    if (f->shape_index >= 0) text_printf(t, "\n%sshape_index: %d", indent, f->shape_index);
     if (f->has_transform) {
         text_printf(t, "\n%stransform: [{matrix: [", indent);
         for (int i = 0; i < 16; ++i) {

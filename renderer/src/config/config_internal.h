@@ -55,7 +55,8 @@ struct source {
    transform, and the digest of the bytes read, so that the config's hashes
    change with the file. */
 struct shape_file {
-    char *path; /* owned; absolute; NULL for a shape without a file */
+    char *path;      /* owned; absolute; NULL for a shape without a file */
+    int shape_index; /* of a serialized file; -1 for OBJ and PLY */
     bool has_transform;
     struct transform transform;
     uint64_t fnv1a64; /* of the file's bytes */

@@ -29,11 +29,13 @@ static const char *const ggx_keys[] = { "type", "albedo", "roughness" };
 static const char *const quad_keys[] = { "name", "type", "material", "vertices", "transform" };
 static const char *const box_keys[] = { "name", "type", "material", "min", "max", "transform" };
 static const char *const mesh_keys[] = { "name", "type", "material", "vertices", "triangles", "quads", "transform" };
-static const char *const mesh_file_keys[] = { "name", "type", "material", "file", "transform", "digest" };
+static const char *const mesh_file_keys[] = {
+    "name", "type", "material", "file", "shape_index", "transform", "digest"
+};
 static const char *const digest_keys[] = { "fnv1a64", "bytes" };
 static const char *const light_keys[] = { "name", "vertices", "radiance", "two_sided", "transform" };
 static const char *const mesh_light_keys[] = { "name", "mesh", "radiance", "two_sided" };
-static const char *const light_mesh_keys[] = { "file", "transform", "digest" };
+static const char *const light_mesh_keys[] = { "file", "shape_index", "transform", "digest" };
 static const char *const portal_keys[] = { "name", "light", "vertices", "transform", "auto" };
 static const char *const auto_portal_keys[] = { "light", "auto" };
 
@@ -372,8 +374,10 @@ static bool take_mesh(struct loader *L, const yaml_node_t *file, const char *nam
     return true;
 }
 
-/* A mesh from an OBJ or PLY file (mesh_file.h), its path relative to the
-   folder of the config file that names it, as include: paths are. */
+/* A mesh from an OBJ, PLY or serialized file (mesh_file.h), its path
+   relative to the folder of the config file that names it, as include:
+   paths are; of a serialized file, the shape its shape_index names (0 when
+   absent). */
 static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_node_t *file, struct shape_desc *s,
                            struct shape_file *sf)
 {
@@ -385,9 +389,18 @@ static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_
     if (!mesh_format_from_path(name, &format)) {
         const char *dot = strrchr(name, '.'), *slash = strrchr(name, '/');
         bool ext = dot && (!slash || dot > slash);
-        return config_fail(L, file, "mesh \"%s\": unknown mesh format %s%.16s%s (expected a .obj or .ply file)", name,
-                           ext ? "\"" : "", ext ? dot : "(no extension)", ext ? "\"" : "");
+        return config_fail(L, file,
+                           "mesh \"%s\": unknown mesh format %s%.16s%s (expected a .obj, .ply or .serialized file)",
+                           name, ext ? "\"" : "", ext ? dot : "(no extension)", ext ? "\"" : "");
     }
+    int shape = 0;
+    yaml_node_t *shape_node = config_map_get(L, map, "shape_index");
+    if (shape_node && format != MESH_FORMAT_SERIALIZED)
+        return config_fail(L, shape_node,
+                           "mesh \"%s\": shape_index is for a .serialized file of several shapes (expected no "
+                           "shape_index: an OBJ or PLY file holds one mesh)",
+                           name);
+    if (shape_node && !config_get_int(L, shape_node, 0, INT_MAX, &shape)) return false;
     if (name[0] != '/' && L->from_string)
         return config_fail(L, file,
                            "mesh \"%s\": a relative path in a config given as a string (expected an absolute path: "
@@ -404,17 +417,27 @@ static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_
     const char *why;
     if (!config_read_text(path, &text, &length, &st, &why))
         return config_fail(L, file,
-                           "mesh \"%s\": cannot read %s: %s (expected an OBJ or PLY file; a relative path is relative "
-                           "to the folder of the config file that names it)",
+                           "mesh \"%s\": cannot read %s: %s (expected an OBJ, PLY or serialized file; a relative "
+                           "path is relative to the folder of the config file that names it)",
                            name, path, why);
     sf->fnv1a64 = config_fnv1a64(text, length);
     sf->bytes = length;
     sf->has_transform = present;
     sf->transform = t;
-    struct mesh_data m;
+    sf->shape_index = format == MESH_FORMAT_SERIALIZED ? shape : -1;
+    struct mesh_data m = { 0, NULL, 0, NULL };
     struct error merr = { "" };
+    int n_shapes = 1;
     bool ok = check_digest(L, map, name, sf->fnv1a64, sf->bytes);
-    ok = ok && (mesh_file_parse(text, length, format, &m, &merr) ||
+    ok = ok && (mesh_file_shape_count(text, length, format, &n_shapes, &merr) ||
+                config_fail(L, file, "mesh \"%s\": %s", name, merr.message));
+    /* shape < n_shapes when shape_index is absent (shape 0, n_shapes >= 1). */
+    ok = ok &&
+         (shape < n_shapes || config_fail(L, shape_node,
+                                          "mesh \"%s\": shape_index %d is out of range (the file holds %d shape%s: "
+                                          "expected 0 to %d)",
+                                          name, shape, n_shapes, n_shapes == 1 ? "" : "s", n_shapes - 1));
+    ok = ok && (mesh_file_parse_shape(text, length, format, shape, &m, &merr) ||
                 config_fail(L, file, "mesh \"%s\": %s", name, merr.message));
     free(text);
     if (!ok) return false;

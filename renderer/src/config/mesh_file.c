@@ -1,5 +1,6 @@
 /* mesh_file.c: OBJ and PLY through assimp's C API, and the checks around
-   it. Assimp's logger is process-global: none is attached, so assimp logs
+   it; serialized files through mesh_serialized.c, joined here as the
+   others are. Assimp's logger is process-global: none is attached, so assimp logs
    to its NullLogger and prints nothing (stdout is the renderer's JSON event
    stream; test_mesh_file.c checks it stays empty). Its last error message
    is global too (aiGetErrorString): it is read right after the failed call,
@@ -16,19 +17,27 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "config/mesh_serialized.h"
 #include "config/ply_check.h"
 
 bool mesh_format_from_path(const char *path, enum mesh_format *out)
 {
+    static const struct {
+        const char *ext;
+        enum mesh_format format;
+    } known[] = { { ".obj", MESH_FORMAT_OBJ }, { ".ply", MESH_FORMAT_PLY }, { ".serialized", MESH_FORMAT_SERIALIZED } };
     const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
-    if (!dot || (slash && dot < slash) || strlen(dot) != 4) return false;
-    char ext[5];
-    for (int i = 0; i < 4; ++i) ext[i] = (char)tolower((unsigned char)dot[i]);
-    ext[4] = '\0';
-    if (!strcmp(ext, ".obj")) *out = MESH_FORMAT_OBJ;
-    else if (!strcmp(ext, ".ply")) *out = MESH_FORMAT_PLY;
-    else return false;
-    return true;
+    if (!dot || (slash && dot < slash)) return false;
+    for (size_t k = 0; k < sizeof known / sizeof known[0]; ++k) {
+        const char *e = known[k].ext;
+        size_t i = 0;
+        while (e[i] && dot[i] && tolower((unsigned char)dot[i]) == e[i]) ++i;
+        if (!e[i] && !dot[i]) {
+            *out = known[k].format;
+            return true;
+        }
+    }
+    return false;
 }
 
 void mesh_data_free(struct mesh_data *m)
@@ -67,26 +76,72 @@ static bool precheck(const unsigned char *data, size_t size, enum mesh_format fo
 struct vertex_table {
     size_t mask;   /* capacity - 1, a power of two minus one */
     int *slot;     /* output vertex index, or -1 when empty */
-    uint32_t *key; /* 3 per slot: the coordinates' bits */
+    uint64_t *key; /* 3 per slot: the coordinates' bits as doubles */
 };
 
-static uint32_t float_key(float f)
+/* Doubles hold assimp's floats exactly, so equal keys are equal floats
+   there and equal doubles for a double-precision serialized file. */
+static uint64_t coord_key(double d)
 {
-    uint32_t u;
-    if (f == 0.0f) f = 0.0f; /* -0 joins +0 */
-    memcpy(&u, &f, sizeof u);
+    uint64_t u;
+    if (d == 0.0) d = 0.0; /* -0 joins +0 */
+    memcpy(&u, &d, sizeof u);
     return u;
 }
 
-/* The slot of key k: an empty one or the one that holds it (linear probing
-   from a multiplicative hash). */
-static size_t table_find(const struct vertex_table *t, const uint32_t k[3])
+static void vertex_key(struct vec3 p, uint64_t k[3])
 {
-    uint64_t h = ((uint64_t)k[0] * 0x9E3779B97F4A7C15u) ^ ((uint64_t)k[1] * 0xC2B2AE3D27D4EB4Fu) ^
-                 ((uint64_t)k[2] * 0x165667B19E3779F9u);
-    size_t i = (size_t)(h ^ (h >> 29)) & t->mask;
+    k[0] = coord_key(p.x);
+    k[1] = coord_key(p.y);
+    k[2] = coord_key(p.z);
+}
+
+/* The slot of key k: an empty one or the one that holds it (linear probing
+   from a multiplicative hash, folded so that the low bits see the high
+   ones: a float's double has 29 zero low bits). */
+static size_t table_find(const struct vertex_table *t, const uint64_t k[3])
+{
+    uint64_t h = (k[0] * 0x9E3779B97F4A7C15u) ^ (k[1] * 0xC2B2AE3D27D4EB4Fu) ^ (k[2] * 0x165667B19E3779F9u);
+    h ^= h >> 32;
+    h *= 0xD6E8FEB86659FD93u;
+    h ^= h >> 29;
+    size_t i = (size_t)h & t->mask;
     while (t->slot[i] >= 0 && memcmp(&t->key[3 * i], k, 3 * sizeof k[0]) != 0) i = (i + 1) & t->mask;
     return i;
+}
+
+/* A table for at most n keys, at most half full; false when out of memory. */
+static bool table_init(struct vertex_table *t, long long n)
+{
+    size_t cap = 16;
+    while (cap < 2 * (size_t)n) cap *= 2;
+    t->mask = cap - 1;
+    t->slot = malloc(sizeof *t->slot * cap);
+    t->key = malloc(sizeof *t->key * 3 * cap);
+    if (!t->slot || !t->key) return false;
+    for (size_t i = 0; i < cap; ++i) t->slot[i] = -1;
+    return true;
+}
+
+static void table_free(struct vertex_table *t)
+{
+    free(t->slot);
+    free(t->key);
+}
+
+/* The output index of position p: the vertex already kept at the same
+   position, or a new one appended to out. */
+static int table_join(struct vertex_table *t, struct vec3 p, struct mesh_data *out)
+{
+    uint64_t k[3];
+    vertex_key(p, k);
+    size_t i = table_find(t, k);
+    if (t->slot[i] < 0) {
+        t->slot[i] = out->n_vertices;
+        memcpy(&t->key[3 * i], k, sizeof k);
+        out->vertices[out->n_vertices++] = p;
+    }
+    return t->slot[i];
 }
 
 /* Triangles of the meshes of s, concatenated, with only the vertices they
@@ -118,22 +173,19 @@ static bool collect(const struct aiScene *s, struct mesh_data *out, struct error
                          MESH_FILE_TRIANGLES_MAX);
     /* At most 3 nt vertices are used: the table stays at most half full. */
     long long used_max = nv < 3 * nt ? nv : 3 * nt;
-    size_t cap = 16;
-    while (cap < 2 * (size_t)used_max) cap *= 2;
-    struct vertex_table t = { cap - 1, malloc(sizeof *t.slot * cap), malloc(sizeof *t.key * 3 * cap) };
+    struct vertex_table t;
+    bool table = table_init(&t, used_max);
     out->vertices = malloc(sizeof *out->vertices * (size_t)used_max);
     out->triangles = malloc(sizeof *out->triangles * (size_t)nt);
     int *remap = malloc(sizeof *remap * (size_t)nv);
-    if (!out->vertices || !out->triangles || !remap || !t.slot || !t.key) {
+    if (!out->vertices || !out->triangles || !remap || !table) {
         free(remap);
-        free(t.slot);
-        free(t.key);
+        table_free(&t);
         mesh_data_free(out);
         return error_set(err, "out of memory for %lld triangles", nt);
     }
-    for (size_t i = 0; i < cap; ++i) t.slot[i] = -1;
     for (long long i = 0; i < nv; ++i) remap[i] = -1;
-    int v_out = 0, t_out = 0;
+    int t_out = 0;
     long long base = 0;
     for (unsigned m = 0; m < s->mNumMeshes; ++m) {
         const struct aiMesh *mesh = s->mMeshes[m];
@@ -145,14 +197,7 @@ static bool collect(const struct aiScene *s, struct mesh_data *out, struct error
                 int *r = &remap[base + idx];
                 if (*r < 0) {
                     const struct aiVector3D *p = &mesh->mVertices[idx];
-                    uint32_t k[3] = { float_key(p->x), float_key(p->y), float_key(p->z) };
-                    size_t i = table_find(&t, k);
-                    if (t.slot[i] < 0) {
-                        t.slot[i] = v_out;
-                        memcpy(&t.key[3 * i], k, sizeof k);
-                        out->vertices[v_out++] = vec3_make(p->x, p->y, p->z);
-                    }
-                    *r = t.slot[i];
+                    *r = table_join(&t, vec3_make(p->x, p->y, p->z), out);
                 }
                 out->triangles[t_out][c] = *r;
             }
@@ -161,10 +206,39 @@ static bool collect(const struct aiScene *s, struct mesh_data *out, struct error
         base += mesh->mNumVertices;
     }
     free(remap);
-    free(t.slot);
-    free(t.key);
-    out->n_vertices = v_out;
+    table_free(&t);
     out->n_triangles = t_out;
+    return true;
+}
+
+/* One serialized shape as a mesh_data: the vertices its triangles use,
+   identical positions joined, as collect does for assimp's meshes (a
+   serialized mesh splits a vertex wherever its normals or texture
+   coordinates do). */
+static bool join_serialized(const struct mesh_serialized *in, struct mesh_data *out, struct error *err)
+{
+    long long used_max = in->n_vertices < 3LL * in->n_triangles ? in->n_vertices : 3LL * in->n_triangles;
+    struct vertex_table t;
+    bool table = table_init(&t, used_max);
+    out->vertices = malloc(sizeof *out->vertices * (size_t)used_max);
+    out->triangles = malloc(sizeof *out->triangles * (size_t)in->n_triangles);
+    int *remap = malloc(sizeof *remap * (size_t)in->n_vertices);
+    if (!out->vertices || !out->triangles || !remap || !table) {
+        free(remap);
+        table_free(&t);
+        mesh_data_free(out);
+        return error_set(err, "out of memory for %d triangles", in->n_triangles);
+    }
+    for (int i = 0; i < in->n_vertices; ++i) remap[i] = -1;
+    for (int f = 0; f < in->n_triangles; ++f)
+        for (int c = 0; c < 3; ++c) {
+            int idx = in->triangles[f][c];
+            if (remap[idx] < 0) remap[idx] = table_join(&t, in->positions[idx], out);
+            out->triangles[f][c] = remap[idx];
+        }
+    free(remap);
+    table_free(&t);
+    out->n_triangles = in->n_triangles;
     return true;
 }
 
@@ -216,9 +290,32 @@ static char *obj_geometry_only(const unsigned char *data, size_t size)
     return copy;
 }
 
+bool mesh_file_shape_count(const void *data, size_t size, enum mesh_format format, int *n_shapes, struct error *err)
+{
+    if (format == MESH_FORMAT_SERIALIZED) return mesh_serialized_count(data, size, n_shapes, err);
+    *n_shapes = 1;
+    return true;
+}
+
 bool mesh_file_parse(const void *data, size_t size, enum mesh_format format, struct mesh_data *out, struct error *err)
 {
+    return mesh_file_parse_shape(data, size, format, 0, out, err);
+}
+
+bool mesh_file_parse_shape(const void *data, size_t size, enum mesh_format format, int shape, struct mesh_data *out,
+                           struct error *err)
+{
     memset(out, 0, sizeof *out);
+    if (format == MESH_FORMAT_SERIALIZED) {
+        struct mesh_serialized raw;
+        if (!mesh_serialized_read(data, size, shape, &raw, err)) return false;
+        bool ok = join_serialized(&raw, out, err);
+        mesh_serialized_free(&raw);
+        return ok;
+    }
+    if (shape != 0)
+        return error_set(err, "shape %d out of range (an %s file holds one mesh: expected 0)", shape,
+                         format == MESH_FORMAT_OBJ ? "OBJ" : "PLY");
     if (!precheck(data, size, format, err)) return false;
     char *geometry = NULL;
     if (format == MESH_FORMAT_OBJ) {

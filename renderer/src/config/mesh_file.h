@@ -1,6 +1,7 @@
 /* mesh_file.h: triangle meshes from OBJ and PLY files, read by assimp (the
-   only file that includes its headers is mesh_file.c). In: the file's bytes;
-   out: vertices and triangles, or an error without a location (the config
+   only file that includes its headers is mesh_file.c), and from Mitsuba's
+   serialized files (mesh_serialized.h). In: the file's bytes; out:
+   vertices and triangles, or an error without a location (the config
    loader adds the file:line:column of the `file:` key). */
 #ifndef MESH_FILE_H
 #define MESH_FILE_H
@@ -11,15 +12,15 @@
 #include "base/error.h"
 #include "base/vec.h"
 
-enum mesh_format { MESH_FORMAT_OBJ, MESH_FORMAT_PLY };
+enum mesh_format { MESH_FORMAT_OBJ, MESH_FORMAT_PLY, MESH_FORMAT_SERIALIZED };
 
 /* Limits, so that counts fit the config's ints with room for the scene's
    stitching (watertight.c) and the file fits assimp's unsigned length. */
 #define MESH_FILE_BYTES_MAX     ((size_t)1 << 31)
 #define MESH_FILE_TRIANGLES_MAX (1 << 28)
 
-/* The format a file name's extension names (.obj, .ply, any case). False
-   when it names neither. */
+/* The format a file name's extension names (.obj, .ply, .serialized, any
+   case). False when it names none of them. */
 bool mesh_format_from_path(const char *path, enum mesh_format *out);
 
 struct mesh_data {
@@ -37,8 +38,20 @@ struct mesh_data {
    file as OBJ, a PLY file's structure (ply_check.h), vertices that are not
    finite, no triangles. Writes nothing to stdout or stderr. False with err
    ("line 4: ...", "byte 96: ...", "assimp: ...") otherwise; out is then
-   empty. */
+   empty. A serialized file gives its first shape, as mesh_file_parse_shape
+   does with shape 0. */
 bool mesh_file_parse(const void *data, size_t size, enum mesh_format format, struct mesh_data *out, struct error *err);
+
+/* How many meshes mesh_file_parse_shape can read from the file: 1 for OBJ
+   and PLY (unchecked: mesh_file_parse checks them), the dictionary's count
+   for a serialized file (checked as mesh_serialized_count does). */
+bool mesh_file_shape_count(const void *data, size_t size, enum mesh_format format, int *n_shapes, struct error *err);
+
+/* Shape `shape` of the file (0 for OBJ and PLY, which hold one mesh): for
+   a serialized file, mesh_serialized_read's checks, then the vertices
+   joined and kept as mesh_file_parse does. */
+bool mesh_file_parse_shape(const void *data, size_t size, enum mesh_format format, int shape, struct mesh_data *out,
+                           struct error *err);
 void mesh_data_free(struct mesh_data *m);
 
 #endif

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pathlib
 import struct
+import zlib
 
 HERE = pathlib.Path(__file__).resolve().parent
 BAD = HERE.parent / "bad" / "meshes"
@@ -154,6 +155,137 @@ def lamp_sphere_obj(segments: int = 8, rings: int = 6, radius: float = 0.12) -> 
     return "\n".join(lines) + "\n"
 
 
+# Mitsuba's serialized format (renderer/src/config/mesh_serialized.h), written
+# from its documentation: per shape a header (id 0x041C, version) and a zlib
+# stream (flags, a name in version 4, counts, positions, optional normals,
+# texture coordinates and colors, uint32 indices); at the end each shape's
+# offset (uint64 in version 4, uint32 in version 3) and the shape count.
+SERIALIZED_ID = 0x041C
+HAS_NORMALS, HAS_TEXCOORDS, HAS_COLORS, SINGLE, DOUBLE = 0x0001, 0x0002, 0x0008, 0x1000, 0x2000
+
+Vec = tuple[float, float, float]
+Tri = tuple[int, int, int]
+
+# Three shapes whose geometry test_mesh_serialized.c knows:
+# 0 "square": the unit square at y = 0 facing +y, its two triangles with
+#   corners of their own (6 vertices at 4 positions, joined by the loader);
+# 1 "tetra": a tetrahedron with corners at 0.1 steps, 4 triangles;
+# 2 "cube": cube.obj's box with 4 vertices a face (24 at 8 positions), as
+#   exporters that split vertices by normal write it, each quad from its
+#   second corner as in cube.obj: joined, it is cube.obj's mesh exactly.
+SQUARE_V: list[Vec] = [(0, 0, 0), (0, 0, 1), (1, 0, 1), (0, 0, 0), (1, 0, 1), (1, 0, 0)]
+SQUARE_T: list[Tri] = [(0, 1, 2), (3, 4, 5)]
+TETRA_V: list[Vec] = [(0.1, 0.2, 0.3), (1.1, 0.2, 0.3), (0.1, 1.2, 0.3), (0.1, 0.2, 1.3)]
+TETRA_T: list[Tri] = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+
+
+def cube_split() -> tuple[list[Vec], list[Tri]]:
+    verts: list[Vec] = []
+    tris: list[Tri] = []
+    for face in BOX_FACES:
+        base = len(verts)
+        a, b, c, d = face
+        for i in (b, c, d, a):
+            verts.append((0.5 if i & 1 else -0.5, 1.0 if i & 2 else 0.0, 0.5 if i & 4 else -0.5))
+        tris += [(base, base + 1, base + 2), (base, base + 2, base + 3)]
+    return verts, tris
+
+
+def serialized_stream(
+    version: int,
+    verts: list[Vec],
+    tris: list[Tri],
+    *,
+    double: bool = False,
+    attributes: int = 0,
+    name: str = "",
+    counts: tuple[int, int] | None = None,
+    flags: int | None = None,
+    extra: bytes = b"",
+) -> bytes:
+    """The uncompressed content of one shape; counts, flags and extra bytes
+    can be made to lie for the bad fixtures."""
+    real = "d" if double else "f"
+    nv, nt = counts if counts else (len(verts), len(tris))
+    body = struct.pack("<I", flags if flags is not None else attributes | (DOUBLE if double else SINGLE))
+    if version == 4:
+        body += name.encode() + b"\0"
+    body += struct.pack("<QQ", nv, nt)
+    body += b"".join(struct.pack("<3" + real, *v) for v in verts)
+    if attributes & HAS_NORMALS:
+        body += struct.pack("<3" + real, 0.0, 1.0, 0.0) * len(verts)
+    if attributes & HAS_TEXCOORDS:
+        body += b"".join(struct.pack("<2" + real, v[0], v[2]) for v in verts)
+    if attributes & HAS_COLORS:
+        body += struct.pack("<3" + real, 0.8, 0.5, 0.2) * len(verts)
+    body += b"".join(struct.pack("<3I", *t) for t in tris)
+    return body + extra
+
+
+def serialized_shape(version: int, stream: bytes) -> bytes:
+    return struct.pack("<HH", SERIALIZED_ID, version) + zlib.compress(stream)
+
+
+def serialized_file(version: int, shapes: list[bytes], offsets: list[int] | None = None) -> bytes:
+    data = b""
+    at = []
+    for shape in shapes:
+        at.append(len(data))
+        data += shape
+    entry = "<Q" if version == 4 else "<I"
+    data += b"".join(struct.pack(entry, o) for o in (offsets if offsets is not None else at))
+    return data + struct.pack("<I", len(shapes))
+
+
+def serialized_shapes(version: int, double: bool) -> bytes:
+    """The three shapes, the square with normals and texture coordinates,
+    the tetrahedron with colors, the cube with normals."""
+    cube_v, cube_t = cube_split()
+    streams = [
+        serialized_stream(
+            version, SQUARE_V, SQUARE_T, double=double, attributes=HAS_NORMALS | HAS_TEXCOORDS, name="square"
+        ),
+        serialized_stream(version, TETRA_V, TETRA_T, double=double, attributes=HAS_COLORS, name="tetra"),
+        serialized_stream(version, cube_v, cube_t, double=double, attributes=HAS_NORMALS, name="cube"),
+    ]
+    return serialized_file(version, [serialized_shape(version, s) for s in streams])
+
+
+def serialized_bad() -> dict[str, bytes]:
+    """Bad serialized files, each with one defect, by file name."""
+    good = serialized_shapes(4, False)
+    tetra = serialized_stream(4, TETRA_V, TETRA_T, name="tetra")
+    one = serialized_shape(4, tetra)
+
+    def single(stream: bytes) -> bytes:
+        return serialized_file(4, [serialized_shape(4, stream)])
+
+    nan_v = [(0.0, 0.0, 0.0), (float("nan"), 0.0, 0.0), (0.0, 1.0, 0.0)]
+    corrupt = bytearray(one)
+    corrupt[len(one) // 2] ^= 0xFF
+    return {
+        "serialized_empty.serialized": b"",
+        "serialized_wrong_id.serialized": b"\x1d\x04" + good[2:],
+        "serialized_version5.serialized": good[:2] + b"\x05\x00" + good[4:],
+        "serialized_truncated.serialized": good[: len(good) // 2],
+        "serialized_no_shapes.serialized": good[:-4] + struct.pack("<I", 0),
+        "serialized_huge_shape_count.serialized": good[:-4] + struct.pack("<I", 1 << 30),
+        "serialized_bad_offset.serialized": serialized_file(4, [one], offsets=[1 << 40]),
+        "serialized_offset_not_header.serialized": serialized_file(4, [one], offsets=[6]),
+        "serialized_stream_cut.serialized": serialized_file(4, [one[: len(one) - 12]]),
+        "serialized_corrupt.serialized": serialized_file(4, [bytes(corrupt)]),
+        "serialized_lying_vertices.serialized": single(serialized_stream(4, TETRA_V, TETRA_T, counts=(40, 4))),
+        "serialized_lying_triangles.serialized": single(serialized_stream(4, TETRA_V, TETRA_T, counts=(4, 9))),
+        "serialized_short_count.serialized": single(serialized_stream(4, TETRA_V, TETRA_T, counts=(4, 3))),
+        "serialized_huge_count.serialized": single(serialized_stream(4, TETRA_V, TETRA_T, counts=(1 << 40, 4))),
+        "serialized_large_count.serialized": single(serialized_stream(4, TETRA_V, TETRA_T, counts=(100_000_000, 4))),
+        "serialized_index.serialized": single(serialized_stream(4, TETRA_V, [(0, 1, 2), (0, 1, 4)])),
+        "serialized_nan.serialized": single(serialized_stream(4, nan_v, [(0, 1, 2)])),
+        "serialized_no_precision.serialized": single(serialized_stream(4, TETRA_V, TETRA_T, flags=HAS_NORMALS)),
+        "serialized_no_triangles.serialized": single(serialized_stream(4, TETRA_V, [])),
+    }
+
+
 def write(path: pathlib.Path, data: str | bytes) -> None:
     path.write_bytes(data if isinstance(data, bytes) else data.encode())
 
@@ -166,6 +298,10 @@ def main() -> None:
     write(HERE / "polys_be.ply", ply_binary(">"))
     write(HERE / "lamp_grid.obj", lamp_grid_obj())
     write(HERE / "lamp_sphere.obj", lamp_sphere_obj())
+    write(HERE / "shapes_v4_single.serialized", serialized_shapes(4, False))
+    write(HERE / "shapes_v4_double.serialized", serialized_shapes(4, True))
+    write(HERE / "shapes_v3_single.serialized", serialized_shapes(3, False))
+    write(HERE / "shapes_v3_double.serialized", serialized_shapes(3, True))
     # Bad ones.
     write(BAD / "index_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
     write(BAD / "negative_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n")
@@ -200,6 +336,8 @@ def main() -> None:
         b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
         b"end_header\n0 0 0\n1 0 0\n0 1 0\n",
     )
+    for name, data in serialized_bad().items():
+        write(BAD / name, data)
 
 
 if __name__ == "__main__":
