@@ -1,7 +1,9 @@
-"""Mitsuba shapes as the renderer's shapes and lights: obj/ply files copied
-next to scene.yaml, rectangles as quads, cubes as boxes, disks, spheres and
-cylinders tessellated into OBJ files; area emitters as polygon lights
-(rectangles) or mesh lights (every other shape)."""
+"""Mitsuba shapes as the renderer's shapes and lights: obj, ply and
+serialized files copied next to scene.yaml (a serialized shape keeps its
+shape_index: the renderer reads Mitsuba's serialized format itself),
+rectangles as quads, cubes as boxes, disks, spheres and cylinders
+tessellated into OBJ files; area emitters as polygon lights (rectangles) or
+mesh lights (every other shape)."""
 
 from __future__ import annotations
 
@@ -23,10 +25,9 @@ from portal_harness.mitsuba_import.values import Colours, boolean, number, vec3
 from portal_harness.mitsuba_import.xmltree import Element
 
 DEFAULT_MATERIAL = "mitsuba_default"  # Mitsuba's BSDF of a shape without one: diffuse 0.5
-FILE_SHAPES = ("obj", "ply")
+FILE_SHAPES = ("obj", "ply", "serialized")
 TESSELLATED = ("sphere", "cylinder", "disk")
 SKIPPED_SHAPES = {
-    "serialized": "serialized meshes (Mitsuba's own compressed format) are not read",
     "shapegroup": "shape groups are not supported",
     "instance": "instances are not supported",
     "heightfield": "heightfields are not supported",
@@ -109,6 +110,20 @@ class ShapeImporter:
             )
         return path
 
+    def _file_keys(self, p: Params, t: str, source: Path) -> dict[str, Any]:
+        """The mesh entry's `file` (a copy of the source, one per source
+        file) and, for a serialized file, the `shape_index` of the shape in
+        it (Mitsuba's default 0). The renderer checks the index against the
+        file's dictionary and reports a bad one at its line in scene.yaml."""
+        keys: dict[str, Any] = {"file": self.out.copy_mesh(source)}
+        if t == "serialized":
+            el = p.get("shape_index")
+            index = number(el, self.report) if el is not None else 0.0
+            if el is not None and (index != int(index) or index < 0):
+                raise self.report.error(el.line, f"{el.describe()}: expected a non-negative integer, got {index:g}")
+            keys["shape_index"] = int(index)
+        return keys
+
     def _mesh_options(self, p: Params, e: Element, t: str, emitter: bool) -> None:
         fn = p.get("face_normals")
         if fn is not None and not boolean(fn, self.report):
@@ -178,7 +193,7 @@ class ShapeImporter:
             self.report.warn(e.line, f"{e.describe()}: flip_normals ignored (surfaces are two-sided here)")
         shape: dict[str, Any] = {"name": name, "material": mat_name}
         if source is not None:
-            shape.update(type="mesh", file=self.out.copy_mesh(source))
+            shape.update(type="mesh", **self._file_keys(p, t, source))
         elif t == "rectangle":
             verts, _ = tessellate.rectangle()
             shape.update(type="quad", vertices=verts.tolist())
@@ -244,10 +259,10 @@ class ShapeImporter:
                     if flip:
                         self.report.warn(
                             e.line,
-                            f"{e.describe()}: flip_normals on a PLY emitter not applied: "
-                            "it emits on the side its winding faces",
+                            f"{e.describe()}: flip_normals on a {'PLY' if t == 'ply' else t} emitter not "
+                            "applied: it emits on the side its winding faces",
                         )
-                    mesh["file"] = self.out.copy_mesh(source)
+                    mesh.update(self._file_keys(p, t, source))
             else:
                 verts, faces = self._analytic(p, e, t)
                 if flip:

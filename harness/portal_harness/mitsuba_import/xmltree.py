@@ -27,6 +27,7 @@ LEGACY_NAMES = {
     "specularReflectance": "specular_reflectance",
     "flipNormals": "flip_normals",
     "faceNormals": "face_normals",
+    "shapeIndex": "shape_index",
     "intIOR": "int_ior",
     "extIOR": "ext_ior",
 }

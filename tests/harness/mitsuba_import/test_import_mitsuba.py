@@ -306,12 +306,12 @@ def test_13_missing_mesh_is_an_error_naming_file_and_line(tmp_path: Path) -> Non
 def test_14_unsupported_shapes_and_parameters_are_warned(tmp_path: Path) -> None:
     xml = write(
         tmp_path,
-        '<shape type="serialized"><string name="filename" value="x.serialized"/></shape>'
+        '<shape type="heightfield"><string name="filename" value="x.exr"/></shape>'
         '<shape type="cube"><boolean name="odd" value="true"/></shape>'
         '<shape type="cube"><boolean name="odd" value="true"/></shape>',
     )
     _, lines, _ = run_import(xml)
-    assert len(warned(lines, "serialized", "skipped")) == 1
+    assert len(warned(lines, "heightfield", "skipped")) == 1
     odd = warned(lines, 'name="odd"')
     assert len(odd) == 1 and "also at lines" in odd[0]  # one message, both lines
 
@@ -720,3 +720,91 @@ def test_29_imported_scene_renders_as_its_hand_written_equivalent(real_renderer:
     dirs = [np.subtract(c["look_at"], c["position"]) for c in cams]
     assert np.allclose(dirs[0] / np.linalg.norm(dirs[0]), dirs[1] / np.linalg.norm(dirs[1]))
     assert cams[0]["fov_y"] == pytest.approx(cams[1]["fov_y"], abs=1e-9)
+
+
+# ---------------------------------------------------------------- serialized meshes
+
+# Three shapes (tests/configs/meshes/make_fixtures.py): 0 a unit square
+# facing +y, 1 a tetrahedron, 2 cube.obj's cube with its vertices split by face.
+SERIALIZED = REPO / "tests" / "configs" / "meshes" / "shapes_v4_single.serialized"
+SERIALIZED_BODY = """
+  <shape type="serialized" id="cube">
+    <string name="filename" value="shapes.serialized"/>
+    <integer name="shape_index" value="2"/>
+    <transform name="to_world"><scale value="0.8"/><translate x="-0.5" y="0" z="0"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.7 0.2 0.1"/></bsdf>
+  </shape>
+  <shape type="serialized" id="floor">
+    <string name="filename" value="shapes.serialized"/>
+    <transform name="to_world"><translate x="-0.5" z="-0.5"/><scale value="6"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+  </shape>"""
+
+
+def test_30_serialized_shapes_keep_their_shape_index(tmp_path: Path) -> None:
+    (tmp_path / "shapes.serialized").write_bytes(SERIALIZED.read_bytes())
+    legacy = """
+  <shape type="serialized" id="tetra">
+    <string name="filename" value="shapes.serialized"/><integer name="shapeIndex" value="1"/>
+  </shape>
+  <shape type="serialized" id="bulb">
+    <string name="filename" value="shapes.serialized"/>
+    <transform name="to_world"><translate y="2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="2"/></emitter>
+  </shape>"""
+    doc, lines, out = run_import(write(tmp_path, SERIALIZED_BODY + legacy))
+    cube_, floor, tetra = doc["shapes"]
+    assert cube_["type"] == "mesh" and cube_["file"] == "meshes/shapes.serialized" and cube_["shape_index"] == 2
+    assert cube_["transform"] == [{"scale": 0.8}, {"translate": [-0.5, 0.0, 0.0]}]
+    assert floor["file"] == cube_["file"] and floor["shape_index"] == 0  # Mitsuba's default, written out
+    assert tetra["shape_index"] == 1  # Mitsuba 0.6's shapeIndex
+    bulb = next(light for light in doc["lights"] if light["name"] == "bulb")
+    assert bulb["mesh"] == {
+        "file": "meshes/shapes.serialized",
+        "shape_index": 0,
+        "transform": [{"translate": [0.0, 2.0, 0.0]}],
+    }
+    # One copy of the file for all four shapes, its bytes unchanged; no shape skipped, no parameter ignored.
+    assert sorted(p.name for p in (out / "meshes").iterdir()) == ["shapes.serialized"]
+    assert (out / "meshes" / "shapes.serialized").read_bytes() == SERIALIZED.read_bytes()
+    assert not warned(lines, "skipped") and not warned(lines, "ignored")
+
+    bad = write(
+        tmp_path,
+        '<shape type="serialized">\n<string name="filename" value="shapes.serialized"/>\n'
+        '<integer name="shape_index" value="-1"/></shape>',
+        name="bad.xml",
+    )
+    with pytest.raises(MitsubaImportError) as e:
+        import_scene(bad, tmp_path / "bad_out")
+    assert e.value.line == line_of(bad.read_text(), 'value="-1"') and "non-negative integer" in str(e.value)
+
+
+@pytest.mark.real
+def test_31_serialized_cube_renders_as_the_same_obj(real_renderer: Path, tmp_path: Path) -> None:
+    """The imported scene with the serialized cube renders bit for bit as
+    the same scene with cube.obj in its place (the loader joins the split
+    vertices back into cube.obj's mesh); a shape_index past the file's
+    shapes is the renderer's error at its line in scene.yaml."""
+    (tmp_path / "shapes.serialized").write_bytes(SERIALIZED.read_bytes())
+    (tmp_path / "cube.obj").write_bytes((REPO / "tests" / "configs" / "meshes" / "cube.obj").read_bytes())
+    ser, _ = import_scene(write(tmp_path, SERIALIZED_BODY, name="ser.xml"), tmp_path / "ser")
+    obj_body = SERIALIZED_BODY.replace(
+        '<shape type="serialized" id="cube">\n    <string name="filename" value="shapes.serialized"/>\n'
+        '    <integer name="shape_index" value="2"/>',
+        '<shape type="obj" id="cube">\n    <string name="filename" value="cube.obj"/>',
+    )
+    assert obj_body != SERIALIZED_BODY
+    obj, _ = import_scene(write(tmp_path, obj_body, name="obj.xml"), tmp_path / "obj")
+    a = _render(real_renderer, ser, tmp_path / "ra")
+    b = _render(real_renderer, obj, tmp_path / "rb")
+    assert a.rgb.mean() > 0.01 and np.array_equal(a.rgb, b.rgb)
+
+    text = ser.read_text().replace("shape_index: 2", "shape_index: 7")
+    ser.write_text(text)
+    proc = subprocess.run([str(real_renderer), "--print-config", str(ser)], capture_output=True, text=True, timeout=60)
+    line = 1 + text.splitlines().index(next(ln for ln in text.splitlines() if "shape_index: 7" in ln))
+    assert proc.returncode == 2
+    assert (
+        f"scene.yaml:{line}:" in proc.stderr and "shape_index 7 is out of range (the file holds 3 shapes" in proc.stderr
+    )
