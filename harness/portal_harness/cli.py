@@ -19,7 +19,7 @@ from portal_harness.analysis.run_metrics import measure_runs, reindex
 from portal_harness.analysis.sweep import sweep
 from portal_harness.core.errors import ConfigError, HarnessError
 from portal_harness.core.metrics import Region
-from portal_harness.core.paths import ResultsLayout, default_renderer, default_results
+from portal_harness.core.paths import ResultsLayout, default_renderer, default_results, find_repo_root
 from portal_harness.core.regions import DEFAULT_LIT_THRESHOLD
 from portal_harness.execution import index, store
 from portal_harness.execution.batch import SweepOptions
@@ -256,6 +256,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="rebuild the index from the run folders",
         description="Re-record every run folder's manifest and metrics in results/index.sqlite.",
     )
+
+    p = sub.add_parser(
+        "results-page",
+        parents=[common],
+        help="regenerate the tables of docs/results.md from the stored summaries",
+        description="Rewrites the generated block of the results page (docs/results.md) from "
+        "results/experiments/NAME/summary.csv (by default the committed ones of the FULL experiments): "
+        "per experiment, the efficiency relative to light in the lit region and the insets, with standard "
+        "errors and bounds. The page's hand-written text is kept. With --check, changes nothing and exits 1 "
+        "when the page is stale.",
+    )
+    p.add_argument(
+        "experiments", nargs="*", metavar="NAME", help="experiments to list (default: every FULL one, NAME_full)"
+    )
+    p.add_argument("--page", type=Path, help="the page (default: docs/results.md of the repository)")
+    p.add_argument("--check", action="store_true", help="exit 1 if the page differs from what would be written")
     return parser
 
 
@@ -428,6 +444,29 @@ def cmd_query(args: argparse.Namespace) -> int:
     return 0 if found else 1
 
 
+def cmd_results_page(args: argparse.Namespace) -> int:
+    from portal_harness.analysis import results_page
+
+    page = args.page or find_repo_root() / "docs" / "results.md"
+    experiments_dir = _layout(args).root / "experiments"
+    if args.check:
+        try:
+            current = page.read_text()
+        except OSError as e:
+            raise HarnessError(f"{page}: cannot read ({e.strerror})") from None
+        expected = results_page.replace_block(
+            current, results_page.generated_block(experiments_dir, args.experiments), str(page)
+        )
+        if expected != current:
+            print(f"{page}: stale; run `portal-harness results-page`", file=sys.stderr)
+            return 1
+        print(f"{page}: up to date")
+        return 0
+    changed = results_page.write_page(page, experiments_dir, args.experiments)
+    print(f"{page}: {'rewritten' if changed else 'unchanged'}")
+    return 0
+
+
 def cmd_reindex(args: argparse.Namespace) -> int:
     count = reindex(_layout(args))
     print(f"indexed {count} run folders")
@@ -483,6 +522,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "regress": cmd_regress,
         "query": cmd_query,
         "reindex": cmd_reindex,
+        "results-page": cmd_results_page,
         "import-mitsuba": cmd_import_mitsuba,
         "serve": cmd_serve,
     }

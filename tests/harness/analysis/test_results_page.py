@@ -1,0 +1,107 @@
+"""docs/results.md's generated tables (analysis/results_page.py and
+`portal-harness results-page`): read from the stored summaries only, values
+with their standard errors and bound marks, FULL runs marked, the page's
+prose kept, and the committed page current with the committed summaries."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import pytest
+from conftest import REPO
+
+from portal_harness.analysis import results_page as rp
+from portal_harness.cli import main
+from portal_harness.core.errors import HarnessError
+
+FIELDS = ["point", "strategy", "status", "region", "region_kind", "replicates"]
+FIELDS += ["efficiency_vs_light", "efficiency_vs_light_stderr", "bound"]
+
+
+def _summary(folder: Path, rows: list[dict[str, str]]) -> None:
+    folder.mkdir(parents=True)
+    with (folder / "summary.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=FIELDS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in FIELDS})
+
+
+def _row(point: str, strategy: str, region: str, value: str, stderr: str, **extra: str) -> dict[str, str]:
+    kind = "inset" if region not in ("lit", "image") else region
+    row = {"point": point, "strategy": strategy, "status": "done", "region": region, "region_kind": kind}
+    row |= {"replicates": "5", "efficiency_vs_light": value, "efficiency_vs_light_stderr": stderr}
+    return row | extra
+
+
+@pytest.mark.parametrize(
+    ("value", "stderr", "bound", "text"),
+    [
+        ("2.3147", "0.4012", "", "2.31 +- 0.40"),
+        ("6.27", "1.04", "lower", ">= 6.3 +- 1.0"),
+        ("0.0000525", "0.0000024", "", "0.0000525 +- 0.0000024"),
+        ("11.0", "", "upper", "<= 11.0"),
+        ("nan", "0.1", "", "-"),
+        ("", "", "", "-"),
+    ],
+)
+def test_01_values_keep_two_digits_of_their_error_and_their_bound(
+    value: str, stderr: str, bound: str, text: str
+) -> None:
+    assert rp.format_value(value, stderr, bound) == text
+
+
+def test_02_a_table_per_experiment_lit_then_insets_light_left_out(tmp_path: Path) -> None:
+    rows = [
+        _row("s_L=0.075", "light", "lit", "1.0", "0.01"),
+        _row("s_L=0.075", "antishadow", "lit", "2.58", "0.35"),
+        _row("s_L=0.075", "antishadow", "floor", "3.1", "0.2", bound="lower"),
+        _row("s_L=0.075", "antishadow", "image", "9.9", "0.1"),  # not a headline region
+        _row("s_L=1.2", "antishadow", "lit", "6.27", "1.0") | {"status": "failed"},
+    ]
+    text = rp.experiment_table("lampshade_ratio_full", rows)
+    assert "### `lampshade_ratio_full`: FULL (paper quality)" in text
+    assert "| point | region | `antishadow` |" in text and "| `light`" not in text
+    assert "| s_L=0.075 | lit | 2.58 +- 0.35 |" in text
+    assert "| s_L=0.075 | inset floor | >= 3.10 +- 0.20 |" in text
+    assert "9.9" not in text and "s_L=1.2" not in text  # whole image, failed runs
+    assert "small default" in rp.experiment_table("lampshade_ratio", rows)
+
+
+def test_03_the_block_is_replaced_and_the_prose_kept(tmp_path: Path) -> None:
+    experiments = tmp_path / "experiments"
+    _summary(experiments / "a_full", [_row("p", "antishadow", "lit", "2.0", "0.1")])
+    _summary(experiments / "b", [_row("p", "antishadow", "lit", "5.0", "0.1")])
+    page = tmp_path / "results.md"
+    page.write_text(f"# Results\n\nProse before.\n\n{rp.BEGIN}\nold table\n{rp.END}\n\nProse after.\n")
+    assert rp.write_page(page, experiments)
+    text = page.read_text()
+    assert text.startswith("# Results\n\nProse before.\n\n") and text.endswith("\n\nProse after.\n")
+    assert "old table" not in text and "2.00 +- 0.10" in text
+    assert "`b`" not in text  # by default only FULL summaries: those are committed
+    assert not rp.write_page(page, experiments)  # regenerated: unchanged
+    rp.write_page(page, experiments, ["b", "a_full"])
+    assert text.index("`a_full`") < page.read_text().index("`b`")  # FULL first
+
+
+def test_04_a_page_without_the_block_or_summaries_is_an_error(tmp_path: Path) -> None:
+    page = tmp_path / "results.md"
+    page.write_text("# Results\n")
+    (tmp_path / "experiments").mkdir()
+    with pytest.raises(HarnessError, match="no experiment summaries"):
+        rp.write_page(page, tmp_path / "experiments")
+    _summary(tmp_path / "experiments" / "a_full", [_row("p", "antishadow", "lit", "2.0", "0.1")])
+    with pytest.raises(HarnessError, match="no generated block"):
+        rp.write_page(page, tmp_path / "experiments")
+    assert page.read_text() == "# Results\n"
+
+
+def test_05_the_committed_page_is_current_and_check_sees_a_stale_one(tmp_path: Path) -> None:
+    results = ["--results", str(REPO / "results")]
+    assert main(["results-page", "--check", *results]) == 0
+    stale = tmp_path / "results.md"
+    shutil.copy(REPO / "docs" / "results.md", stale)
+    stale.write_text(stale.read_text().replace("1.080 +- 0.020", "1.2 +- 0.020"))
+    assert main(["results-page", "--check", "--page", str(stale), *results]) == 1
