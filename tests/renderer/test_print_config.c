@@ -359,6 +359,98 @@ static void test_json_escapes_names(void)
     remove_tree(dir);
 }
 
+/* `portals: auto`: --print-config adds what the finder found, per light,
+   as YAML comments after the config (a summary line, then the portals as
+   ordinary entries that load back as hand portals) and as the JSON member
+   "auto_portals"; the same text whatever --threads. */
+static const char auto_scene[] =
+    "camera: {position: [0, 1, 6], look_at: [0, 1, 0], up: [0, 1, 0], fov_y: 40}\n"
+    "film: {width: 8, height: 8}\n"
+    "materials: {grey: {type: diffuse, albedo: [0.5, 0.5, 0.5]}}\n"
+    "render: {spp: 1}\n"
+    "shapes:\n"
+    "  - {type: quad, material: grey, vertices: [[-20, -2, -20], [-20, -2, 20], [20, -2, 20], [20, -2, -20]]}\n"
+    "  - {type: mesh, material: grey,\n"
+    "     vertices: [[-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 0, 0.5], [-0.5, 0, 0.5],\n"
+    "                [-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5],\n"
+    "                [-0.2, 0, -0.2], [0.2, 0, -0.2], [0.2, 0, 0.2], [-0.2, 0, 0.2]],\n"
+    "     quads: [[4, 7, 6, 5], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7],\n"
+    "             [0, 8, 9, 1], [1, 9, 10, 2], [2, 10, 11, 3], [3, 11, 8, 0]]}\n"
+    "lights:\n"
+    "  - {name: bulb, vertices: [[-0.2, 0.9, -0.2], [0.2, 0.9, -0.2], [0.2, 0.9, 0.2], [-0.2, 0.9, 0.2]],\n"
+    "     radiance: [1, 1, 1], two_sided: true}\n"
+    "  - {name: sky, vertices: [[-1, 5, -1], [1, 5, -1], [1, 5, 1], [-1, 5, 1]], radiance: [1, 1, 1]}\n"
+    "portals: auto\n";
+
+static void test_auto_portals_found(void)
+{
+    char dir[] = "/tmp/portal-print-auto-XXXXXX";
+    make_tmpdir(dir);
+    char path[600];
+    snprintf(path, sizeof path, "%s/shade.yaml", dir);
+    FILE *f = fopen(path, "w");
+    CHECK(f && fputs(auto_scene, f) >= 0 && fclose(f) == 0);
+    struct run y1, y2;
+    char *a[] = { NULL, "--print-config", path, "--threads", "1", NULL };
+    char *b[] = { NULL, "--print-config", path, "--threads", "2", NULL };
+    run_render(a, 0, 0, &y1);
+    run_render(b, 0, 0, &y2);
+    CHECK_MSG(y1.status == EXIT_DONE && y2.status == EXIT_DONE, "status %d, %d: %s", y1.status, y2.status, y1.err);
+    const char *s1 = strstr(y1.out, "# portals: auto found"), *s2 = strstr(y2.out, "# portals: auto found");
+    CHECK(s1 && s2 && !strcmp(s1, s2));
+    if (!s1) {
+        remove_tree(dir);
+        return;
+    }
+    /* The summary: bulb's one portal (the 0.4 x 0.4 hole), nothing missed;
+       sky: enclosed by nothing. */
+    CHECK_MSG(strstr(s1, "#   bulb: 1 portal(s), area 0.16 m^2") && strstr(s1, " 0 missed)"), "%s", s1);
+    CHECK_MSG(strstr(s1, "light \"sky\": no shape encloses it"), "%s", s1);
+    /* Frozen: the comment lines after "# portals:" uncommented in place of
+       `portals: auto` load as hand portals, the found ones bit for bit. */
+    static char frozen[1 << 15];
+    const char *entries = strstr(s1, "# portals:\n");
+    int n = snprintf(frozen, sizeof frozen, "%.*sportals:\n", (int)(strstr(auto_scene, "portals: auto") - auto_scene),
+                     auto_scene);
+    for (const char *l = entries ? strchr(entries, '\n') + 1 : ""; *l == '#'; l = strchr(l, '\n') + 1)
+        n += snprintf(frozen + n, sizeof frozen - (size_t)n, "%.*s", (int)(strchr(l, '\n') + 1 - (l + 1)), l + 1);
+    struct config cfg;
+    struct error err;
+    bool loaded = config_load_string(frozen, strlen(frozen), "frozen.yaml", NULL, 0, &cfg, &err);
+    CHECK_MSG(loaded, "%s\n%s", err.message, frozen);
+    if (loaded) {
+        CHECK(cfg.n_portals == 1 && !cfg.lights[0].auto_portals && !strcmp(cfg.portals[0].name, "bulb_auto0"));
+        config_free(&cfg);
+    }
+    /* JSON: the same numbers per light, and the vertices exactly. */
+    struct jval v;
+    char *c[] = { NULL, "--print-config", path, "--format", "json", NULL };
+    if (print_json(c, &v)) {
+        const struct jval *ap = json_get(&v, "auto_portals"), *bulb = json_get(ap, "bulb"), *sky = json_get(ap, "sky");
+        CHECK(bulb && sky && json_get(bulb, "n_portals") && json_get(bulb, "n_portals")->number == 1);
+        CHECK(bulb && json_get(bulb, "n_missed") && json_get(bulb, "n_missed")->number == 0);
+        CHECK(bulb && json_get(bulb, "n_escaped") && json_get(bulb, "n_escaped")->number > 1000);
+        CHECK(bulb && json_get(bulb, "bound") && json_get(bulb, "bound")->number < 3e-3);
+        CHECK(bulb && json_get(bulb, "blocked_fraction") && json_get(bulb, "blocked_fraction")->number == 0);
+        CHECK(bulb && json_get(bulb, "area") && fabs(json_get(bulb, "area")->number - 0.16) < 1e-9);
+        const struct jval *ports = bulb ? json_get(bulb, "portals") : NULL;
+        CHECK(ports && ports->n == 1 && json_get(&ports->items[0], "vertices")->n == 4);
+        CHECK(sky && json_get(sky, "enclosed")->type == J_BOOL && json_get(sky, "n_portals")->number == 0);
+        jfree(&v);
+    }
+    /* Without auto there is no member and no comment. */
+    struct run r;
+    char *d[] = { NULL, "--print-config", "configs/scenes/lampshade.yaml", "--format", "json", NULL };
+    if (print_json(d, &v)) {
+        CHECK(json_get(&v, "auto_portals") == NULL);
+        jfree(&v);
+    }
+    char *e[] = { NULL, "--print-config", "configs/scenes/lampshade.yaml", NULL };
+    run_render(e, 0, 0, &r);
+    CHECK(r.status == EXIT_DONE && !strstr(r.out, "auto found"));
+    remove_tree(dir);
+}
+
 static const struct test_case print_config_tests[] = {
     { "yaml_is_the_rendered_config_yaml", test_yaml_is_the_rendered_config_yaml },
     { "nothing_is_created", test_nothing_is_created },
@@ -367,6 +459,7 @@ static const struct test_case print_config_tests[] = {
     { "errors_are_a_renders_errors", test_errors_are_a_renders_errors },
     { "usage_errors", test_usage_errors },
     { "json_escapes_names", test_json_escapes_names },
+    { "auto_portals_found", test_auto_portals_found },
 };
 
 TEST_MAIN(print_config_tests)

@@ -15,6 +15,7 @@
 #include "config/print_config.h"
 #include "render/render.h"
 #include "render/resume.h"
+#include "scene/portal_finder.h"
 #include "scene/scene.h"
 #include "base/version.h"
 
@@ -136,6 +137,26 @@ static int render_and_report(const struct config *cfg, const struct scene *scene
     return res.interrupted ? EXIT_INTERRUPTED : EXIT_DONE;
 }
 
+/* render --print-config: the config, and what `portals: auto` found
+   (portal_finder.h: YAML comments after the config, or the JSON member
+   "auto_portals"), both made in memory before anything is written. */
+static bool print_config_and_portals(const struct config *cfg, const struct scene *scene,
+                                     enum print_config_format format, struct error *err)
+{
+    if (!scene->auto_portals) return print_config_write(cfg, format, stdout, err);
+    char *text = NULL;
+    size_t len = 0;
+    FILE *mem = open_memstream(&text, &len);
+    if (!mem) return error_set(err, "out of memory for the auto portals");
+    bool ok = format == PRINT_CONFIG_JSON
+                  ? portal_finder_write_json(scene, cfg, PORTAL_FINDER_SUMMARY_RAYS, mem, err)
+                  : portal_finder_write_summary(scene, cfg, PORTAL_FINDER_SUMMARY_RAYS, mem, err);
+    ok = (fclose(mem) == 0 || error_set(err, "out of memory for the auto portals")) && ok;
+    ok = ok && print_config_write_extra(cfg, format, "auto_portals", text, text, stdout, err);
+    free(text);
+    return ok;
+}
+
 /* Loads the config (or the state to resume), builds the scene and renders
    or prints the configuration; returns the exit status. */
 static int run(const struct args *a)
@@ -169,7 +190,7 @@ static int run(const struct args *a)
         bool ready = print_config ||
                      (resume_dir ? write_effective_config(&cfg, &err) : prepare_output(&cfg, a->ov, a->ov_flag, &err));
         if (print_config) {
-            status = print_config_write(&cfg, a->format, stdout, &err) ? EXIT_DONE : EXIT_RUNTIME;
+            status = print_config_and_portals(&cfg, &scene, a->format, &err) ? EXIT_DONE : EXIT_RUNTIME;
             if (status != EXIT_DONE) fprintf(stderr, "render: --print-config: %s\n", err.message);
         } else if (!ready && resume_dir)
             fprintf(stderr, "render: --resume %s: output folder %s\n", resume_dir, err.message);

@@ -11,7 +11,7 @@ const char *const print_config_format_names[PRINT_CONFIG_FORMAT_COUNT] = {
     [PRINT_CONFIG_JSON] = "json",
 };
 
-static bool write_json(const struct config *c, FILE *f, struct error *err)
+static bool write_json(const struct config *c, const char *extra_key, const char *extra, FILE *f, struct error *err)
 {
     fputs("{\"config\":", f);
     if (!config_write_json(c, f, err)) return false;
@@ -27,11 +27,24 @@ static bool write_json(const struct config *c, FILE *f, struct error *err)
         if (i) fputc(',', f);
         json_write_string(f, c->files[i]);
     }
-    fprintf(f, "],\"hash\":\"%016" PRIx64 "\",\"image_hash\":\"%016" PRIx64 "\"}\n", c->hash, c->image_hash);
+    fputc(']', f);
+    if (extra_key && extra) {
+        fputc(',', f);
+        json_write_string(f, extra_key);
+        fputc(':', f);
+        fputs(extra, f);
+    }
+    fprintf(f, ",\"hash\":\"%016" PRIx64 "\",\"image_hash\":\"%016" PRIx64 "\"}\n", c->hash, c->image_hash);
     return true;
 }
 
 bool print_config_write(const struct config *c, enum print_config_format format, FILE *out, struct error *err)
+{
+    return print_config_write_extra(c, format, NULL, NULL, NULL, out, err);
+}
+
+bool print_config_write_extra(const struct config *c, enum print_config_format format, const char *extra_key,
+                              const char *extra_json, const char *extra_yaml, FILE *out, struct error *err)
 {
     char *text = NULL;
     size_t len = 0;
@@ -43,7 +56,7 @@ bool print_config_write(const struct config *c, enum print_config_format format,
     case PRINT_CONFIG_JSON: {
         FILE *mem = open_memstream(&text, &len);
         if (!mem) return error_set(err, "out of memory for the JSON of %s", c->path);
-        bool ok = write_json(c, mem, err);
+        bool ok = write_json(c, extra_key, extra_json, mem, err);
         ok = (fclose(mem) == 0 || error_set(err, "out of memory for the JSON of %s", c->path)) && ok;
         if (!ok) {
             free(text);
@@ -52,7 +65,9 @@ bool print_config_write(const struct config *c, enum print_config_format format,
         break;
     }
     }
-    bool ok = fwrite(text, 1, len, out) == len && fflush(out) == 0;
+    size_t extra_len = format == PRINT_CONFIG_YAML && extra_yaml ? strlen(extra_yaml) : 0;
+    bool ok = fwrite(text, 1, len, out) == len &&
+              fwrite(extra_yaml ? extra_yaml : "", 1, extra_len, out) == extra_len && fflush(out) == 0;
     if (text != c->effective_yaml) free(text);
     return ok || error_set(err, "cannot write the configuration to the output stream");
 }

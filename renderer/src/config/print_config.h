@@ -25,4 +25,12 @@ extern const char *const print_config_format_names[PRINT_CONFIG_FORMAT_COUNT];
    most a failed write behind and err says which. */
 bool print_config_write(const struct config *c, enum print_config_format format, FILE *out, struct error *err);
 
+/* As print_config_write, with what the scene build found added (render
+   --print-config passes the auto portals, scene/portal_finder.h): for
+   PRINT_CONFIG_YAML, extra_yaml (comment lines) after the config; for
+   PRINT_CONFIG_JSON, one more member "<extra_key>": extra_json (a JSON
+   value). NULL for nothing. */
+bool print_config_write_extra(const struct config *c, enum print_config_format format, const char *extra_key,
+                              const char *extra_json, const char *extra_yaml, FILE *out, struct error *err);
+
 #endif
