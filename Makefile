@@ -50,6 +50,8 @@ FUZZ_REPLAY := $(BUILD)/fuzz/fuzz_config_replay
 FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard tests/configs/fuzz)
 FUZZ_MESH_REPLAY := $(BUILD)/fuzz/fuzz_mesh_replay
 FUZZ_MESH_CORPUS := tests/configs/meshes tests/configs/bad/meshes $(wildcard tests/configs/fuzz_mesh)
+FUZZ_PORTALS_REPLAY := $(BUILD)/fuzz/fuzz_portals_replay
+FUZZ_PORTALS_CORPUS := tests/configs/fuzz_portals
 # The libFuzzer builds (make fuzz): clang, the config loader's sources only,
 # and the mesh loaders' sources only.
 FUZZ_CC ?= clang
@@ -152,6 +154,10 @@ $(FUZZ_REPLAY): $(BUILD)/fuzz/fuzz_config.o $(BUILD)/fuzz/replay.o $(FUZZ_SRCS:r
 $(FUZZ_MESH_REPLAY): $(BUILD)/fuzz/fuzz_mesh.o $(BUILD)/fuzz/replay.o $(FUZZ_MESH_SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
 	$(CC) $(ALL_CFLAGS) $^ -o $@ -lassimp -lz -lm -pthread
 
+# The auto portals' target builds whole scenes: the whole library.
+$(FUZZ_PORTALS_REPLAY): $(BUILD)/fuzz/fuzz_portals.o $(BUILD)/fuzz/replay.o $(BUILD)/librender.a
+	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
+
 # libFuzzer itself needs clang (renderer/fuzz/run.sh installs it).
 FUZZ_FLAGS := -std=c99 -g -O1 -D_POSIX_C_SOURCE=200809L -Irenderer/src \
               -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
@@ -161,14 +167,18 @@ $(FUZZ_BUILD)/fuzz_config: renderer/fuzz/fuzz_config.c $(FUZZ_SRCS) $(wildcard r
 $(FUZZ_BUILD)/fuzz_mesh: renderer/fuzz/fuzz_mesh.c $(FUZZ_MESH_SRCS) $(wildcard renderer/src/*/*.h)
 	@mkdir -p $(@D)
 	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ -lassimp -lz -lm
+$(FUZZ_BUILD)/fuzz_portals: renderer/fuzz/fuzz_portals.c $(SRCS) $(wildcard renderer/src/*/*.h)
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(FUZZ_FLAGS) $(filter %.c,$^) -o $@ $(LDLIBS)
 
 # C tests: every tests/renderer/test_*.c is its own executable. The runner
 # also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
-test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY)
+test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY) $(FUZZ_PORTALS_REPLAY)
 	@tests/run_c_tests.sh $(BUILD)
 	@tests/check_run_c_tests.sh $(BUILD)
 	@$(FUZZ_REPLAY) $(FUZZ_CORPUS)
 	@$(FUZZ_MESH_REPLAY) $(FUZZ_MESH_CORPUS)
+	@$(FUZZ_PORTALS_REPLAY) $(FUZZ_PORTALS_CORPUS)
 
 test-c-san:
 	@$(MAKE) --no-print-directory SANITIZE=1 test-c
@@ -325,7 +335,7 @@ clean:
 	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)
 
 -include $(OBJS:.o=.d) $(BUILD)/obj/cli/main.d $(TEST_BINS:=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
-  $(BUILD)/fuzz/fuzz_mesh.d $(BUILD)/fuzz/replay.d
+  $(BUILD)/fuzz/fuzz_mesh.d $(BUILD)/fuzz/fuzz_portals.d $(BUILD)/fuzz/replay.d
 
 # Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c
 # (kills at random moments, inside snapshot and final writes too) run

@@ -1,16 +1,21 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (-fsanitize=fuzzer,address,
 # undefined; the Makefile's renderer/build-fuzz/fuzz_config and fuzz_mesh)
-# and runs them one after the other for SECONDS in all (default 60), half
+# and runs them one after the other for SECONDS in all (default 60), a third
 # each:
 #   fuzz_config  the config loader, seeded with every scene, good and bad
 #                config (and tests/configs/fuzz/)
 #   fuzz_mesh    the mesh loaders (OBJ and PLY, mesh_file.c, ply_check.c),
 #                seeded with tests/configs/meshes and the bad meshes (and
 #                tests/configs/fuzz_mesh/)
+#   fuzz_portals `portals: auto` on random shades built from the bytes
+#                (boxes and prisms with holes, welded or not, split,
+#                duplicated, flipped, transformed): complete portals or a
+#                clean fallback; seeded with tests/configs/fuzz_portals/
 # A crash input is kept under renderer/fuzz/crashes/ and should be added to
 # tests/configs/fuzz/ (configs) or tests/configs/fuzz_mesh/ (meshes) as a
-# regression test: make test-c replays both folders. Prints the number of
+# regression test (fuzz_portals inputs to tests/configs/fuzz_portals/):
+# make test-c replays the folders. Prints the number of
 # executions of each target.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -28,7 +33,7 @@ fi
 out=renderer/build-fuzz
 mkdir -p "$out" renderer/fuzz/crashes
 # The Makefile targets hold the sources and flags (FUZZ_SRCS, FUZZ_MESH_SRCS, FUZZ_CC).
-make --no-print-directory "$out/fuzz_config" "$out/fuzz_mesh"
+make --no-print-directory "$out/fuzz_config" "$out/fuzz_mesh" "$out/fuzz_portals"
 
 # fuzz TARGET SECONDS MAX_LEN SEED_FILES...: runs one target on its own
 # corpus folder; returns its exit status.
@@ -53,10 +58,11 @@ fuzz() {
   return $rc
 }
 
-first=$((seconds / 2))
+first=$((seconds / 3))
 [ "$first" -ge 1 ] || first=1
-second=$((seconds - first))
-[ "$second" -ge 1 ] || second=1
+second=$first
+third=$((seconds - first - second))
+[ "$third" -ge 1 ] || third=1
 status=0
 shopt -s nullglob
 fuzz fuzz_config "$first" 16384 configs/scenes/*.yaml tests/configs/good/*.yaml tests/configs/bad/*.yaml \
@@ -66,4 +72,5 @@ fuzz fuzz_config "$first" 16384 configs/scenes/*.yaml tests/configs/good/*.yaml 
 LSAN_OPTIONS="suppressions=$PWD/renderer/fuzz/lsan_mesh.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}" \
   fuzz fuzz_mesh "$second" 16384 tests/configs/meshes/*.obj tests/configs/meshes/*.ply \
   tests/configs/bad/meshes/* tests/configs/fuzz_mesh/* || status=1
+fuzz fuzz_portals "$third" 512 tests/configs/fuzz_portals/* || status=1
 exit $status

@@ -365,8 +365,9 @@ static int gather_triangles(const struct config *cfg, struct vec3 lo, struct vec
    polygon light to the half-space it emits into (nothing it emits crosses
    the rest), split to at most POLYGON_INPUT_MAX corners. */
 static bool portals_of_hull(const struct finder *f, const struct convex_hull *h, const struct vec3 *points,
-                            struct polys *out, double *open_area, double *hull_area)
+                            struct polys *out, double *open_area, double *hull_area, bool *bad)
 {
+    *bad = false;
     struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
     for (int i = 0; i < h->n_index; ++i) {
         struct vec3 x = points[h->index[i]];
@@ -405,13 +406,27 @@ static bool portals_of_hull(const struct finder *f, const struct convex_hull *h,
             polygon_copy(&piece, &open.p[k]);
         }
         if (!(polygon_area(&piece) > DEBRIS_REL * h->size * h->size)) continue;
-        /* Fans of at most POLYGON_INPUT_MAX corners. */
+        /* Fans of at most POLYGON_INPUT_MAX corners. A chunk that is no
+           valid portal (collinear corners or rounding left it not strictly
+           convex) goes in as its fan's triangles; a triangle of no area
+           (polygon_check: below 1e-10 of its diameter squared) covers no
+           ray and is left out; any other defect would leave a gap, so the
+           hull is refused (*bad). Nothing is dropped silently. */
         for (int a = 1; ok && a + 1 < piece.n; a += POLYGON_INPUT_MAX - 2) {
             struct polygon chunk;
             chunk.n = 0;
             chunk.v[chunk.n++] = piece.v[0];
             for (int b = a; b < piece.n && chunk.n < POLYGON_INPUT_MAX; ++b) chunk.v[chunk.n++] = piece.v[b];
-            if (chunk.n >= 3 && polygon_check(&chunk) == POLYGON_DEFECT_NONE) ok = polys_push(out, &chunk);
+            if (chunk.n >= 3 && polygon_check(&chunk) == POLYGON_DEFECT_NONE) {
+                ok = polys_push(out, &chunk);
+            } else {
+                for (int b = 1; ok && b + 1 < chunk.n; ++b) {
+                    struct polygon tri = { 3, { chunk.v[0], chunk.v[b], chunk.v[b + 1] } };
+                    enum polygon_defect defect = polygon_check(&tri);
+                    if (defect == POLYGON_DEFECT_NONE) ok = polys_push(out, &tri);
+                    else if (defect != POLYGON_DEFECT_DEGENERATE) *bad = true;
+                }
+            }
             if (a + POLYGON_INPUT_MAX - 2 >= piece.n - 1) break;
         }
     }
@@ -463,7 +478,8 @@ static bool find_for_light(struct finder *f, struct error *err)
     }
     struct polys ports = { 0, 0, NULL };
     double open_area = 0.0, hull_area = 0.0;
-    bool ok = portals_of_hull(f, &h, points, &ports, &open_area, &hull_area);
+    bool bad = false;
+    bool ok = portals_of_hull(f, &h, points, &ports, &open_area, &hull_area, &bad);
     /* The tightest of the hulls that add the next nearby shapes (met
        within twice the distance of the last one taken): the least open
        area. Each is complete; more shapes only make P fit them better. */
@@ -485,12 +501,13 @@ static bool find_for_light(struct finder *f, struct error *err)
         }
         struct polys ports2 = { 0, 0, NULL };
         double open2 = 0.0, hull2 = 0.0;
-        ok = portals_of_hull(f, &h2, points2, &ports2, &open2, &hull2);
-        if (ok && open2 < open_area) {
+        bool bad2 = false;
+        ok = portals_of_hull(f, &h2, points2, &ports2, &open2, &hull2, &bad2);
+        if (ok && (bad || (!bad2 && open2 < open_area))) {
             convex_hull_free(&h);
             free(points);
             free(ports.p);
-            h = h2, points = points2, ports = ports2, open_area = open2, hull_area = hull2, k = more;
+            h = h2, points = points2, ports = ports2, open_area = open2, hull_area = hull2, k = more, bad = bad2;
         } else {
             convex_hull_free(&h2);
             free(points2);
@@ -509,6 +526,12 @@ static bool find_for_light(struct finder *f, struct error *err)
         snprintf(rep->note, sizeof rep->note,
                  "light \"%s\": the hull of the %d nearest shape(s) around it is %.0f%% open: no portals", name, k,
                  100.0 * open_area / hull_area);
+    } else if (bad) {
+        rep->warn = true;
+        snprintf(rep->note, sizeof rep->note,
+                 "light \"%s\": an opening of the hull of the %d nearest shape(s) around it is no valid polygon: "
+                 "no portals (sampled as `light` samples it)",
+                 name, k);
     } else if (ports.n > PORTAL_FINDER_MAX_PORTALS) {
         rep->warn = true;
         snprintf(rep->note, sizeof rep->note,
