@@ -25,6 +25,7 @@ from portal_harness.execution import index, store
 from portal_harness.execution.batch import SweepOptions
 from portal_harness.execution.renderer import renderer_version
 from portal_harness.execution.single import run_and_index
+from portal_harness.experiment.limits import Limits
 from portal_harness.experiment.loader import load_experiment
 from portal_harness.experiment.model import Experiment
 from portal_harness.experiment.scene import spec_from_scene
@@ -80,6 +81,39 @@ def _execution_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def _limit_options(p: argparse.ArgumentParser) -> None:
+    """The bounds on one experiment's work (experiment/limits.py), each with its default."""
+    d = Limits()
+    g = p.add_argument_group("limits on one experiment's work (checked before anything runs)")
+    g.add_argument("--max-points", type=int, default=d.max_points, help=f"points of the sweep (default {d.max_points})")
+    g.add_argument("--max-runs", type=int, default=d.max_runs, help=f"runs (default {d.max_runs})")
+    g.add_argument(
+        "--max-total-time",
+        type=float,
+        default=d.max_total_time_s,
+        metavar="SECONDS",
+        help=f"budgeted render time of runs and references (default {d.max_total_time_s:g})",
+    )
+    g.add_argument(
+        "--max-snapshots", type=int, default=d.max_snapshots, help=f"snapshots per run (default {d.max_snapshots})"
+    )
+    g.add_argument(
+        "--max-bytes", type=int, default=d.max_bytes, help=f"bytes of images written (default {d.max_bytes})"
+    )
+
+
+def _limits(args: argparse.Namespace) -> Limits | None:
+    if getattr(args, "no_limits", False):
+        return None
+    return Limits(
+        max_points=args.max_points,
+        max_runs=args.max_runs,
+        max_total_time_s=args.max_total_time,
+        max_snapshots=args.max_snapshots,
+        max_bytes=args.max_bytes,
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     common = _common()
     parser = argparse.ArgumentParser(
@@ -119,6 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("experiment", type=Path, help="experiment file (configs/experiments/*.yaml)")
     _execution_options(p)
+    _limit_options(p)
+    p.add_argument("--no-limits", action="store_true", help="lift the limits on the work of the sweep")
 
     p = sub.add_parser(
         "metrics",
@@ -237,6 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--nice", type=int, default=0, help="niceness added to the sweeps' processes: keeps the API responsive"
     )
+    _limit_options(p)
 
     p = sub.add_parser(
         "report",
@@ -351,13 +388,18 @@ def _sweep_options(args: argparse.Namespace) -> SweepOptions:
     )
 
 
-def _experiment(args: argparse.Namespace, path: Path) -> Experiment:
+def _experiment(args: argparse.Namespace, path: Path, limits: Limits | None = None) -> Experiment:
+    """The experiment of a file; one the service stored (RESULTS/service/ID/experiment.yaml, or the
+    folder, or its ID) with its paths resolved against the root it was submitted to."""
     renderer, _ = _renderer(args)
-    return load_experiment(path, renderer)
+    from portal_harness.service.stored import stored_experiment
+
+    file, base = stored_experiment(_layout(args), path)
+    return load_experiment(file, renderer, relative_to=base, limits=limits)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    experiment = _experiment(args, args.experiment)
+    experiment = _experiment(args, args.experiment, _limits(args))
     if experiment.budget is None:
         raise ConfigError(str(args.experiment), "budget", "missing (a sweep needs time_s or spp)")
     return sweep(experiment, _sweep_options(args))
@@ -491,10 +533,13 @@ def cmd_import_mitsuba(args: argparse.Namespace) -> int:
 def cmd_serve(args: argparse.Namespace) -> int:
     from portal_harness.core.paths import find_repo_root
     from portal_harness.service.server import serve, settings_from
+    from portal_harness.service.store_lock import lock_store
 
+    results = (args.results or default_results()).resolve()
+    lock = lock_store(results)  # first: before the token file, the queue's recovery, the workers, the port
     renderer, _ = _renderer(args)
     settings = settings_from(
-        results=args.results or default_results(),
+        results=results,
         renderer=Path(renderer),
         roots=args.roots or [find_repo_root() / "configs"],
         host=args.host,
@@ -506,8 +551,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
         max_body_bytes=args.max_body,
         figures=not args.no_figures,
         nice=args.nice,
+        limits=_limits(args) or Limits(),
     )
-    return serve(settings)
+    try:
+        return serve(settings)
+    finally:
+        os.close(lock)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -13,9 +13,10 @@ from portal_harness.core.errors import ConfigError
 from portal_harness.core.exr import REGION_CLASSES
 from portal_harness.core.metrics import WHOLE_IMAGE, Region
 from portal_harness.experiment import contract
+from portal_harness.experiment.limits import Limits, check_points, limit_work
 from portal_harness.experiment.model import Budget, Experiment, RegressSettings
 from portal_harness.experiment.scene import read_scene
-from portal_harness.experiment.schema import Reader, kind_of, parse_threads, read_yaml_lines
+from portal_harness.experiment.schema import SEED_MAX, SPP_MAX, Reader, kind_of, parse_threads, read_yaml_lines
 from portal_harness.experiment.sections import (
     check_override_key,
     read_axis,
@@ -36,12 +37,16 @@ CURVE_METRICS = ("rel_mse", "mse")
 RESERVED_REGION_NAMES = frozenset({WHOLE_IMAGE, "lit", *REGION_CLASSES})
 
 
-def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = None) -> Experiment:
+def load_experiment(
+    path: Path | str, renderer: str, relative_to: Path | None = None, limits: Limits | None = None
+) -> Experiment:
     """Reads and validates an experiment against the renderer at `renderer`
     (its strategies and integrators, and its effective config of the scene
     at every point); raises ConfigError on the first problem. Relative paths
     in it are relative to `relative_to` (default: the file's folder; the service
-    stores submitted files apart from the root folder their paths name)."""
+    stores submitted files apart from the root folder their paths name).
+    With `limits`, the work it asks for is checked (limits.py) before any
+    point is asked of the renderer."""
     p = Path(path).resolve() if Path(path).exists() else Path(path)
     folder = relative_to if relative_to is not None else p.parent
     data, lines = read_yaml_lines(p, "experiment file")
@@ -67,9 +72,7 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
         },
         required={"scene", "strategies", "sweep"},
     )
-    name = r.string(root.get("name", p.stem), "name")
-    if "/" in name or name.startswith("."):
-        raise r.fail("name", f"expected a plain name usable as a file name, got {name!r}")
+    name = r.name(root.get("name", p.stem), "name")
 
     scene = (folder / r.string(root["scene"], "scene")).resolve()
     if not scene.is_file():
@@ -132,7 +135,7 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
     if "budget" in root:
         b = r.mapping(root["budget"], "budget", {"time_s", "spp", "threads", "seed", "snapshots", "replicates"})
         time_s = r.number(b.get("time_s", 0), "budget.time_s")
-        spp = r.integer(b.get("spp", 0), "budget.spp")
+        spp = r.integer(b.get("spp", 0), "budget.spp", maximum=SPP_MAX)
         if time_s == 0 and spp == 0:
             raise r.fail("budget", "expected time_s > 0 or spp > 0 (a run needs a limit)")
         snaps_node = r.mapping(b.get("snapshots", {}) or {}, "budget.snapshots", set(SNAPSHOT_KEYS))
@@ -141,7 +144,7 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
             (
                 k,
                 format_value(
-                    r.integer(v, f"budget.snapshots.{k}", minimum=1)
+                    r.integer(v, f"budget.snapshots.{k}", minimum=1, maximum=SPP_MAX)
                     if names.snapshot_unit(k) == "spp"
                     else r.number(v, f"budget.snapshots.{k}", positive=True)
                 ),
@@ -152,10 +155,14 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
             time_s=time_s,
             spp=spp,
             threads=parse_threads(b.get("threads", 1), r, "budget.threads"),
-            seed=r.integer(b.get("seed", 1), "budget.seed"),
+            seed=r.integer(b.get("seed", 1), "budget.seed", maximum=SEED_MAX),
             snapshots=snapshots,
-            replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1),
+            replicates=r.integer(b.get("replicates", 1), "budget.replicates", minimum=1, maximum=SEED_MAX),
         )
+        if budget.seed + budget.replicates * len(names.strategies) > SEED_MAX:
+            raise r.fail(
+                "budget.seed", f"the replicates' seeds (budget.seed + one per replicate and strategy) pass {SEED_MAX}"
+            )
 
     reference = read_reference_settings(r, root.get("reference", {}) or {}, budget, names.strategies)
 
@@ -194,12 +201,16 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
             raise r.fail("regress.seeds", "expected at least two different seeds (the standard error needs them)")
         baseline = g.get("baseline")
         regress = RegressSettings(
-            spp=r.integer(g["spp"], "regress.spp", minimum=1),
+            spp=r.integer(g["spp"], "regress.spp", minimum=1, maximum=SPP_MAX),
             seeds=seeds,
             z_max=r.number(g.get("z_max", 4.0), "regress.z_max", positive=True),
             baseline=(folder / r.string(baseline, "regress.baseline")).resolve() if baseline else Path(),
         )
 
+    if limits is not None and budget is not None:
+        limit_work(r, limits, names, tuple(sweep), strategies, budget, reference, width * height)
+    elif limits is not None:
+        check_points(r, limits, tuple(sweep))
     points = read_points(r, renderer, scene, tuple(sweep), fixed_overrides, axis, facet_keys)
 
     regions_node = r.mapping(root.get("regions", {}) or {}, "regions", {"lit_threshold"})
@@ -211,8 +222,10 @@ def load_experiment(path: Path | str, renderer: str, relative_to: Path | None = 
     compare = None
     if "compare" in fig:
         c = r.mapping(fig["compare"], "figures.compare", {"experiment", "strategy"}, {"experiment", "strategy"})
+        # A name of an experiment in this results folder, never a path: the
+        # error says the same whether or not anything of that name exists.
         compare = (
-            r.string(c["experiment"], "figures.compare.experiment"),
+            r.name(c["experiment"], "figures.compare.experiment"),
             r.choice(c["strategy"], "figures.compare.strategy", strategies, "strategy"),
         )
     equal_time = fig.get("equal_time_s")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ from portal_harness.experiment.model import (
     point_overrides,
 )
 from portal_harness.experiment.scene import read_scene
-from portal_harness.experiment.schema import Reader, kind_of, parse_threads
+from portal_harness.experiment.schema import SEED_MAX, SPP_MAX, Reader, exponent_number, kind_of, parse_threads
 from portal_harness.experiment.spec import (
     HARNESS_RENDER_KEYS,
     Overrides,
@@ -35,8 +36,8 @@ def check_override_key(reader: Reader, key: str, where: str, params: dict[str, f
     parameter of the scene (the renderer would take an unknown one
     silently, as a new parameter nothing reads). Any other key is checked
     by the renderer, with the overrides."""
-    if not key or any(not part for part in key.split(".")):
-        raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {key!r}")
+    if not _KEY.fullmatch(key):
+        raise reader.fail(where, f"expected a dotted key path such as params.s_L, got {kind_of(key)}")
     allowed = swept and key in facets.SWEEPABLE_HARNESS_KEYS
     if (key in HARNESS_RENDER_KEYS and not allowed) or key.startswith("render.snapshots"):
         raise reader.fail(where, f"{key} is set by the harness (use strategies, integrator, budget or reference)")
@@ -71,7 +72,7 @@ def read_region_sections(
     scene = (folder / r.string(m["scene"], "figures.region_sections.scene")).resolve()
     if not scene.is_file():
         raise r.fail("figures.region_sections.scene", f"scene file {scene} not found")
-    spp = r.integer(m.get("spp", REGION_MAP_SPP), "figures.region_sections.spp", minimum=1)
+    spp = r.integer(m.get("spp", REGION_MAP_SPP), "figures.region_sections.spp", minimum=1, maximum=SPP_MAX)
     label = r.string(m.get("label", scene.stem), "figures.region_sections.label")
     try:
         info = read_scene(renderer, scene, fixed)
@@ -89,8 +90,14 @@ def read_region_sections(
 
 
 def read_value(r: Reader, names: contract.Contract, key: str, node: Any, where: str) -> Any:
-    """A swept or fixed value; a name-valued render key's names are the renderer's (facets.CONTRACT_LISTS)."""
-    value = r.scalar(node, where)
+    """A swept or fixed value; a name-valued render key's names are the renderer's (facets.CONTRACT_LISTS).
+    A number in exponent form without a dot (`1e12`) is that number, as in budget; a number is
+    finite and fits 64 bits; a string has no control characters."""
+    value = exponent_number(r.scalar(node, where))
+    if isinstance(value, str):
+        r.string(value, where)
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        r.number(value, where, minimum=-math.inf)
     known = facets.contract_names(key, names)
     if known is not None:
         what, choices = known
@@ -131,6 +138,10 @@ def read_axis(r: Reader, node: Any, sweep: tuple[tuple[str, tuple[Any, ...]], ..
         param=axis_param, divide_by=divide_by, label=r.string(axis_node.get("label", default_label), "axis.label")
     )
 
+
+# Seeds a reference point derives from reference.seed (parts, pilots, region maps: model.py).
+REFERENCE_SEED_SPAN = 10000
+_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*(\.[A-Za-z0-9_-]+){0,15}", re.ASCII)
 
 REFERENCE_KEYS = {
     "strategy",
@@ -203,7 +214,7 @@ def read_reference_settings(r: Reader, node: Any, budget: Budget | None, known: 
             raise r.fail("reference.strategies", "expected auto, or one or two different strategies")
     time_s = r.number(m.get("time_s", 0), "reference.time_s")
     # Exactly the limits given: 1024 spp only when no time is given.
-    spp = r.integer(m.get("spp", 0 if time_s > 0 else 1024), "reference.spp")
+    spp = r.integer(m.get("spp", 0 if time_s > 0 else 1024), "reference.spp", maximum=SPP_MAX)
     if spp == 0 and time_s == 0:
         raise r.fail("reference", "expected spp > 0 or time_s > 0")
     noise_ratio = r.number(m.get("noise_ratio", 0.1), "reference.noise_ratio", positive=True)
@@ -213,7 +224,7 @@ def read_reference_settings(r: Reader, node: Any, budget: Budget | None, known: 
         strategies=strategies,
         spp=spp,
         time_s=time_s,
-        seed=r.integer(m.get("seed", 7919), "reference.seed"),
+        seed=r.integer(m.get("seed", 7919), "reference.seed", maximum=SEED_MAX - REFERENCE_SEED_SPAN),
         threads=parse_threads(m.get("threads", budget.threads if budget else 1), r, "reference.threads"),
         noise_ratio=noise_ratio,
         max_time_s=r.number(m.get("max_time_s", 0), "reference.max_time_s"),

@@ -131,18 +131,24 @@ def create_app(settings: ServiceSettings) -> FastAPI:
         return await anyio.to_thread.run_sync(_queue_submission, experiment_id, text)
 
     def _queue_submission(experiment_id: str, text: str) -> JSONResponse:
-        folder = settings.submission_dir(experiment_id)
-        experiment, base = submission.validate(text, folder, settings.renderer, settings.roots)
+        # Everything is checked (the limits too) before anything is made: no folder, no row if refused.
+        experiment, base = submission.validate(text, settings.renderer, settings.roots, settings.limits)
         other = queue.active_with_name(experiment.name)
         if other is not None:
-            shutil.rmtree(folder, ignore_errors=True)
             raise ApiError(409, f"experiment {experiment.name!r} is already queued or running (id {other})", id=other)
         planned = plan_runs(experiment, renderer_version(settings.renderer))
         rows = [
             q.PlannedRunRow(r.key, r.point.id, r.strategy, r.replicate, r.reference, r.spec.spp, r.spec.time_s)
             for r in planned
         ]
-        queue.add(experiment_id, experiment.name, folder / submission.SUBMITTED_NAME, base, rows)
+        folder = settings.submission_dir(experiment_id)
+        folder.mkdir(parents=True, exist_ok=False)
+        try:
+            (folder / submission.SUBMITTED_NAME).write_text(text)
+            queue.add(experiment_id, experiment.name, folder / submission.SUBMITTED_NAME, base, rows)
+        except BaseException:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
         dispatcher.wake()
         return JSONResponse(
             {"id": experiment_id, "name": experiment.name, "runs": len(rows)},
@@ -256,6 +262,8 @@ def create_app(settings: ServiceSettings) -> FastAPI:
     def experiment_viewer(experiment_id: str, path: str) -> FileResponse:
         """The comparison viewer's bundle of a finished experiment (written once, then cached)."""
         row = row_of(experiment_id)
+        if "\x00" in path or len(path) > 1024:
+            raise ApiError(404, "no such file in the viewer's bundle")
         try:
             importlib.import_module("portal_harness.viewer.bundle")
         except ImportError:

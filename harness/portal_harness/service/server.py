@@ -12,8 +12,9 @@ from pathlib import Path
 from portal_harness.core.errors import ConfigError
 from portal_harness.core.paths import ResultsLayout
 from portal_harness.execution.renderer import renderer_version
+from portal_harness.experiment.limits import Limits
 from portal_harness.service.security import TOKEN_ENV, is_loopback, read_token
-from portal_harness.service.settings import DEFAULT_MAX_BODY_BYTES, ServiceSettings
+from portal_harness.service.settings import DEFAULT_MAX_BODY_BYTES, SPOOL_NAME, ServiceSettings
 
 TOKEN_FILE_NAME = "token"
 
@@ -31,6 +32,7 @@ def settings_from(
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
     figures: bool = True,
     nice: int = 0,
+    limits: Limits | None = None,
 ) -> ServiceSettings:
     """ServiceSettings, checked: the roots exist, the renderer answers, and
     a service off loopback has a token. ConfigError otherwise."""
@@ -61,13 +63,14 @@ def settings_from(
         max_body_bytes=max_body_bytes,
         figures=figures,
         nice=nice,
+        limits=limits or Limits(),
     )
 
 
 def _made_token(layout: ResultsLayout) -> str:
     """A random token for a loopback service started without one, written
     (mode 0600) to results/service/token for the local user to read."""
-    folder = layout.root / "service"
+    folder = layout.root / SPOOL_NAME
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / TOKEN_FILE_NAME
     token = secrets.token_urlsafe(24)

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from portal_harness.core.paths import ResultsLayout
+from portal_harness.experiment.limits import Limits
 
 DEFAULT_MAX_BODY_BYTES = 256 * 1024
 DEFAULT_PORT = 8750
+SPOOL_NAME = "service"  # RESULTS/service/: submitted files, sweep logs, the made token
 
 
 @dataclass(frozen=True)
@@ -26,11 +28,12 @@ class ServiceSettings:
     poll_s: float = 0.25  # how often the dispatcher and the event streams look
     figures: bool = True  # draw the figures (and the viewer's bundle) after each sweep
     nice: int = 0  # niceness of the sweeps' processes (workers, renders), over the API's
+    limits: Limits = field(default_factory=Limits)  # on one submission's work (experiment/limits.py)
 
     @property
     def spool(self) -> Path:
         """Submitted experiment files and their sweep logs, one folder per id."""
-        return self.layout.root / "service"
+        return self.layout.root / SPOOL_NAME
 
     def submission_dir(self, experiment_id: str) -> Path:
         return self.spool / experiment_id

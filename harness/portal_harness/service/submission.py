@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ import yaml
 from portal_harness.core.errors import ConfigError, HarnessError
 from portal_harness.experiment import contract
 from portal_harness.experiment.facets import SWEEPABLE_HARNESS_KEYS
+from portal_harness.experiment.limits import LimitError, Limits
 from portal_harness.experiment.loader import load_experiment
 from portal_harness.experiment.model import Experiment, point_overrides
 from portal_harness.service.security import PathEscape, inside, resolve_in_roots
@@ -42,9 +43,19 @@ class SubmissionError(Exception):
     key: str = ""
     line: int | None = None
     column: int | None = None
+    limit: tuple[str, float, float] | None = None  # (name, value, maximum) of a limit broken
 
     def to_json(self) -> dict[str, Any]:
-        return {"file": self.file, "key": self.key, "line": self.line, "column": self.column, "message": self.message}
+        out: dict[str, Any] = {
+            "file": self.file,
+            "key": self.key,
+            "line": self.line,
+            "column": self.column,
+            "message": self.message,
+        }
+        if self.limit is not None:
+            out["limit"] = {"name": self.limit[0], "value": self.limit[1], "maximum": self.limit[2]}
+        return out
 
 
 def _expanded_size(root: yaml.Node) -> int:
@@ -79,6 +90,42 @@ def _children(node: yaml.Node) -> list[yaml.Node]:
     return []
 
 
+# The tags a plain YAML document resolves to; any other (e.g. !!python/object/apply) is refused.
+_TAGS = frozenset(f"tag:yaml.org,2002:{t}" for t in ("str", "int", "float", "bool", "null", "map", "seq", "timestamp"))
+# Longer integers than any experiment needs (64 bits have 20 digits), refused before they are converted.
+MAX_INTEGER_DIGITS = 40
+
+
+def _check_nodes(root: yaml.Node) -> None:
+    """Refuses, at its key and line, a node of an unknown tag or an integer
+    too long to mean anything (Python refuses to convert the longest)."""
+    stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    seen: set[int] = set()
+    while stack:
+        node, key = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        line, column = node.start_mark.line + 1, node.start_mark.column + 1
+        if node.tag not in _TAGS:
+            raise SubmissionError(
+                f"YAML tag {node.tag[:60]!r} refused (plain YAML values only)", key=key, line=line, column=column
+            )
+        if node.tag.endswith(":int") and len(str(node.value)) > MAX_INTEGER_DIGITS:
+            raise SubmissionError(
+                f"an integer of {len(str(node.value))} characters (at most {MAX_INTEGER_DIGITS})",
+                key=key,
+                line=line,
+                column=column,
+            )
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                name = str(k.value)[:60] if isinstance(k, yaml.ScalarNode) else "?"
+                stack += [(k, key), (v, f"{key}.{name}" if key else name)]
+        elif isinstance(node, yaml.SequenceNode):
+            stack += [(v, f"{key}.{i}" if key else str(i)) for i, v in enumerate(node.value)]
+
+
 def check_yaml(text: str) -> dict[str, Any]:
     """The document as data, after refusing syntax errors (with their line),
     several documents, alias bombs and anything but a mapping."""
@@ -100,7 +147,19 @@ def check_yaml(text: str) -> dict[str, Any]:
         raise SubmissionError(
             f"refused: its aliases expand to more than {MAX_EXPANDED_NODES} nodes (or refer to themselves)"
         )
-    data = yaml.load(text, Loader=loader)
+    _check_nodes(nodes[0])
+    try:
+        data = yaml.load(text, Loader=loader)
+    except yaml.MarkedYAMLError as e:  # e.g. a tag of Python objects, which the safe loader does not build
+        mark = e.problem_mark
+        raise SubmissionError(
+            f"YAML value refused: {e.problem}",
+            line=None if mark is None else mark.line + 1,
+            column=None if mark is None else mark.column + 1,
+        ) from None
+    except (yaml.YAMLError, ValueError, OverflowError, RecursionError) as e:
+        # e.g. an integer of more digits than Python converts
+        raise SubmissionError(f"YAML value refused: {str(e)[:200]}") from None
     if not isinstance(data, dict):
         raise SubmissionError("expected a mapping (an experiment file) at the top level", line=1, column=1)
     return data
@@ -151,7 +210,9 @@ def _paths(data: dict[str, Any]) -> list[tuple[str, Any]]:
     return out
 
 
-def _from_config_error(e: ConfigError, stored: Path, roots: tuple[Path, ...]) -> SubmissionError:
+def _from_config_error(
+    e: ConfigError, stored: Path, roots: tuple[Path, ...], limit: tuple[str, float, float] | None = None
+) -> SubmissionError:
     """A ConfigError of the harness or the renderer, with the stored file's
     name replaced by the submission's, and a root's files named relative
     to it. A file outside the roots is not named, nor quoted."""
@@ -172,7 +233,7 @@ def _from_config_error(e: ConfigError, stored: Path, roots: tuple[Path, ...]) ->
             if os.path.commonpath([top, real]) == top:
                 file = os.path.relpath(real, top)
                 break
-    return SubmissionError(e.message, file=file, key=e.key, line=line, column=column)
+    return SubmissionError(e.message, file=file, key=e.key, line=line, column=column, limit=limit)
 
 
 def check_files(experiment: Experiment, renderer: str, roots: tuple[Path, ...]) -> None:
@@ -195,35 +256,32 @@ def check_files(experiment: Experiment, renderer: str, roots: tuple[Path, ...]) 
                     )
 
 
-def validate(text: str, folder: Path, renderer: str, roots: tuple[Path, ...]) -> tuple[Experiment, Path]:
-    """Validates the submitted text, stored as folder/experiment.yaml (left
-    there: the worker reads it); returns the experiment and the root its
-    paths resolve against. SubmissionError if refused, and then the folder
-    is removed."""
-    created = False
-    try:
-        data = check_yaml(text)
-        base: Path | None = None
-        for key, value in _paths(data):
-            if value is None and key == "scene":
-                break  # load_experiment names the missing key, with its line
-            root = _resolve(text, data, key, value, roots)
-            base = base or root
-        folder.mkdir(parents=True, exist_ok=False)
-        created = True
-        stored = folder / SUBMITTED_NAME
+def validate(
+    text: str, renderer: str, roots: tuple[Path, ...], limits: Limits | None = None
+) -> tuple[Experiment, Path]:
+    """Validates the submitted text; returns the experiment and the root its
+    paths resolve against. SubmissionError if refused. Nothing is left
+    behind either way: the text is read from a private temporary folder
+    (the caller stores it once everything else has passed)."""
+    data = check_yaml(text)
+    base: Path | None = None
+    for key, value in _paths(data):
+        if value is None and key == "scene":
+            break  # load_experiment names the missing key, with its line
+        root = _resolve(text, data, key, value, roots)
+        base = base or root
+    with tempfile.TemporaryDirectory(prefix="portal-submission-") as scratch:
+        stored = Path(scratch) / SUBMITTED_NAME
         stored.write_text(text)
         try:
-            experiment = load_experiment(stored, renderer, relative_to=base or roots[0])
+            experiment = load_experiment(stored, renderer, relative_to=base or roots[0], limits=limits)
+        except LimitError as e:
+            raise _from_config_error(e, stored, roots, limit=(e.limit, e.value, e.maximum)) from None
         except ConfigError as e:
             raise _from_config_error(e, stored, roots) from None
         except HarnessError as e:
-            raise SubmissionError(str(e)) from None
-        if experiment.budget is None:
-            raise _path_error(text, "budget", "missing (a sweep needs time_s or spp)")
-        check_files(experiment, renderer, roots)
-        return experiment, base or roots[0]
-    except BaseException:
-        if created:
-            shutil.rmtree(folder, ignore_errors=True)
-        raise
+            raise SubmissionError(str(e).replace(str(stored), SUBMITTED_NAME)) from None
+    if experiment.budget is None:
+        raise _path_error(text, "budget", "missing (a sweep needs time_s or spp)")
+    check_files(experiment, renderer, roots)
+    return experiment, base or roots[0]

@@ -8,82 +8,23 @@ import json
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
-import yaml
-from conftest import tiny_experiment
 from fastapi.testclient import TestClient
+from service_client import (
+    AUTH,
+    TOKEN,
+    YAML,
+    experiment_text,
+    make_client_fixture,
+    refusal,
+    root_fixture,
+    submit,
+    tmp_results,
+    wait_for,
+)
 
-from portal_harness.core.paths import ResultsLayout
-from portal_harness.service.app import create_app
-from portal_harness.service.settings import ServiceSettings
-
-TOKEN = "s3cret-token"
-AUTH = {"Authorization": f"Bearer {TOKEN}", "Content-Type": "application/yaml"}
-YAML = {"Content-Type": "application/yaml"}
-
-
-@pytest.fixture
-def root(tmp_path: Path, fake_scene: Path) -> Path:
-    """A --root folder holding the tiny scene as scenes/tiny.yaml."""
-    folder = tmp_path / "root"
-    (folder / "scenes").mkdir(parents=True)
-    (folder / "scenes" / "tiny.yaml").write_bytes(fake_scene.read_bytes())
-    return folder
-
-
-def experiment_text(**sections: Any) -> str:
-    """The shared tiny experiment, over the service root's scenes/tiny.yaml."""
-    doc = tiny_experiment("svc_tiny", {"scene": "scenes/tiny.yaml", **sections})
-    return yaml.safe_dump(doc, sort_keys=False)
-
-
-@pytest.fixture
-def make_client(
-    tmp_path: Path, root: Path, fake_renderer: Path, render_log: Callable[[], list[str]]
-) -> Iterator[Callable[..., TestClient]]:
-    clients: list[TestClient] = []
-
-    def make(host: str = "127.0.0.1", renderer: Path | None = None, **extra: Any) -> TestClient:
-        settings = ServiceSettings(
-            layout=ResultsLayout(tmp_path / "results"),
-            renderer=str(renderer or fake_renderer),
-            roots=(root.resolve(),),
-            token=TOKEN,
-            host=host,
-            poll_s=0.05,
-            **extra,
-        )
-        client = TestClient(create_app(settings))
-        client.__enter__()
-        clients.append(client)
-        return client
-
-    yield make
-    for c in clients:
-        c.__exit__(None, None, None)
-
-
-def tmp_results(client: TestClient) -> Path:
-    root: Path = client.app.state.settings.layout.root  # type: ignore[attr-defined]
-    return root
-
-
-def wait_for(client: TestClient, experiment_id: str, statuses: set[str], timeout_s: float = 60) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        view: dict[str, Any] = client.get(f"/api/experiments/{experiment_id}").json()
-        if view["status"] in statuses:
-            return view
-        time.sleep(0.1)
-    raise AssertionError(f"experiment {experiment_id} still {view['status']} after {timeout_s} s")
-
-
-def submit(client: TestClient, text: str) -> str:
-    r = client.post("/api/experiments", content=text, headers=AUTH)
-    assert r.status_code == 202, r.text
-    return str(r.json()["id"])
+FIXTURES = (make_client_fixture, root_fixture)
 
 
 def test_01_a_submitted_experiment_runs_to_done_with_events_images_summary_figures(
@@ -231,14 +172,6 @@ def test_05_off_loopback_every_request_needs_the_token(make_client: Callable[...
     assert client.get("/api/experiments").status_code == 401
     client.cookies.set("portal_harness_token", "nope")
     assert client.get("/api/experiments").status_code == 401
-
-
-def refusal(client: TestClient, text: str) -> dict[str, Any]:
-    r = client.post("/api/experiments", content=text, headers=AUTH)
-    assert r.status_code == 422, r.text
-    body: dict[str, Any] = r.json()
-    assert set(body) >= {"file", "key", "line", "message"}
-    return body
 
 
 def test_06_paths_must_stay_inside_the_roots(
