@@ -241,6 +241,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="GGX roughness of smooth conductors (default: 0.001, the renderer's smallest)",
     )
     p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
+    p.add_argument(
+        "--no-auto-portals",
+        dest="auto_portals",
+        action="store_false",
+        help="write no `portals: auto` (by default the renderer finds every imported light's portals)",
+    )
 
     p = sub.add_parser(
         "serve",
@@ -522,7 +528,13 @@ def cmd_import_mitsuba(args: argparse.Namespace) -> int:
     if not 0.001 <= alpha <= 1.0:
         raise ConfigError("--smooth-alpha", str(alpha), "expected a GGX roughness in [0.001, 1]")
     path, report = import_scene(
-        args.scene, args.out, _parse_sets(args.define, "--define"), args.skip_missing, alpha, args.force
+        args.scene,
+        args.out,
+        _parse_sets(args.define, "--define"),
+        args.skip_missing,
+        alpha,
+        args.force,
+        args.auto_portals,
     )
     for line in report.lines():
         print(line, file=sys.stderr)

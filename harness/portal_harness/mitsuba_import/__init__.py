@@ -22,8 +22,11 @@ def import_scene(
     skip_missing: bool = False,
     smooth_alpha: float = SMOOTH_CONDUCTOR_ALPHA,
     force: bool = False,
+    auto_portals: bool = True,
 ) -> tuple[Path, Report]:
     """Converts xml_path into dest/scene.yaml (and dest/meshes/); returns
-    the YAML's path and the report of warnings. Nothing is written on error."""
+    the YAML's path and the report of warnings. Nothing is written on error.
+    With auto_portals (the default) the scene has `portals: auto`: the
+    renderer finds every imported emitter's portals at scene build."""
     out, report = convert(xml_path, defines, skip_missing, smooth_alpha)
-    return write(out, report, xml_path, dest, force), report
+    return write(out, report, xml_path, dest, force, auto_portals), report
