@@ -241,15 +241,18 @@ test: lint-c test-c test-c-san test-py lint-py
 # Two passes: a later sweep may extend a reference an earlier one shares
 # (the samplers' runs ask more of the ratio sweep's), so every sweep is
 # measured again, from stored runs only, before its figures are drawn.
+# EXPERIMENTS=NAME... runs only those (e.g. one FULL experiment at a time:
+# make figures FULL=1 EXPERIMENTS=lampshade_ratio), in the order given.
 FIGURE_EXPERIMENTS := lampshade_ratio lampshade_ratio_samplers lampshade_ratio_path little_lamp multi_lamp \
                       multi_lamp_weights
+EXPERIMENTS ?= $(FIGURE_EXPERIMENTS)
 FIGURE_FILE = configs/experiments/$${e}$(if $(FULL),_full,).yaml
 figures: $(BUILD)/render $(VENV_STAMP)
-	@set -e; for e in $(FIGURE_EXPERIMENTS); do \
+	@set -e; for e in $(EXPERIMENTS); do \
 	  echo "figures: $(FIGURE_FILE)" >&2; \
 	  $(VENV)/bin/portal-harness sweep $(FIGURE_FILE); \
 	done; \
-	for e in $(FIGURE_EXPERIMENTS); do \
+	for e in $(EXPERIMENTS); do \
 	  echo "figures: $(FIGURE_FILE), measured against the final references" >&2; \
 	  $(VENV)/bin/portal-harness sweep --no-progress $(FIGURE_FILE); \
 	  $(VENV)/bin/portal-harness figures $(FIGURE_FILE); \

@@ -17,6 +17,9 @@ and relMSE_j, t_j the final image's error and render time:
   ratio x sqrt((se_light / mean_light)^2 + (se / mean)^2);
 - speedup_equal_error = t_light / T, T the time the strategy's curve needs
   to reach light's mean final error (speedup.py), mean over replicates;
+  its standard error is that of the mean over the strategy's replicates
+  (with `precision:`, light's too: light's mean error e_L sets T ~ 1/e_L,
+  so its relative standard error is added in quadrature: precision.py);
 - reference_noise_ratio = F / mean_j relMSE_j (the measured error, F
   included: it is the ratio noise_check.py limits);
 - bound = "lower" where that ratio exceeds reference.noise_ratio (or
@@ -68,11 +71,21 @@ COLUMNS = (
 )
 
 
-def columns(facet_keys: tuple[str, ...]) -> tuple[str, ...]:
+# The columns an experiment with `precision:` adds at the end (analysis/precision.py).
+PRECISION_COLUMNS = (
+    "precision_target",
+    "efficiency_vs_light_rel_se",
+    "speedup_equal_error_rel_se",
+    "precision_reached",
+)
+
+
+def columns(facet_keys: tuple[str, ...], precision: bool = False) -> tuple[str, ...]:
     """The columns of an experiment's summary: one per facet key (its
-    full --set key, e.g. render.portal_weight) after `axis`."""
+    full --set key, e.g. render.portal_weight) after `axis`; with
+    `precision`, PRECISION_COLUMNS at the end."""
     at = COLUMNS.index("axis") + 1
-    return COLUMNS[:at] + facet_keys + COLUMNS[at:]
+    return COLUMNS[:at] + facet_keys + COLUMNS[at:] + (PRECISION_COLUMNS if precision else ())
 
 
 @dataclass(frozen=True)
@@ -145,16 +158,20 @@ def rows_for_point(
     noise_ratio: float,
     status: dict[str, str],
     facets: tuple[tuple[str, Any], ...] = (),
+    light_in_speedup_se: bool = False,
 ) -> list[dict[str, Any]]:
     """reps: strategy -> region -> replicates; status: strategy -> "done"
     when every replicate is, else the status of the first that is not;
-    facets: the point's (key, value) of each facet key, a column each."""
+    facets: the point's (key, value) of each facet key, a column each;
+    light_in_speedup_se: the speed-up's standard error includes light's
+    (the module docstring; experiments with `precision:`)."""
     out: list[dict[str, Any]] = []
     for region, info in regions.items():
         floor = info.floor
         base = reps.get(BASELINE, {}).get(region, [])
         base_cost = _mean_se([_cost(r, floor, True) for r in base])
-        base_error = statistics.fmean([max(r.rel_mse - floor, 0.0) for r in base]) if base else math.nan
+        base_error, base_error_se = _mean_se([max(r.rel_mse - floor, 0.0) for r in base])
+        base_rel = base_error_se / base_error if light_in_speedup_se and base_error > 0 else 0.0
         base_time = statistics.fmean([r.time_s for r in base]) if base else math.nan
         for strategy in strategies:
             mine = reps.get(strategy, {}).get(region, [])
@@ -198,12 +215,14 @@ def rows_for_point(
                     "bound": "" if resolved else "lower",
                 }
             )
-            row.update(_speedup(strategy, mine, floor, base_error, base_time))
+            row.update(_speedup(strategy, mine, floor, base_error, base_time, base_rel))
             out.append(row)
     return out
 
 
-def _speedup(strategy: str, mine: list[Replicate], floor: float, target: float, t_light: float) -> dict[str, Any]:
+def _speedup(
+    strategy: str, mine: list[Replicate], floor: float, target: float, t_light: float, target_rel_se: float = 0.0
+) -> dict[str, Any]:
     if strategy == BASELINE and math.isfinite(t_light):
         # By definition: light reaches its own final error at the end of its budget.
         return {
@@ -217,6 +236,8 @@ def _speedup(strategy: str, mine: list[Replicate], floor: float, target: float, 
     if not times or not math.isfinite(t_light):
         return {"speedup_bound": ""}
     speed, speed_se = _mean_se([t_light / f.time_s for f in times])
+    if target_rel_se:  # light's mean error, the target, is itself an estimate (T ~ 1/target)
+        speed_se = math.hypot(speed_se, speed * target_rel_se)
     bound = combined_bound([f.bound for f in times])
     return {
         "speedup_equal_error": speed,

@@ -14,8 +14,14 @@ The stages, in order (references.py says more of each):
    noise exceeds reference.noise_ratio of the smallest error in some
    region is extended (extend.py, render --resume) and the metrics redone,
    at most MAX_EXTENSION_ROUNDS times or until reference.max_time_s;
-5. the tidy summary (summary.py): summary.csv/json, one row per (point,
-   strategy, region); the printed table is its `lit` (or image) region.
+5. with `precision:` (precision.py), rounds: the headline values' relative
+   standard errors, replicates added where the variance is (new seeds),
+   metrics and the noise check again, until every headline value reaches
+   the target or a cap (precision.max_replicates, precision.max_time_s);
+6. the tidy summary (summary.py): summary.csv/json, one row per (point,
+   strategy, region); the printed table is its `lit` (or image) region;
+   and the manifest (manifest.py): renderer, commit, machine, wall time,
+   replicates, precision reached.
 
 Resuming is the default: a run whose folder holds a "done" manifest is not
 rendered again; failed runs are retried (unless --skip-failed). A failed run
@@ -32,9 +38,12 @@ report (console.py).
 from __future__ import annotations
 
 import sqlite3
+import statistics
 import sys
+import time
 from typing import Any, TextIO
 
+from portal_harness.analysis import manifest, precision
 from portal_harness.analysis.console import print_report
 from portal_harness.analysis.sweep_metrics import compute_metrics
 from portal_harness.analysis.sweep_summary import (
@@ -46,7 +55,8 @@ from portal_harness.analysis.sweep_summary import (
 )
 from portal_harness.execution import index, store
 from portal_harness.execution.batch import SweepOptions, execute_specs
-from portal_harness.execution.plan import PlannedRun, plan_runs
+from portal_harness.execution.execute import plan_jobs
+from portal_harness.execution.plan import PlannedRun, more_replicates, plan_runs
 from portal_harness.execution.region_renders import region_maps, region_sections
 from portal_harness.experiment.model import Experiment
 from portal_harness.reference import references
@@ -59,16 +69,37 @@ from portal_harness.reference.lifecycle import (
     extend_references,
     record_plan,
 )
+from portal_harness.reference.noise_check import RegionCheck
 from portal_harness.reference.references import PointReference
+
+# A guard on precision rounds (each at most doubles a cell's replicates, so
+# max_replicates ends them long before).
+MAX_PRECISION_ROUNDS = 30
 
 
 def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = None) -> int:
     """Runs the whole sweep; returns the exit status (0 all done, 1 failures or a bias)."""
     out = out or sys.stdout
+    started = time.monotonic()
     layout = options.layout
     layout.root.mkdir(parents=True, exist_ok=True)
     store.clean_stale_attempts(layout)
     runs = plan_runs(experiment, options.renderer_version)
+    if experiment.precision is not None:
+        # Resuming: the replicates an earlier sweep added, found in the store or
+        # recorded in its manifest (its run folders lost: rendered again at once).
+        runs += more_replicates(
+            experiment,
+            runs,
+            options.renderer_version,
+            layout,
+            manifest.planned_replicates(layout, experiment.name),
+        )
+    precision_info: dict[str, Any] | None = None
+    spent_before = 0.0
+    if experiment.precision is not None:
+        p = experiment.precision
+        spent_before = manifest.precision_spent_s(layout, experiment.name, p.rel_se, p.max_time_s)
     conn = index.connect(layout.index_path)
     manifests: dict[str, dict[str, Any]] = {}
     try:
@@ -94,27 +125,65 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
                 experiment, biased, "no run was measured against them", conn, runs, refs, pilot_keys, out, sections
             )
         manifests.update(execute_specs([r.spec for r in runs], options, conn, desc="runs"))
-        problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
-        checks = check_references(experiment, runs, refs, conn)
-        for _ in range(MAX_EXTENSION_ROUNDS):
-            extended = extend_references(experiment, refs, checks, options, manifests, out)
-            if not extended:
-                break
-            for pid in extended:
-                for part in refs[pid].parts:
-                    index.record_run(conn, manifests[part.key], layout.run(part.key, True).dir)
-            biased = build_references(experiment, {pid: refs[pid] for pid in extended}, options, conn, manifests)
-            if biased:
-                return _stop_biased(
-                    experiment, biased, "found after extending references", conn, runs, refs, pilot_keys, out, sections
-                )
-            problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
-            checks = check_references(experiment, runs, refs, conn)
-        record_plan(conn, experiment, runs, refs, pilot_keys, sections)
+        measured = _measure(experiment, runs, refs, options, conn, manifests, out)
+        if isinstance(measured, list):
+            return _stop_biased(
+                experiment, measured, "found after extending references", conn, runs, refs, pilot_keys, out, sections
+            )
+        problems, checks = measured
         rows = summarize(experiment, runs, refs, conn, manifests)
+        if experiment.precision is not None:
+            rounds: list[dict[str, Any]] = []
+            stop = ""
+            for _ in range(MAX_PRECISION_ROUNDS):
+                values = precision.headline_values(rows, experiment.precision)
+                stop, added = _precision_round(
+                    experiment, runs, values, manifests, options, started - spent_before, out
+                )
+                if not added:
+                    break
+                runs += added
+                record_plan(conn, experiment, runs, refs, pilot_keys, sections)
+                manifests.update(execute_specs([r.spec for r in added], options, conn, desc="replicates"))
+                measured = _measure(experiment, runs, refs, options, conn, manifests, out)
+                if isinstance(measured, list):
+                    return _stop_biased(
+                        experiment,
+                        measured,
+                        "found after extending references",
+                        conn,
+                        runs,
+                        refs,
+                        pilot_keys,
+                        out,
+                        sections,
+                    )
+                problems, checks = measured
+                rows = summarize(experiment, runs, refs, conn, manifests)
+                rounds.append({"added": len(added), "elapsed_s": round(time.monotonic() - started, 1)})
+            values = precision.headline_values(rows, experiment.precision)
+            precision_info = {
+                **precision.report(values, experiment.precision),
+                "max_replicates": experiment.precision.max_replicates,
+                "max_time_s": experiment.precision.max_time_s,
+                "stopped": stop or "rounds",
+                "rounds": rounds,
+                "spent_s": round(spent_before + time.monotonic() - started, 1),
+            }
+        record_plan(conn, experiment, runs, refs, pilot_keys, sections)
         info = references_info(refs, checks, manifests)
         failures = failures_of(runs, refs, manifests) + section_failures(sections, manifests)
-        write_summary(experiment, layout, rows, info, failures, problems)
+        write_summary(experiment, layout, rows, info, failures, problems, precision_info)
+        manifest.write(
+            layout,
+            experiment.name,
+            options.renderer_version,
+            time.monotonic() - started,
+            any(not m.get("cached") for m in manifests.values()),
+            _replicates(runs),
+            _render_time(manifests),
+            precision_info,
+        )
     finally:
         conn.close()
         # Again at the end: a process of a killed earlier sweep (the pool's
@@ -134,6 +203,114 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         out,
     )
     return 1 if failures or problems else 0
+
+
+def _measure(
+    experiment: Experiment,
+    runs: list[PlannedRun],
+    refs: dict[str, PointReference],
+    options: SweepOptions,
+    conn: sqlite3.Connection,
+    manifests: dict[str, dict[str, Any]],
+    out: TextIO,
+) -> tuple[list[str], dict[str, list[RegionCheck]]] | list[str]:
+    """Metrics of every finished run, the noise check, and the references'
+    extensions it asks for (each followed by metrics and the check again):
+    (problems, checks), or the bias test's lines when an extension brought
+    out a disagreement between a point's two references."""
+    problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
+    checks = check_references(experiment, runs, refs, conn)
+    for _ in range(MAX_EXTENSION_ROUNDS):
+        extended = extend_references(experiment, refs, checks, options, manifests, out)
+        if not extended:
+            break
+        for pid in extended:
+            for part in refs[pid].parts:
+                index.record_run(conn, manifests[part.key], options.layout.run(part.key, True).dir)
+        biased = build_references(experiment, {pid: refs[pid] for pid in extended}, options, conn, manifests)
+        if biased:
+            return biased
+        problems = compute_metrics(experiment, runs, refs, options, conn, manifests)
+        checks = check_references(experiment, runs, refs, conn)
+    return problems, checks
+
+
+def _cell_counts(runs: list[PlannedRun]) -> dict[precision.Cell, int]:
+    counts: dict[precision.Cell, int] = {}
+    for r in runs:
+        counts[(r.point.id, r.strategy)] = counts.get((r.point.id, r.strategy), 0) + 1
+    return counts
+
+
+def _replicates(runs: list[PlannedRun]) -> dict[tuple[str, str], int]:
+    return _cell_counts(runs)
+
+
+def _render_time(manifests: dict[str, dict[str, Any]]) -> float:
+    """The wall time of every render the sweep used (cached ones included): what it cost to make."""
+    total = 0.0
+    for m in manifests.values():
+        wall = (m.get("timings") or {}).get("wall_s")
+        if isinstance(wall, (int, float)):
+            total += float(wall)
+    return total
+
+
+def _precision_round(
+    experiment: Experiment,
+    runs: list[PlannedRun],
+    values: list[precision.Value],
+    manifests: dict[str, dict[str, Any]],
+    options: SweepOptions,
+    started: float,
+    out: TextIO,
+) -> tuple[str, list[PlannedRun]]:
+    """The next round's runs (precision.allocate), cut to what fits in
+    precision.max_time_s by the measured wall time of a run; and why there
+    is none: "reached", "max_time_s" or "max_replicates"."""
+    p = experiment.precision
+    assert p is not None and experiment.budget is not None
+    missing = [v for v in values if not precision.reached(v, p.rel_se)]
+    if not missing:
+        return "reached", []
+    worst = max(missing, key=lambda v: v.rel_se if v.rel_se == v.rel_se else float("inf"))
+    print(
+        f"precision: {len(missing)} of {len(values)} headline values above rel. SE {p.rel_se:g} "
+        f"(worst: {worst.name}, {worst.rel_se:.3g})",
+        file=out,
+    )
+    counts = _cell_counts(runs)
+    order = precision.allocate(values, counts, p)
+    if not order:
+        return "max_replicates", []
+    if p.max_time_s:
+        walls = [
+            float(w)
+            for r in runs
+            if isinstance(w := ((manifests.get(r.key) or {}).get("timings") or {}).get("wall_s"), (int, float))
+        ]
+        # x 1.5: a run's metrics and the harness's own work come on top of its render
+        per_run = 1.5 * (statistics.fmean(walls) if walls else experiment.budget.time_s)
+        parallel = plan_jobs(experiment.budget.threads, options.jobs)
+        left = p.max_time_s - (time.monotonic() - started)
+        fit = int(left * parallel / max(per_run, 1e-3))
+        if fit <= 0:
+            return "max_time_s", []
+        order = order[:fit]
+    added = more_replicates(experiment, runs, options.renderer_version, None, _counts_after(counts, order))
+    by = _cell_counts(added)
+    print(
+        "precision: adding " + ", ".join(f"{n} x {strategy} at {point}" for (point, strategy), n in sorted(by.items())),
+        file=out,
+    )
+    return "", added
+
+
+def _counts_after(counts: dict[precision.Cell, int], order: list[precision.Cell]) -> dict[precision.Cell, int]:
+    out = dict(counts)
+    for cell in order:
+        out[cell] = out.get(cell, 0) + 1
+    return out
 
 
 def _stop_biased(

@@ -8,7 +8,7 @@ import io
 import sqlite3
 from typing import Any
 
-from portal_harness.analysis import summary
+from portal_harness.analysis import precision, summary
 from portal_harness.core.paths import ResultsLayout
 from portal_harness.execution import store
 from portal_harness.execution.plan import PlannedRun, reference_id
@@ -60,7 +60,10 @@ def summarize(
             experiment.reference.noise_ratio,
             status,
             facets=point.facets,
+            light_in_speedup_se=experiment.precision is not None,
         )
+    if experiment.precision is not None:
+        precision.mark_rows(rows, experiment.precision)
     return rows
 
 
@@ -71,10 +74,13 @@ def write_summary(
     references_info: list[dict[str, Any]],
     failures: list[str],
     problems: list[str],
+    precision_info: dict[str, Any] | None = None,
 ) -> None:
+    """summary.json and summary.csv; `precision_info`: with `precision:`, the
+    precision reached (precision.report) and how the rounds ended, in summary.json."""
     folder = layout.experiment_dir(experiment.name)
     folder.mkdir(parents=True, exist_ok=True)
-    columns = summary.columns(experiment.facets)
+    columns = summary.columns(experiment.facets, experiment.precision is not None)
     clean = [{k: store.finite_or_none(r.get(k)) for k in columns} for r in rows]
     store.write_json_atomic(
         layout.summary_json(experiment.name),
@@ -86,16 +92,26 @@ def write_summary(
             "references": references_info,
             "failures": failures,
             "problems": problems,
+            **({"precision": precision_info} if precision_info is not None else {}),
         },
     )
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
     writer.writeheader()
     for r in clean:
-        writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in columns})
+        writer.writerow({k: _csv_cell(r.get(k)) for k in columns})
     tmp = layout.summary_csv(experiment.name).with_name(".summary.csv.tmp")
     tmp.write_text(buffer.getvalue())
     tmp.replace(layout.summary_csv(experiment.name))
+
+
+def _csv_cell(value: Any) -> Any:
+    """None as an empty cell, booleans as true/false (precision_reached)."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return value
 
 
 def references_info(

@@ -9,7 +9,9 @@ efficiency is a lower bound; `speedup_bound`: the curves only bound the
 time), is marked \\geq or \\leq (\\sim where replicates bound it from both
 sides). Numbers keep two significant digits of their standard error and
 the value is rounded to the same place; values beyond 10^4 or below
-10^-3 share a power of ten with their error.
+10^-3 share a power of ten with their error. In an experiment with
+`precision:`, a headline value whose relative standard error did not reach
+the target is marked \\dagger (precision.py).
 
 Written by `portal-harness figures` next to summary.csv, from the stored
 summary only (nothing is rendered). Needs \\usepackage{booktabs}.
@@ -23,6 +25,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from portal_harness.analysis import precision
 from portal_harness.core.exr import REGION_CLASSES
 from portal_harness.core.metrics import WHOLE_IMAGE
 from portal_harness.core.regions import LIT
@@ -36,6 +39,7 @@ MEASURES = (
     ("speedup_equal_error", "speedup_equal_error_stderr", "speedup_bound", "speed-up"),
 )
 BOUND_MARKS = {"lower": "\\geq ", "upper": "\\leq ", "mixed": "\\sim "}
+UNREACHED_MARK = "\\,\\dagger"  # a value short of its precision target
 _SPECIAL = {
     "\\": "\\textbackslash{}",
     "&": "\\&",
@@ -61,11 +65,13 @@ def _finite(value: Any) -> float | None:
     return float(value)
 
 
-def format_measure(value: Any, stderr: Any = None, bound: str = "") -> str:
-    """`$2.31 \\pm 0.12$`, `$\\geq 40.1 \\pm 2.3$`, `$(1.23 \\pm 0.05) \\times 10^{4}$`; `--` when missing."""
+def format_measure(value: Any, stderr: Any = None, bound: str = "", unreached: bool = False) -> str:
+    """`$2.31 \\pm 0.12$`, `$\\geq 40.1 \\pm 2.3$`, `$(1.23 \\pm 0.05) \\times 10^{4}$`; `--` when missing;
+    `unreached`: `\\dagger` after it (its precision target not reached)."""
     v = _finite(value)
+    mark = UNREACHED_MARK if unreached else ""
     if v is None:
-        return "--"
+        return f"--${mark}$" if mark else "--"
     s = _finite(stderr)
     exponent = math.floor(math.log10(abs(v))) if v != 0 else 0
     scale = exponent if exponent >= 4 or exponent <= -4 else 0
@@ -79,7 +85,7 @@ def format_measure(value: Any, stderr: Any = None, bound: str = "") -> str:
         text = f"{v:.{decimals}f}"
     if scale:
         text = f"({text}) \\times 10^{{{scale}}}"
-    return f"${BOUND_MARKS.get(bound or '', '')}{text}$"
+    return f"${BOUND_MARKS.get(bound or '', '')}{text}{mark}$"
 
 
 def region_title(region: str, kind: str = "") -> str:
@@ -143,7 +149,10 @@ def table(
             lines.append("\\addlinespace")
         for s_i, r in enumerate(x for x in mine if x["point"] == point):
             cells = [_point_label(r, by_axis) if s_i == 0 else "", escape(str(r["strategy"]))]
-            cells += [format_measure(r.get(v), r.get(se), str(r.get(b) or "")) for v, se, b, _ in MEASURES]
+            cells += [
+                format_measure(r.get(v), r.get(se), str(r.get(b) or ""), precision.unreached(r, v))
+                for v, se, b, _ in MEASURES
+            ]
             lines.append(" & ".join(cells) + " \\\\")
     reps = sorted({int(r["replicates"]) for r in mine if _finite(r.get("replicates"))})
     rep_text = "/".join(str(k) for k in reps) if reps else "0"
@@ -155,6 +164,12 @@ def table(
         "and speed-up at light's final error; mean $\\pm$ one standard error over "
         f"{rep_text} replicates. $\\geq$/$\\leq$: a lower/upper bound."
     )
+    targets = {t for r in mine if (t := _finite(r.get("precision_target"))) is not None}
+    if targets:
+        missed = any(precision.unreached(r, v) for r in mine for v, _, _, _ in MEASURES)
+        caption += f" Precision target: relative standard error {'/'.join(f'{t:g}' for t in sorted(targets))}" + (
+            "; $\\dagger$: not reached." if missed else ", reached by every value."
+        )
     lines += [
         "\\bottomrule",
         "\\end{tabular}",

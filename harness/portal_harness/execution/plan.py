@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from portal_harness.core.paths import ResultsLayout
+from portal_harness.execution import store
 from portal_harness.experiment.model import Experiment, Point
 from portal_harness.experiment.spec import RunSpec
 
@@ -32,4 +34,36 @@ def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]
                 spec = experiment.run_spec(point, strategy, replicate=k)
                 key = spec.key(renderer_version)
                 out.append(PlannedRun(point, strategy, k, spec, key, reference_id(experiment, point)))
+    return out
+
+
+def more_replicates(
+    experiment: Experiment,
+    runs: list[PlannedRun],
+    renderer_version: str,
+    layout: ResultsLayout | None,
+    wanted: dict[tuple[str, str], int],
+) -> list[PlannedRun]:
+    """Further replicates of each (point, strategy) beyond those `runs` hold
+    (replicates 0..K-1, as plan_runs makes them): up to wanted[(point id,
+    strategy)] replicates, and with `layout`, every further one the store
+    holds finished (an earlier sweep's precision rounds: experiments with
+    `precision:`, capped at its max_replicates)."""
+    have: dict[tuple[str, str], int] = {}
+    for r in runs:
+        cell = (r.point.id, r.strategy)
+        have[cell] = max(have.get(cell, 0), r.replicate + 1)
+    cap = experiment.precision.max_replicates if experiment.precision is not None else None
+    out = []
+    for point in experiment.points():
+        for strategy in experiment.strategies:
+            cell = (point.id, strategy)
+            k = have.get(cell, 0)
+            while cap is None or k < cap:
+                spec = experiment.run_spec(point, strategy, replicate=k)
+                key = spec.key(renderer_version)
+                if k >= wanted.get(cell, 0) and (layout is None or not store.is_done(layout.run(key))):
+                    break
+                out.append(PlannedRun(point, strategy, k, spec, key, reference_id(experiment, point)))
+                k += 1
     return out

@@ -15,6 +15,7 @@ from portal_harness.core.metrics import WHOLE_IMAGE, Region
 from portal_harness.experiment import contract
 from portal_harness.experiment.limits import Limits, check_points, limit_work
 from portal_harness.experiment.model import Budget, Experiment, RegressSettings
+from portal_harness.experiment.precision import read_precision
 from portal_harness.experiment.scene import read_scene
 from portal_harness.experiment.schema import SEED_MAX, SPP_MAX, Reader, kind_of, parse_threads, read_yaml_lines
 from portal_harness.experiment.sections import (
@@ -69,6 +70,7 @@ def load_experiment(
             "figures",
             "description",
             "regions",
+            "precision",
         },
         required={"scene", "strategies", "sweep"},
     )
@@ -187,6 +189,13 @@ def load_experiment(
             )
         insets.append(region)
 
+    region_classes = tuple(c.removeprefix("region.") for c in names.region_channels)
+    precision = (
+        read_precision(r, root["precision"], budget, tuple(insets), region_classes, len(names.strategies))
+        if "precision" in root
+        else None
+    )
+
     axis = read_axis(r, root.get("axis"), tuple(sweep))
     facet_keys = tuple(k for k, _ in sweep if axis is None or k not in (axis.param, axis.divide_by))
 
@@ -258,5 +267,6 @@ def load_experiment(
         facets=facet_keys,
         region_sections=sections,
         compare=compare,
-        region_classes=tuple(c.removeprefix("region.") for c in names.region_channels),
+        region_classes=region_classes,
+        precision=precision,
     )

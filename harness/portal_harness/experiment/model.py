@@ -64,6 +64,19 @@ class ReferenceSettings:
 
 
 @dataclass(frozen=True)
+class Precision:
+    """precision: the relative standard error every headline value (each
+    strategy's efficiency relative to light and equal-error speed-up in the
+    `regions`) is to reach; the sweep adds replicates until it does, or
+    until a cap (analysis/precision.py)."""
+
+    rel_se: float
+    regions: tuple[str, ...]  # region names as the summary has them; "insets": every inset
+    max_replicates: int  # per (point, strategy)
+    max_time_s: float  # wall time of the sweep after which no round is started (0: none)
+
+
+@dataclass(frozen=True)
 class Axis:
     """The x axis of the figures: a swept parameter, optionally divided by another."""
 
@@ -141,6 +154,7 @@ class Experiment:
     compare: tuple[str, str] | None = None
     # The region AOV's classes, in the renderer's order (render --describe: aov.region).
     region_classes: tuple[str, ...] = REGION_CLASSES
+    precision: Precision | None = None  # precision: replicates until the headline values are known
 
     def points(self) -> list[Point]:
         return list(self.point_list)

@@ -2,6 +2,8 @@
 light/portal ratio), one panel per region (image, lit, insets, region classes),
 error bars of one standard error over replicates, open triangles where the value
 is only a lower bound; below it, the equal-error speed-up in the same layout.
+With `precision:`, a headline value short of its precision target is
+circled in grey (analysis/precision.py).
 Facets are line styles; an experiment without an axis has the strategies along
 x and a colour per facet value."""
 
@@ -17,6 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
+from portal_harness.analysis import precision
 from portal_harness.core.paths import ResultsLayout
 from portal_harness.experiment import facets
 from portal_harness.experiment.model import Experiment
@@ -65,8 +68,11 @@ def _draw_value(
         mfc="white" if bounded else colour_,
         color=colour_,
     )
+    if precision.unreached(r, column):
+        ax.plot([x], [r[column]], ls="none", marker="o", ms=10, mfc="none", mec=UNREACHED_COLOUR, mew=1.2)
 
 
+UNREACHED_COLOUR = "0.45"
 EFFICIENCY_MAX_COLUMNS = 5
 
 
@@ -169,6 +175,14 @@ def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
         (Line2D([], [], ls="none", marker="^", ms=6, mfc="white", color="k"), "lower bound"),
         (Line2D([], [], ls="none", marker="v", ms=6, mfc="white", color="k"), "upper bound"),
     ]
+    if any(precision.unreached(r, m[0]) for r in data.summary for m in measures):
+        target = next(r["precision_target"] for r in data.summary if r.get("precision_target") is not None)
+        extra.append(
+            (
+                Line2D([], [], ls="none", marker="o", ms=9, mfc="none", mec=UNREACHED_COLOUR, mew=1.2),
+                f"rel. SE above its target {target:g}",
+            )
+        )
     handles = ([] if experiment.axis is None else strategy_handles(experiment, data)) + extra
     fig.legend(
         [h_ for h_, _ in handles],
@@ -178,10 +192,14 @@ def build_efficiency(experiment: Experiment, data: ExperimentData) -> Figure:
         fontsize=7,
         frameon=False,
     )
-    reps = experiment.budget.replicates if experiment.budget else 1
+    counts = sorted({int(r["replicates"]) for r in data.summary if isinstance(r.get("replicates"), int)})
+    if experiment.precision is not None and counts:
+        reps_text = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
+    else:
+        reps_text = str(experiment.budget.replicates if experiment.budget else 1)
     title = (
         f"{experiment.name}: efficiency 1/(relMSE x time) and equal-error speed-up relative to light "
-        f"sampling (reference noise removed; bars: one standard error over {reps} replicates)"
+        f"sampling (reference noise removed; bars: one standard error over {reps_text} replicates)"
     )
     text, size = figure_layout.fit_text(title, figure_layout.PAGE_WIDTH_IN * 72 * 0.95, 8, max_lines=2)
     fig.suptitle(text, fontsize=size)
