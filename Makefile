@@ -43,6 +43,10 @@ SRCS := $(filter-out renderer/src/cli/main.c,$(wildcard $(LAYERS:%=renderer/src/
 OBJS := $(SRCS:renderer/src/%.c=$(BUILD)/obj/%.o)
 TEST_SRCS := $(wildcard tests/renderer/test_*.c)
 TEST_BINS := $(TEST_SRCS:tests/renderer/%.c=$(BUILD)/tests/%)
+# Test support (tests/renderer/*.c that are not tests, e.g. exr_read.c):
+# linked into every test.
+TEST_SUPPORT_SRCS := $(filter-out $(TEST_SRCS),$(wildcard tests/renderer/*.c))
+TEST_SUPPORT_OBJS := $(TEST_SUPPORT_SRCS:tests/renderer/%.c=$(BUILD)/tests/%.o)
 # The benchmark programs and the fuzzers' plain replay drivers, built with
 # the library's flags by every test-c so that they cannot rot.
 BENCH_BINS := $(BUILD)/bench/micro $(BUILD)/bench/raw_embree $(BUILD)/bench/mesh_load
@@ -130,7 +134,7 @@ $(BUILD)/tests/%.o: tests/renderer/%.c $(FLAGS_STAMP) | $(DEPS_STAMP)
 	@mkdir -p $(@D)
 	$(CC) $(CPPFLAGS) -Itests/renderer $(ALL_CFLAGS) -c $< -o $@
 
-$(BUILD)/tests/%: $(BUILD)/tests/%.o $(BUILD)/librender.a
+$(BUILD)/tests/%: $(BUILD)/tests/%.o $(TEST_SUPPORT_OBJS) $(BUILD)/librender.a
 	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
 
 $(BUILD)/bench/%.o: renderer/bench/%.c $(FLAGS_STAMP) | $(DEPS_STAMP)
@@ -337,7 +341,7 @@ crosscheck: $(BUILD)/render
 clean:
 	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)
 
--include $(OBJS:.o=.d) $(BUILD)/obj/cli/main.d $(TEST_BINS:=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
+-include $(OBJS:.o=.d) $(BUILD)/obj/cli/main.d $(TEST_BINS:=.d) $(TEST_SUPPORT_OBJS:.o=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
   $(BUILD)/fuzz/fuzz_mesh.d $(BUILD)/fuzz/fuzz_portals.d $(BUILD)/fuzz/replay.d
 
 # Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c

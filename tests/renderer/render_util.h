@@ -11,6 +11,7 @@
 
 #include "config/config.h"
 #include "render/film.h"
+#include "exr_read.h"
 #include "render/render.h"
 #include "scene/scene.h"
 

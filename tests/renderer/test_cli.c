@@ -5,6 +5,7 @@
 
 #include "cli_util.h"
 #include "render/film.h"
+#include "exr_read.h"
 #include "testlib.h"
 
 static void test_help_and_version(void)

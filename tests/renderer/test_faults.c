@@ -6,6 +6,7 @@
 
 #include "cli_util.h"
 #include "render/film.h"
+#include "exr_read.h"
 #include "base/rng.h"
 #include "testlib.h"
 

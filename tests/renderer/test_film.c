@@ -2,6 +2,7 @@
    variance-of-the-mean snapshot, the EXR round trip and its failure modes
    (missing directory, full disk, damaged files). */
 #include "render/film.h"
+#include "exr_read.h"
 #include "base/rng.h"
 #include "testlib.h"
 

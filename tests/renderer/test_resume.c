@@ -8,6 +8,7 @@
 #include "cli_util.h"
 #include "config/config.h"
 #include "render/film.h"
+#include "exr_read.h"
 #include "render/film_state.h"
 #include "testlib.h"
 

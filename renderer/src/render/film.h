@@ -34,6 +34,10 @@ struct film {
 #define FILM_MAX_SIDE   65536
 #define FILM_MAX_PIXELS ((int64_t)1 << 27)
 
+/* Whether a width x height film or image is within those bounds; false with
+   "<what> size WxH ..." in err otherwise. */
+bool film_check_size(int width, int height, const char *what, struct error *err);
+
 /* Allocates a zeroed width x height film; fails on non-positive or absurd
    sizes and on allocation failure. */
 bool film_init(struct film *f, int width, int height, struct error *err);
@@ -156,18 +160,5 @@ struct snapshot_info {
    names in order, space-separated). */
 bool film_write_exr(const char *path, const struct film_image *img, const struct snapshot_info *info,
                     struct error *err);
-
-/* Reads back what film_write_exr wrote (for tests and tools): channels are
-   found by name, img is allocated here (free with film_image_free), with a
-   region layer when the file has the region channels (all of them and
-   aov_region_classes as written, else an error). Strings
-   in `info` point into `storage`, which the caller frees with free(). On
-   failure (missing file, not an EXR, missing channel or attribute, damaged
-   data) img and meta are left zeroed and err names the path. */
-struct snapshot_read {
-    struct snapshot_info info;
-    char *storage;
-};
-bool film_read_exr(const char *path, struct film_image *img, struct snapshot_read *meta, struct error *err);
 
 #endif
