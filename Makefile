@@ -314,8 +314,10 @@ fuzz:
 # (configs/scenes/lampshade_mesh.yaml) with each of CROSSCHECK_STRATEGIES,
 # then the lampshade with an 80-triangle sphere as a mesh light
 # (tests/configs/good/mesh_light_sphere.yaml) with each of
-# CROSSCHECK_MESH_LIGHT_STRATEGIES; each scene against one set of Mitsuba
-# renders. Every run is made; the target fails if any disagrees. About 8
+# CROSSCHECK_MESH_LIGHT_STRATEGIES, then the night White Room at 128x72
+# (light and antishadow_exact with its auto portals, antishadow_exact with
+# the hand portals); each scene against one set of Mitsuba
+# renders. Every run is made; the target fails if any disagrees. About 11
 # minutes on 2 busy cores. tools/crosscheck/README.md.
 CROSSCHECK_STRATEGIES ?= light portal antishadow antishadow_exact
 CROSSCHECK_MESH_LIGHT_STRATEGIES ?= light portal antishadow_exact
@@ -336,6 +338,13 @@ crosscheck: $(BUILD)/render
 	    --scene tests/configs/good/mesh_light_sphere.yaml --strategy $$s \
 	    --mitsuba-cache $(CROSSCHECK_OUT)/mesh_light_sphere/mitsuba.npz \
 	    --out $(CROSSCHECK_OUT)/mesh_light_sphere/direct_$$s || rc=1; \
+	done; \
+	for v in light:white_room_night antishadow_exact:white_room_night antishadow_exact:white_room_night_hand; do \
+	  .venv-xcheck/bin/python tools/crosscheck/mitsuba_lampshade.py --renderer $(BUILD)/render \
+	    --scene configs/scenes/$${v#*:}.yaml --strategy $${v%%:*} --set film.width=128 --set film.height=72 \
+	    --ours-spp 256 --mitsuba-spp 256 --mitsuba-runs 16 \
+	    --mitsuba-cache $(CROSSCHECK_OUT)/white_room/mitsuba_direct.npz \
+	    --out $(CROSSCHECK_OUT)/white_room/direct_$${v%%:*}_$${v#*:} || rc=1; \
 	done; exit $$rc
 
 clean:

@@ -335,8 +335,24 @@ def _rgb(value: Iterable[Any]) -> dict[str, Any]:
 
 
 def _bsdf(material: dict[str, Any], name: str) -> dict[str, Any]:
+    if material.get("type") == "ggx":
+        # Our ggx: GGX reflection, Schlick's Fresnel with the albedo as F0.
+        # Mitsuba's nearest: principled with metallic 1 (its metallic lobe
+        # is GGX with Schlick's Fresnel on base_color, alpha = roughness^2,
+        # no diffuse, sheen or clearcoat). Its Smith G is the separable
+        # G1 G1, ours the height-correlated one: they differ at grazing
+        # angles only (README, "What is converted").
+        lobe = {
+            "type": "principled",
+            "base_color": _rgb(material["albedo"]),
+            "metallic": 1.0,
+            "roughness": float(material["roughness"]) ** 0.5,
+        }
+        return {"type": "twosided", "material": lobe}
     if material.get("type") != "diffuse":
-        raise SetupError("material {!r}: only diffuse is converted (got {!r})".format(name, material.get("type")))
+        raise SetupError(
+            "material {!r}: only diffuse and ggx are converted (got {!r})".format(name, material.get("type"))
+        )
     # Our surfaces are two-sided; Mitsuba's diffuse is black from the back.
     return {"type": "twosided", "material": {"type": "diffuse", "reflectance": _rgb(material["albedo"])}}
 
@@ -923,10 +939,11 @@ def main(argv: list[str] | None = None) -> int:
         offset = [0.0, 0.0, 0.0] if args.no_recentre else recentre_offset(cfg)
         scene_dict = build_scene_dict(cfg, integ, out / "mitsuba" / "meshes", spp_each, offset)
         # What determines Mitsuba's images: the scene (our render settings
-        # aside), its integrator, spp, runs and seeds.
+        # and portals aside: they guide our sampling only), its integrator,
+        # spp, runs and seeds.
         key = json.dumps(
             {
-                "scene": {k: v for k, v in cfg.items() if k != "render"},
+                "scene": {k: v for k, v in cfg.items() if k not in ("render", "portals")},
                 "integrator": integ,
                 "offset": offset,
                 "spp_each": spp_each,
