@@ -100,6 +100,7 @@ def _limit_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--max-bytes", type=int, default=d.max_bytes, help=f"bytes of images written (default {d.max_bytes})"
     )
+    g.add_argument("--max-pixels", type=int, default=d.max_pixels, help=f"pixels of the film (default {d.max_pixels})")
 
 
 def _limits(args: argparse.Namespace) -> Limits | None:
@@ -111,6 +112,7 @@ def _limits(args: argparse.Namespace) -> Limits | None:
         max_total_time_s=args.max_total_time,
         max_snapshots=args.max_snapshots,
         max_bytes=args.max_bytes,
+        max_pixels=args.max_pixels,
     )
 
 

@@ -47,14 +47,14 @@ def make_client_fixture(
 ) -> Iterator[Callable[..., TestClient]]:
     clients: list[TestClient] = []
 
-    def make(host: str = "127.0.0.1", renderer: Path | None = None, **extra: Any) -> TestClient:
+    def make(host: str = "127.0.0.1", renderer: Path | None = None, poll_s: float = 0.05, **extra: Any) -> TestClient:
         settings = ServiceSettings(
             layout=ResultsLayout(tmp_path / "results"),
             renderer=str(renderer or fake_renderer),
             roots=(root.resolve(),),
             token=TOKEN,
             host=host,
-            poll_s=0.05,
+            poll_s=poll_s,
             **extra,
         )
         client = TestClient(create_app(settings))
@@ -94,3 +94,34 @@ def refusal(client: TestClient, text: str) -> dict[str, Any]:
     body: dict[str, Any] = r.json()
     assert set(body) >= {"file", "key", "line", "message"}
     return body
+
+
+TINY = experiment_text()  # the tiny experiment as text: a base for edits (with_line)
+
+
+def listing(folder: Path) -> list[str]:
+    """Every file and folder under `folder` but the index's own files (its WAL changes with reads)."""
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if not p.name.startswith("index.sqlite"))
+
+
+def refused(client: TestClient, text: str, status: int = 422) -> dict[str, Any]:
+    """The body of a refusal, after checking that it is located and that it left nothing behind."""
+    results = tmp_results(client)
+    before = listing(results)
+    started = time.monotonic()
+    r = client.post("/api/experiments", content=text, headers=AUTH)
+    elapsed = time.monotonic() - started
+    assert r.status_code == status, r.text
+    body: dict[str, Any] = r.json()
+    # Located: the file and the line (and the key, but for a YAML syntax error, which has none).
+    assert body["file"] == "experiment.yaml" and body["line"] is not None, body
+    assert body["key"] or body["message"].startswith("YAML syntax error"), body
+    assert listing(results) == before, "a refusal left something behind"
+    assert client.get("/api/experiments").json() == []
+    assert elapsed < 10, f"refused after {elapsed:.1f} s"
+    return body
+
+
+def with_line(text: str, old: str, new: str) -> str:
+    assert old in text
+    return text.replace(old, new, 1)

@@ -203,6 +203,7 @@ async def measure(
                     "failed_requests": len(load.failures),
                     "failures": load.failures[:10],
                     "latency_ms_p50": round(percentile(ms, 50), 2),
+                    "latency_ms_p95": round(percentile(ms, 95), 2),
                     "latency_ms_p99": round(percentile(ms, 99), 2),
                     "latency_ms_max": round(max(ms), 2) if ms else None,
                     "event_streams": clients,
@@ -219,7 +220,7 @@ def main() -> int:
     p.add_argument("--run-time", type=float, default=2.0, help="render time of each run (s)")
     p.add_argument("--size", type=int, default=64, help="image width and height (pixels)")
     p.add_argument("--renderer", type=Path, default=REPO / "renderer" / "build" / "render")
-    p.add_argument("--nice", type=int, default=0, help="the service's --nice (niceness of its sweeps)")
+    p.add_argument("--nice", type=int, default=None, help="the service's --nice (default: the service's own)")
     p.add_argument("--out", type=Path, default=REPO / "results" / "bench" / "service_load.json")
     args = p.parse_args()
     port = free_port()
@@ -227,7 +228,8 @@ def main() -> int:
         results = Path(tmp) / "results"
         command = [sys.executable, "-m", "portal_harness", "serve", "--port", str(port), "--results", str(results)]
         command += ["--renderer", str(args.renderer), "--root", str(REPO / "configs"), "--no-figures"]
-        command += ["--nice", str(args.nice)]
+        if args.nice is not None:
+            command += ["--nice", str(args.nice)]
         env = {**os.environ, "PORTAL_HARNESS_TOKEN": TOKEN}
         load_before = os.getloadavg()
         server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -263,7 +265,8 @@ def main() -> int:
         "load_average_at_end": [round(x, 2) for x in os.getloadavg()],
         "image": f"{args.size}x{args.size}",
         "run_time_s": args.run_time,
-        "sweep_niceness": args.nice,
+        "sweep_niceness": "default of serve" if args.nice is None else args.nice,
+        "date": time.strftime("%Y-%m-%d"),
         **phases["with_clients"]["clients"],
         "samples_per_s_without_clients": round(baseline),
         "samples_per_s_with_clients": round(loaded),
@@ -276,7 +279,8 @@ def main() -> int:
     c = phases["with_clients"]["clients"]
     print(
         f"{c['clients']} clients: {c['requests']} requests, {c['failed_requests']} failed, "
-        f"p50 {c['latency_ms_p50']} ms, p99 {c['latency_ms_p99']} ms; {c['event_streams_ended_cleanly']}/"
+        f"p50 {c['latency_ms_p50']} ms, p95 {c['latency_ms_p95']} ms, p99 {c['latency_ms_p99']} ms; "
+        f"{c['event_streams_ended_cleanly']}/"
         f"{c['event_streams']} event streams followed to their end ({c['events_received']} events)"
     )
     print(

@@ -5,10 +5,16 @@ are always shown with their reference's exposure, never their own."""
 from __future__ import annotations
 
 import io
+import warnings
 
-import colour
 import numpy as np
 from PIL import Image
+
+# colour-science warns at import that its SciPy features are missing (they
+# are not used here): that warning only is silenced, and only for the import.
+with warnings.catch_warnings():
+    warnings.filterwarnings("ignore", message=r'"SciPy" related API features are not available')
+    import colour
 
 _SRGB = colour.RGB_COLOURSPACES["sRGB"]
 # Rec.709/sRGB luminance weights: the Y row of the RGB -> XYZ matrix.

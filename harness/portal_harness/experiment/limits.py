@@ -11,7 +11,8 @@ microseconds, with the limit it breaks and its value.
   time and samples (samples reached in a time-limited run are bounded by a
   fast render, the time of a sample-limited run by a slow one);
 - bytes: the images written, film width x height x channels x 4 bytes per
-  snapshot and final image, of every run and reference.
+  snapshot and final image, of every run and reference;
+- pixels: of the film (a render holds several float images of it in memory).
 
 `portal-harness serve` and `portal-harness sweep` check them (their
 --max-* options; `sweep --no-limits` lifts them). The defaults let every
@@ -34,6 +35,7 @@ from portal_harness.experiment.schema import Reader
 FAST_PIXEL_SAMPLES_PER_S = 1e8
 SLOW_PIXEL_SAMPLES_PER_S = 2e5
 BYTES_PER_CHANNEL = 4  # float32 EXR channels, at worst uncompressed
+HUGE = 1e18  # counts past this are all "too many" (and are not rounded)
 GIB = 2**30
 
 
@@ -44,6 +46,7 @@ class Limits:
     max_total_time_s: float = 48 * 3600.0
     max_snapshots: int = 200  # per run
     max_bytes: int = 128 * GIB
+    max_pixels: int = 4096 * 4096  # of the film (each render holds several float images of it)
 
     @staticmethod
     def option_names() -> dict[str, str]:
@@ -54,6 +57,7 @@ class Limits:
             "max_total_time_s": "--max-total-time",
             "max_snapshots": "--max-snapshots",
             "max_bytes": "--max-bytes",
+            "max_pixels": "--max-pixels",
         }
 
 
@@ -120,10 +124,13 @@ def snapshot_count(
         if period <= 0:
             continue
         span = n if units.get(key) == "spp" else t
+        ratio = span / period  # may be inf (a period of 5e-324)
+        if not math.isfinite(ratio) or ratio > HUGE:
+            return math.inf if math.isnan(ratio) else max(ratio, HUGE)
         if key.startswith("doubling"):
-            total += math.floor(math.log2(span / period)) + 1 if span >= period else 0
+            total += math.floor(math.log2(ratio)) + 1 if ratio >= 1 else 0
         else:
-            total += math.floor(span / period)
+            total += math.floor(ratio)
     return total
 
 
@@ -163,6 +170,7 @@ _WHERE = {
     "max_snapshots": ("budget.snapshots", "snapshots per run"),
     "max_total_time_s": ("budget.time_s", "seconds of budgeted render time"),
     "max_bytes": ("budget", "bytes of images (width x height x channels x 4 x images)"),
+    "max_pixels": ("fixed", "pixels of the film (width x height)"),
 }
 
 
@@ -170,6 +178,7 @@ def check(work: Work, limits: Limits, r: Reader) -> None:
     """LimitError for the first limit the work breaks (points first: the
     other counts multiply them)."""
     for limit, value in (
+        ("max_pixels", float(work.pixels)),
         ("max_points", float(work.points)),
         ("max_runs", float(work.runs)),
         ("max_total_time_s", work.total_time_s),

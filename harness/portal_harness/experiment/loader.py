@@ -32,6 +32,7 @@ from portal_harness.experiment.spec import (
 )
 
 CURVE_METRICS = ("rel_mse", "mse")
+MAX_INSETS = 64  # each is measured in every run: a bound on the work of a sweep's metrics
 
 
 # Region names the harness gives itself (regions.py); insets may not take them.
@@ -169,7 +170,10 @@ def load_experiment(
     reference = read_reference_settings(r, root.get("reference", {}) or {}, budget, names.strategies)
 
     insets: list[Region] = []
-    for i, node in enumerate(r.sequence(root.get("insets", []) or [], "insets", non_empty=False)):
+    inset_nodes = r.sequence(root.get("insets", []) or [], "insets", non_empty=False)
+    if len(inset_nodes) > MAX_INSETS:
+        raise r.fail("insets", f"expected at most {MAX_INSETS} insets, got {len(inset_nodes)}")
+    for i, node in enumerate(inset_nodes):
         key = f"insets.{i}"
         m = r.mapping(node, key, {"name", "x", "y", "width", "height"}, {"name", "x", "y", "width", "height"})
         region = Region(

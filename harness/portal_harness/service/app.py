@@ -9,6 +9,7 @@ need `Authorization: Bearer TOKEN`; off loopback every request needs it
 from __future__ import annotations
 
 import importlib
+import json
 import os
 import shutil
 import threading
@@ -31,9 +32,10 @@ from portal_harness.service import events, images, submission
 from portal_harness.service import queue as q
 from portal_harness.service.dispatcher import Dispatcher
 from portal_harness.service.guard import Guard
-from portal_harness.service.progress import Views
 from portal_harness.service.security import token_matches
 from portal_harness.service.settings import ServiceSettings
+from portal_harness.service.views import Views
+from portal_harness.service.views import stamp as views_stamp
 from portal_harness.service.worker import LOG_NAME, bundle_dir, write_viewer_bundle
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -71,9 +73,11 @@ def create_app(settings: ServiceSettings) -> FastAPI:
         settings.layout.root.mkdir(parents=True, exist_ok=True)
         queue.create()
         dispatcher.start()
+        views.start()
         try:
             yield
         finally:
+            views.stop()
             dispatcher.stop()
 
     app = FastAPI(
@@ -157,19 +161,31 @@ def create_app(settings: ServiceSettings) -> FastAPI:
         )
 
     @app.get("/api/experiments", tags=["experiments"])
-    def list_experiments() -> list[dict[str, Any]]:
-        """Every experiment, newest first: id, name, status, times, progress (0..1), error."""
-        return [views.summary(row) for row in queue.all()]
+    def list_experiments() -> Response:
+        """Every experiment, newest first: id, name, status, times, progress (0..1), error, run_count (planned
+        runs) and renders (its renders by status)."""
+        rows = [views.status(row) for row in queue.all()]
+        return Response(json.dumps(rows, separators=(",", ":")), media_type="application/json")
 
     @app.get("/api/experiments/{experiment_id}", tags=["experiments"])
-    def get_experiment(experiment_id: str) -> dict[str, Any]:
+    async def get_experiment(experiment_id: str, runs: bool = True) -> Response:
         """An experiment with its renders: `runs` lists each run (role `run`) and, once the sweep planned them,
         its references, reference parts, pilots and region maps, each with status, progress, spp, time_s
-        and error (with the renderer's stderr tail when it failed)."""
-        view = views.get(experiment_id)
-        if view is None:
+        and error (with the renderer's stderr tail when it failed). With `?runs=false`, the status only
+        (as the list has it): its cost does not grow with the experiment's runs."""
+        row = queue.get(experiment_id)  # one query; the rest is cached (views.py)
+        if row is None:
             raise ApiError(404, f"no experiment {experiment_id!r}")
-        return view
+        cached = views.cached(experiment_id)
+        if cached is None or cached.stamp != views_stamp(row):
+            # A first read, or the row changed: built once (in a thread), then cached.
+            await anyio.to_thread.run_sync(views.current, row)
+        if not runs:
+            body = json.dumps(views.status(row), separators=(",", ":")).encode()
+        else:
+            views.watch(experiment_id)
+            body = views.detail_of(row)
+        return Response(body, media_type="application/json")
 
     @app.delete("/api/experiments/{experiment_id}", dependencies=[Depends(require_token)], tags=["experiments"])
     def delete_experiment(experiment_id: str, purge: bool = False) -> JSONResponse:

@@ -6,8 +6,10 @@ Events (each `data:` one JSON object):
   a render's (`{id, key, role, status, error, stderr_tail}`);
 - `progress`: the experiment's (`{id, progress}`) or a render's
   (`{id, key, progress, spp, time_s}`), from the renderer's own stream;
+- `summary`: the first event: the experiment's `{id, status, progress,
+  error, restarts, run_count, renders}` (renders: how many are in each status), not
+  each render's history; after it, only what changes;
 - `end`: the experiment finished (or was deleted); the stream closes.
-On connecting, a client first gets every render's status and progress.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from typing import Any
 import anyio
 
 from portal_harness.service import queue as q
-from portal_harness.service.progress import Views
+from portal_harness.service.views import Views
 
 KEEPALIVE_S = 15.0
 
@@ -80,27 +82,54 @@ def changes(
     return out
 
 
+def summary(view: dict[str, Any], experiment_id: str) -> dict[str, Any]:
+    """The first event of a stream: the experiment's state in one object, its renders counted by status."""
+    counts: dict[str, int] = {}
+    for r in view["runs"]:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    return {
+        "id": experiment_id,
+        "status": view["status"],
+        "progress": view["progress"],
+        "error": view["error"],
+        "restarts": view["restarts"],
+        "run_count": sum(1 for r in view["runs"] if r["role"] == "run"),
+        "renders": counts,
+    }
+
+
 async def stream(views: Views, experiment_id: str, poll_s: float) -> AsyncIterator[str]:
-    """The event stream of one experiment, until it finishes."""
-    last: dict[str, tuple[str, float]] = {}
-    quiet_since = time.monotonic()
+    """The event stream of one experiment, until it finishes: a summary, then what changes."""
     yield "retry: 2000\n\n"
-    while True:
-        # A recent view is shared by every stream of the experiment: no thread, no I/O.
-        view = views.peek(experiment_id) or await anyio.to_thread.run_sync(views.get, experiment_id)
-        if view is None:
-            yield format_event("status", {"id": experiment_id, "status": "deleted"})
-            yield format_event("end", {"id": experiment_id})
-            return
-        found = changes(view, last, experiment_id)
-        for kind, data in found:
+    view = await anyio.to_thread.run_sync(views.get, experiment_id)
+    if view is None:
+        yield format_event("status", {"id": experiment_id, "status": "deleted"})
+        yield format_event("end", {"id": experiment_id})
+        return
+    last: dict[str, tuple[str, float]] = {}
+    changes(view, last, experiment_id)  # the state at connection: said by the summary, not render by render
+    yield format_event("summary", summary(view, experiment_id))
+    quiet_since = time.monotonic()
+    while view["status"] not in q.FINISHED:
+        await asyncio.sleep(poll_s)
+        views.watch(experiment_id)
+        # The cache the refresher keeps (views.py), shared by every stream: no query, no thread.
+        cached = views.cached(experiment_id)
+        if cached is None:
+            found = await anyio.to_thread.run_sync(views.get, experiment_id)
+            if found is None:
+                yield format_event("status", {"id": experiment_id, "status": "deleted"})
+                yield format_event("end", {"id": experiment_id})
+                return
+            view = found
+        else:
+            view = cached.view
+        found_changes = changes(view, last, experiment_id)
+        for kind, data in found_changes:
             yield format_event(kind, data)
-        if found:
+        if found_changes:
             quiet_since = time.monotonic()
         elif time.monotonic() - quiet_since > KEEPALIVE_S:
             yield ": keep-alive\n\n"
             quiet_since = time.monotonic()
-        if view["status"] in q.FINISHED:
-            yield format_event("end", {"id": experiment_id, "status": view["status"]})
-            return
-        await asyncio.sleep(poll_s)
+    yield format_event("end", {"id": experiment_id, "status": view["status"]})

@@ -4,15 +4,13 @@ render has its manifest; a render in progress is an attempt folder whose
 events.jsonl the renderer writes live (one JSON line per snapshot), so the
 progress of a run is the renderer's own stream, read from its tail.
 
-Views are cached for a fraction of a second, so that many clients polling
-or following events cost one look at the store per experiment.
+The views are cached and refreshed by views.py.
 """
 
 from __future__ import annotations
 
 import os
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +24,7 @@ TAIL_BYTES = 8192
 # What a manifest's status means for a render of the service.
 _RUN_STATUS = {store.STATUS_DONE: q.DONE, store.STATUS_FAILED: q.FAILED, store.STATUS_INTERRUPTED: q.CANCELLED}
 _REFERENCE_ROLES = {"reference", "reference_part"}
+UNFINISHED_MAX = 0.99  # the most progress a queued or running experiment shows
 
 
 def tail_events(path: Path) -> list[dict[str, Any]]:
@@ -121,63 +120,30 @@ def _attempts(layout: ResultsLayout) -> dict[str, Path]:
     return out
 
 
-class Views:
-    """Cached views of experiments (the API's JSON of one experiment)."""
+class ViewBuilder:
+    """Builds the view of one experiment (its JSON: the queue row's head, and
+    each render's state from the store); its run list, which never changes
+    once submitted, is read from the queue once per experiment."""
 
-    def __init__(self, layout: ResultsLayout, queue: q.Queue, ttl_s: float = 0.25) -> None:
+    def __init__(self, layout: ResultsLayout, queue: q.Queue) -> None:
         self.layout = layout
         self.queue = queue
-        self.ttl_s = ttl_s
         self._manifests = _ManifestCache()
-        self._cache: dict[str, tuple[float, dict[str, Any]]] = {}  # by id: (when its build started, view)
-        self._building: dict[str, threading.Lock] = {}
+        self._planned: dict[str, list[dict[str, Any]]] = {}
         self._lock = threading.Lock()
 
-    def peek(self, experiment_id: str) -> dict[str, Any] | None:
-        """The cached view if it is recent enough, without any I/O (for the event loop)."""
+    def forget(self, experiment_id: str) -> None:
         with self._lock:
-            cached = self._cache.get(experiment_id)
-        if cached is not None and time.monotonic() - cached[0] < self._ttl(cached[1]):
-            return cached[1]
-        return None
+            self._planned.pop(experiment_id, None)
 
-    def _ttl(self, view: dict[str, Any]) -> float:
-        # A finished experiment's renders change only if another sweep redoes one.
-        return self.ttl_s * (8 if view["status"] in q.FINISHED else 1)
-
-    def get(self, experiment_id: str, fresh: bool = False) -> dict[str, Any] | None:
-        """The view, rebuilt when older than the TTL (or `fresh`); concurrent
-        callers wait for one rebuild instead of each doing their own."""
-        if not fresh:
-            found = self.peek(experiment_id)
-            if found is not None:
-                return found
+    def _planned_runs(self, experiment_id: str) -> list[dict[str, Any]]:
         with self._lock:
-            building = self._building.setdefault(experiment_id, threading.Lock())
-            asked = time.monotonic()
-        with building:
+            found = self._planned.get(experiment_id)
+        if found is None:
+            found = self.queue.runs(experiment_id)
             with self._lock:
-                cached = self._cache.get(experiment_id)
-            # Built by another caller while this one waited (after it asked, if it asked for a fresh one).
-            if cached is not None and (cached[0] >= asked or (not fresh and self.peek(experiment_id) is not None)):
-                return cached[1]
-            row = self.queue.get(experiment_id)
-            if row is None:
-                with self._lock:
-                    self._cache.pop(experiment_id, None)
-                return None
-            started = time.monotonic()
-            view = self._build(row)
-            with self._lock:
-                self._cache[experiment_id] = (started, view)
-            return view
-
-    def summary(self, row: dict[str, Any]) -> dict[str, Any]:
-        """The short form of the list: no runs."""
-        view = self.get(str(row["id"]))
-        if view is None:
-            return _head(row, 0.0)
-        return {k: v for k, v in view.items() if k != "runs"}
+                self._planned[experiment_id] = found
+        return found
 
     def _render(
         self, key: str, reference: bool, attempts: dict[str, Path], status: str, spp: int = 0, time_s: float = 0.0
@@ -201,11 +167,12 @@ class Views:
         pending = {q.QUEUED: q.QUEUED, q.RUNNING: q.QUEUED, q.CANCELLED: q.CANCELLED}.get(status, q.FAILED)
         return {"status": pending, "progress": 0.0, "spp": None, "time_s": None, "error": None, "stderr_tail": None}
 
-    def _build(self, row: dict[str, Any]) -> dict[str, Any]:
+    def build(self, row: dict[str, Any]) -> dict[str, Any]:
+        """The experiment's view now: its head (head()) and `runs`."""
         status = str(row["status"])
-        attempts = _attempts(self.layout)
+        attempts = _attempts(self.layout) if status == q.RUNNING else {}
         runs: list[dict[str, Any]] = []
-        for r in self.queue.runs(str(row["id"])):
+        for r in self._planned_runs(str(row["id"])):
             state = self._render(r["key"], False, attempts, status, r["spp"], r["time_s"])
             runs.append(
                 {
@@ -239,10 +206,13 @@ class Views:
             )
         planned = [r for r in runs if r["role"] == ROLE_RUN]
         progress = 1.0 if status == q.DONE else (sum(r["progress"] for r in planned) / len(planned) if planned else 0.0)
-        return {**_head(row, progress), "runs": runs}
+        if status in (q.QUEUED, q.RUNNING):
+            # Every run done, the sweep may still measure and draw: never 100% before it is done.
+            progress = min(progress, UNFINISHED_MAX)
+        return {**head(row, progress), "runs": runs}
 
 
-def _head(row: dict[str, Any], progress: float) -> dict[str, Any]:
+def head(row: dict[str, Any], progress: float) -> dict[str, Any]:
     return {
         "id": row["id"],
         "name": row["name"],

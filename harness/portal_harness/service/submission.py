@@ -10,6 +10,7 @@ the scene is the folder against which the experiment's paths resolve.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import tempfile
@@ -54,7 +55,9 @@ class SubmissionError(Exception):
             "message": self.message,
         }
         if self.limit is not None:
-            out["limit"] = {"name": self.limit[0], "value": self.limit[1], "maximum": self.limit[2]}
+            name, value, maximum = self.limit
+            # JSON has no infinity: a count past any bound (a period of 5e-324) is said as text.
+            out["limit"] = {"name": name, "value": value if math.isfinite(value) else str(value), "maximum": maximum}
         return out
 
 

@@ -219,6 +219,11 @@ async function links(view) {
 function follow(id) {
   const source = new EventSource(withToken("/api/experiments/" + id + "/events"));
   state.source = source;
+  source.addEventListener("summary", (ev) => {
+    // The state at connection, in one event (the rows come from the view the page loaded).
+    const data = JSON.parse(ev.data);
+    showExperiment(data);
+  });
   source.addEventListener("progress", (ev) => {
     const data = JSON.parse(ev.data);
     if (data.key === undefined) {
