@@ -618,6 +618,42 @@ static void test_robust_meshing(void)
     check_shade("one-sided, facing away from the hole", welded, up, 0.0, 0);
 }
 
+/* A finely meshed shade: the box's bottom (with its hole) a 14 x 14 grid
+   of triangle pairs less the 6 x 6 cells of the hole. The greedy merge of
+   the bottom's many open pieces once accepted a 2-D hull that did not
+   hold both pieces (an opening lost while the total area stayed right):
+   579 of 6853 escaping rays crossed no portal. */
+static void test_tessellated_shade(void)
+{
+    static char shapes[1 << 16];
+    int n = snprintf(shapes, sizeof shapes,
+                     "  - {type: mesh, material: grey,\n"
+                     "     vertices: [[-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5],\n"
+                     "                [-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 0, 0.5], [-0.5, 0, 0.5]],\n"
+                     "     quads: [[0, 3, 2, 1], [4, 5, 1, 0], [5, 6, 2, 1], [6, 7, 3, 2], [7, 4, 0, 3]]}\n"
+                     "  - {type: mesh, material: grey, vertices: [");
+    const int g = 14;
+    for (int i = 0; i <= g; ++i)
+        for (int j = 0; j <= g; ++j)
+            n += snprintf(shapes + n, sizeof shapes - (size_t)n, "%s[%.17g, 0, %.17g]", i || j ? ", " : "",
+                          -0.5 + (double)i / g, -0.5 + (double)j / g);
+    n += snprintf(shapes + n, sizeof shapes - (size_t)n, "],\n     triangles: [");
+    bool first = true;
+    for (int i = 0; i < g; ++i)
+        for (int j = 0; j < g; ++j) {
+            if (i >= 4 && i < 10 && j >= 4 && j < 10) continue; /* the hole */
+            int a = i * (g + 1) + j, b = a + g + 1;
+            n += snprintf(shapes + n, sizeof shapes - (size_t)n, "%s[%d, %d, %d], [%d, %d, %d]", first ? "" : ", ", a,
+                          b, b + 1, a, b + 1, a + 1);
+            first = false;
+        }
+    snprintf(shapes + n, sizeof shapes - (size_t)n, "]}\n");
+    const char *light =
+        "  - {name: bulb, vertices: [[-0.2, 0.9, -0.2], [0.2, 0.9, -0.2], [0.2, 0.9, 0.2], [-0.2, 0.9, 0.2]],"
+        " radiance: [1, 1, 1], two_sided: true}\n";
+    check_shade("tessellated bottom", shapes, light, (6.0 / 14) * (6.0 / 14), -1);
+}
+
 static void test_fallbacks(void)
 {
     const char *welded = "  - {type: mesh, material: grey,\n"
@@ -757,6 +793,7 @@ static const struct test_case tests[] = {
     { "rendered_lampshade", test_rendered_lampshade },
     { "rendered_multi_lamp", test_rendered_multi_lamp },
     { "robust_meshing", test_robust_meshing },
+    { "tessellated_shade", test_tessellated_shade },
     { "fallbacks", test_fallbacks },
     { "deterministic", test_deterministic },
 };

@@ -49,7 +49,22 @@ bool polygon_merge_convex(const struct polygon *a, const struct polygon *b, stru
     h.n = c;
     for (int i = 0; i < c; ++i) h.v[i] = pts[idx[i]];
     double sum = polygon_area(a) + polygon_area(b);
-    if (!(polygon_area(&h) <= sum * (1.0 + rel_tol))) return false;
+    /* The hull of the union holds the union: equal areas (within
+       rel_tol) say it is the union. A smaller hull dropped a corner (the
+       2-D hull's tolerance) or a and b overlap: no merge, since a merge
+       must never lose area (a lost piece of an opening is a gap in the
+       portals). */
+    if (!(fabs(polygon_area(&h) - sum) <= sum * rel_tol)) return false;
+    /* And it holds every corner of a and b (within tol of each edge). */
+    struct vec3 hn = polygon_plane(&h).normal;
+    double orient = vec3_dot(hn, normal) >= 0.0 ? 1.0 : -1.0;
+    for (int i = 0; i < c; ++i) {
+        struct vec3 p0 = h.v[i], e = vec3_sub(h.v[(i + 1) % c], p0);
+        double len = vec3_length(e);
+        if (!(len > 0.0)) return false;
+        for (int k = 0; k < n; ++k)
+            if (orient * vec3_dot(vec3_cross(e, vec3_sub(pts[k], p0)), normal) < -tol * len) return false;
+    }
     polygon_copy(out, &h);
     return true;
 }

@@ -289,9 +289,39 @@ static bool uncovered_part(const struct convex_hull *h, const struct vec3 *point
         bool in_plane = true;
         for (int v = 0; v < 3 && in_plane; ++v) in_plane = fabs(plane_distance(&pl, tri[v])) <= cover;
         if (!in_plane) continue;
+        /* A piece whose box the triangle's box (grown by the cover
+           distance) misses keeps whole: what the subtraction would return,
+           at the cost of a box test (a finely meshed shade puts thousands
+           of triangles in one facet). */
+        struct vec3 tlo = tri[0], thi = tri[0];
+        for (int v = 1; v < 3; ++v) {
+            tlo = vec3_make(fmin(tlo.x, tri[v].x), fmin(tlo.y, tri[v].y), fmin(tlo.z, tri[v].z));
+            thi = vec3_make(fmax(thi.x, tri[v].x), fmax(thi.y, tri[v].y), fmax(thi.z, tri[v].z));
+        }
+        tlo = vec3_sub(tlo, vec3_make(cover, cover, cover));
+        thi = vec3_add(thi, vec3_make(cover, cover, cover));
         next.n = 0;
         for (int k = 0; ok && k < cur.n; ++k) {
             struct polygon pieces[3];
+            bool apart = true;
+            for (int v = 0; v < cur.p[k].n && apart; ++v) {
+                struct vec3 x = cur.p[k].v[v];
+                apart = !(x.x >= tlo.x && x.x <= thi.x && x.y >= tlo.y && x.y <= thi.y && x.z >= tlo.z && x.z <= thi.z);
+            }
+            if (apart) {
+                struct vec3 plo = cur.p[k].v[0], phi = plo;
+                for (int v = 1; v < cur.p[k].n; ++v) {
+                    struct vec3 x = cur.p[k].v[v];
+                    plo = vec3_make(fmin(plo.x, x.x), fmin(plo.y, x.y), fmin(plo.z, x.z));
+                    phi = vec3_make(fmax(phi.x, x.x), fmax(phi.y, x.y), fmax(phi.z, x.z));
+                }
+                apart =
+                    plo.x > thi.x || plo.y > thi.y || plo.z > thi.z || phi.x < tlo.x || phi.y < tlo.y || phi.z < tlo.z;
+            }
+            if (apart) {
+                ok = polys_push(&next, &cur.p[k]);
+                continue;
+            }
             if (cur.p[k].n > POLYGON_MAX - 3) {
                 ok = polys_push(&next, &cur.p[k]);
                 continue;
