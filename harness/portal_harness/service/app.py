@@ -161,11 +161,15 @@ def create_app(settings: ServiceSettings) -> FastAPI:
         )
 
     @app.get("/api/experiments", tags=["experiments"])
-    def list_experiments() -> Response:
+    async def list_experiments() -> Response:
         """Every experiment, newest first: id, name, status, times, progress (0..1), error, run_count (planned
         runs) and renders (its renders by status)."""
-        rows = [views.status(row) for row in queue.all()]
-        return Response(json.dumps(rows, separators=(",", ":")), media_type="application/json")
+        rows = queue.all()  # one query; the rest is cached (views.py): no thread unless a view must be built
+        stale = [r for r in rows if (c := views.cached(str(r["id"]))) is None or c.stamp != views_stamp(r)]
+        if stale:
+            await anyio.to_thread.run_sync(lambda: [views.current(r) for r in stale])
+        body = json.dumps([views.status(row) for row in rows], separators=(",", ":"))
+        return Response(body, media_type="application/json")
 
     @app.get("/api/experiments/{experiment_id}", tags=["experiments"])
     async def get_experiment(experiment_id: str, runs: bool = True) -> Response:

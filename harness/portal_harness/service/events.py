@@ -5,7 +5,8 @@ Events (each `data:` one JSON object):
 - `status`: the experiment's status (`{id, status, progress, error}`), or
   a render's (`{id, key, role, status, error, stderr_tail}`);
 - `progress`: the experiment's (`{id, progress}`) or a render's
-  (`{id, key, progress, spp, time_s}`), from the renderer's own stream;
+  (`{id, key, progress, spp, time_s}`), from the renderer's own stream, at
+  most every PROGRESS_S (a render's last progress before the stream ends);
 - `summary`: the first event: the experiment's `{id, status, progress,
   error, restarts, run_count, renders}` (renders: how many are in each status), not
   each render's history; after it, only what changes;
@@ -23,9 +24,12 @@ from typing import Any
 import anyio
 
 from portal_harness.service import queue as q
-from portal_harness.service.views import Views
+from portal_harness.service.progress import head
+from portal_harness.service.views import Views, stamp
 
 KEEPALIVE_S = 15.0
+# Progress events of a stream at most this often (50 clients of 2 renders at 4 Hz made 600 events/s).
+PROGRESS_S = 1.0
 
 
 def format_event(kind: str, data: dict[str, Any]) -> str:
@@ -33,27 +37,21 @@ def format_event(kind: str, data: dict[str, Any]) -> str:
 
 
 def changes(
-    view: dict[str, Any], last: dict[str, tuple[str, float]], experiment_id: str
+    view: dict[str, Any], last: dict[str, tuple[str, float]], experiment_id: str, progress: bool = True
 ) -> list[tuple[str, dict[str, Any]]]:
-    """The events between the state `last` (updated in place) and `view`."""
+    """The events between the state `last` (updated in place) and `view`;
+    without `progress`, status changes only (progress waits for the next call with it)."""
     out: list[tuple[str, dict[str, Any]]] = []
     for run in view["runs"]:
         key = run["key"]
         prev = last.get(key)
+        if not progress:
+            if prev is None or prev[0] != run["status"]:
+                out.append(("status", _run_status(experiment_id, run)))
+                last[key] = (run["status"], prev[1] if prev is not None else -1.0)
+            continue
         if prev is None or prev[0] != run["status"]:
-            out.append(
-                (
-                    "status",
-                    {
-                        "id": experiment_id,
-                        "key": key,
-                        "role": run["role"],
-                        "status": run["status"],
-                        "error": run["error"],
-                        "stderr_tail": run["stderr_tail"],
-                    },
-                )
-            )
+            out.append(("status", _run_status(experiment_id, run)))
         if prev is None or prev[1] != run["progress"]:
             out.append(
                 (
@@ -76,10 +74,21 @@ def changes(
                 {"id": experiment_id, "status": view["status"], "progress": view["progress"], "error": view["error"]},
             )
         )
-    if prev is None or prev[1] != view["progress"]:
+    if progress and (prev is None or prev[1] != view["progress"]):
         out.append(("progress", {"id": experiment_id, "progress": view["progress"]}))
-    last[""] = (view["status"], view["progress"])
+    last[""] = (view["status"], view["progress"] if progress or prev is None else prev[1])
     return out
+
+
+def _run_status(experiment_id: str, run: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "id": experiment_id,
+        "key": run["key"],
+        "role": run["role"],
+        "status": run["status"],
+        "error": run["error"],
+        "stderr_tail": run["stderr_tail"],
+    }
 
 
 def summary(view: dict[str, Any], experiment_id: str) -> dict[str, Any]:
@@ -98,10 +107,22 @@ def summary(view: dict[str, Any], experiment_id: str) -> dict[str, Any]:
     }
 
 
+async def _opening(views: Views, experiment_id: str) -> dict[str, Any] | None:
+    """The view a stream opens with: its row (one query) and the cache, without a thread unless the
+    view must be built (50 streams opening at once would otherwise queue for the thread pool)."""
+    row = views.queue.get(experiment_id)
+    if row is None:
+        return None
+    cached = views.cached(experiment_id)
+    if cached is None or cached.stamp != stamp(row):
+        cached = await anyio.to_thread.run_sync(views.current, row)
+    return {**cached.view, **head(row, cached.view["progress"])}
+
+
 async def stream(views: Views, experiment_id: str, poll_s: float) -> AsyncIterator[str]:
     """The event stream of one experiment, until it finishes: a summary, then what changes."""
     yield "retry: 2000\n\n"
-    view = await anyio.to_thread.run_sync(views.get, experiment_id)
+    view = await _opening(views, experiment_id)
     if view is None:
         yield format_event("status", {"id": experiment_id, "status": "deleted"})
         yield format_event("end", {"id": experiment_id})
@@ -109,7 +130,7 @@ async def stream(views: Views, experiment_id: str, poll_s: float) -> AsyncIterat
     last: dict[str, tuple[str, float]] = {}
     changes(view, last, experiment_id)  # the state at connection: said by the summary, not render by render
     yield format_event("summary", summary(view, experiment_id))
-    quiet_since = time.monotonic()
+    quiet_since = progress_sent = time.monotonic()
     while view["status"] not in q.FINISHED:
         await asyncio.sleep(poll_s)
         views.watch(experiment_id)
@@ -124,7 +145,12 @@ async def stream(views: Views, experiment_id: str, poll_s: float) -> AsyncIterat
             view = found
         else:
             view = cached.view
-        found_changes = changes(view, last, experiment_id)
+        # Status changes at once; progress at most every PROGRESS_S (and all of it before the end).
+        now = time.monotonic()
+        with_progress = now - progress_sent >= PROGRESS_S or view["status"] in q.FINISHED
+        if with_progress:
+            progress_sent = now
+        found_changes = changes(view, last, experiment_id, with_progress)
         for kind, data in found_changes:
             yield format_event(kind, data)
         if found_changes:
