@@ -1,5 +1,5 @@
-/* libFuzzer target: the mesh loaders (mesh_file.c through assimp, and
-   ply_check.c; mesh_serialized.c through zlib) must reject or accept any
+/* libFuzzer target: the mesh loaders (mesh_file.c through assimp for OBJ,
+   ply_check.c for PLY; mesh_serialized.c through zlib) must reject or accept any
    bytes, read as an OBJ file, as a PLY file and as every shape of a
    serialized file, without crashing or invoking undefined behaviour; what they
    accept must be a mesh the renderer can use: at least one triangle, every

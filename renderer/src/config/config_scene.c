@@ -350,8 +350,37 @@ static bool add_mesh_file(struct loader *L, const char *path)
 
 /* The mesh's triangles after the transform, each checked as an inline
    triangle is, then moved into s. */
+/* Drops the triangles marked in drop (and the vertices only they used) from
+   s, keeping the order of the others. */
+static void drop_triangles(struct shape_desc *s, const unsigned char *drop, int *remap)
+{
+    int nt = 0, nv = 0;
+    for (int i = 0; i < s->n_vertices; ++i) remap[i] = -1;
+    for (int f = 0; f < s->n_triangles; ++f) {
+        if (drop[f]) continue;
+        for (int c = 0; c < 3; ++c) {
+            int *r = &remap[s->triangles[f][c]];
+            if (*r < 0) *r = nv++;
+            s->triangles[nt][c] = *r;
+        }
+        ++nt;
+    }
+    for (int i = 0; i < s->n_vertices; ++i)
+        if (remap[i] >= 0) s->vertices[remap[i]] = s->vertices[i]; /* remap[i] <= i: in place */
+    s->n_triangles = nt;
+    s->n_vertices = nv;
+}
+
+/* A file mesh into s, after its transform. A zero-area (degenerate)
+   triangle of a surface is dropped, with one warning on stderr per mesh
+   that says how many: it covers nothing, so the surface is the same, and
+   real meshes hold them (the White Room's OBJ files have thousands); the
+   effective YAML keeps file:, so a reload drops them again. A mesh light's
+   is refused: each of its triangles is a light (light_init needs its
+   normal and area) whose index the scene's messages and statistics name. A
+   mesh whose every triangle is degenerate is refused too. */
 static bool take_mesh(struct loader *L, const yaml_node_t *file, const char *name, const struct transform *t,
-                      bool present, struct mesh_data *m, struct shape_desc *s)
+                      bool present, bool is_light, struct mesh_data *m, struct shape_desc *s)
 {
     if (present) {
         for (int i = 0; i < m->n_vertices; ++i) m->vertices[i] = transform_point(t, m->vertices[i]);
@@ -362,15 +391,50 @@ static bool take_mesh(struct loader *L, const yaml_node_t *file, const char *nam
     s->triangles = m->triangles;
     s->n_triangles = m->n_triangles;
     memset(m, 0, sizeof *m);
-    char what[CONFIG_PATH_MAX + 64];
+    char what[CONFIG_PATH_MAX + 128];
+    unsigned char *drop = NULL;
+    int n_drop = 0, first_drop = -1;
     for (int f = 0; f < s->n_triangles; ++f) {
         /* The quick test passes nearly every triangle of a real mesh; the
            full check (and its message) only for the others. */
         const int *tri = s->triangles[f];
         if (polygon_triangle_is_sound(s->vertices[tri[0]], s->vertices[tri[1]], s->vertices[tri[2]])) continue;
+        struct polygon poly = { 3, { s->vertices[tri[0]], s->vertices[tri[1]], s->vertices[tri[2]] } };
+        if (!is_light && polygon_check(&poly) == POLYGON_DEFECT_DEGENERATE) {
+            if (!drop && !(drop = calloc((size_t)s->n_triangles, 1))) {
+                return error_set(L->err, "%s: out of memory", L->file);
+            }
+            drop[f] = 1;
+            if (n_drop++ == 0) first_drop = f;
+            continue;
+        }
         snprintf(what, sizeof what, "mesh \"%s\": triangle %d (after triangulation)", name, f);
-        if (!check_face(L, file, what, s, tri, 3)) return false;
+        if (!check_face(L, file, what, s, tri, 3)) {
+            free(drop);
+            return false;
+        }
     }
+    if (n_drop == 0) return true;
+    if (n_drop == s->n_triangles) {
+        free(drop);
+        snprintf(what, sizeof what, "mesh \"%s\": every triangle (%d) is degenerate; triangle %d (after triangulation)",
+                 name, n_drop, first_drop);
+        return check_face(L, file, what, s, s->triangles[first_drop], 3);
+    }
+    int *remap = malloc(sizeof *remap * (size_t)s->n_vertices);
+    if (!remap) {
+        free(drop);
+        return error_set(L->err, "%s: out of memory", L->file);
+    }
+    int n_before = s->n_triangles;
+    drop_triangles(s, drop, remap);
+    free(remap);
+    free(drop);
+    struct source_loc loc = config_loc_of(L, file);
+    fprintf(stderr,
+            "%s:%d:%d: warning: mesh \"%s\": dropped %d degenerate (zero-area) triangle%s of %d, the first "
+            "triangle %d (after triangulation)\n",
+            loc.file, loc.line, loc.column, name, n_drop, n_drop == 1 ? "" : "s", n_before, first_drop);
     return true;
 }
 
@@ -378,8 +442,8 @@ static bool take_mesh(struct loader *L, const yaml_node_t *file, const char *nam
    relative to the folder of the config file that names it, as include:
    paths are; of a serialized file, the shape its shape_index names (0 when
    absent). */
-static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_node_t *file, struct shape_desc *s,
-                           struct shape_file *sf)
+static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_node_t *file, bool is_light,
+                           struct shape_desc *s, struct shape_file *sf)
 {
     char name[CONFIG_PATH_MAX];
     struct transform t;
@@ -441,7 +505,7 @@ static bool load_mesh_file(struct loader *L, const yaml_node_t *map, const yaml_
                 config_fail(L, file, "mesh \"%s\": %s", name, merr.message));
     free(text);
     if (!ok) return false;
-    ok = take_mesh(L, file, name, &t, present, &m, s);
+    ok = take_mesh(L, file, name, &t, present, is_light, &m, s);
     mesh_data_free(&m);
     if (!ok) return false;
     /* Absolute: the effective YAML is written into the output folder. */
@@ -498,7 +562,7 @@ static bool load_shape(struct loader *L, const yaml_node_t *map, int index, stru
     case SHAPE_BOX:
         return load_box(L, map, where, s);
     case SHAPE_MESH:
-        return file ? load_mesh_file(L, map, file, s, &L->shape_files[index]) : load_mesh(L, map, where, s);
+        return file ? load_mesh_file(L, map, file, false, s, &L->shape_files[index]) : load_mesh(L, map, where, s);
     }
     return false;
 }
@@ -530,7 +594,7 @@ static bool load_light_mesh(struct loader *L, const yaml_node_t *map, const char
     if (!config_expect_type(L, mesh, YAML_MAPPING_NODE, "a mapping {file, transform}") ||
         !config_check_keys(L, mesh, what, light_mesh_keys, COUNT(light_mesh_keys)) ||
         !(file = config_need(L, mesh, "file", what)) ||
-        !load_mesh_file(L, mesh, file, &l->mesh, &L->light_files[index]))
+        !load_mesh_file(L, mesh, file, true, &l->mesh, &L->light_files[index]))
         return false;
     l->mesh.material = -1;
     l->mesh.loc = config_loc_of(L, mesh);

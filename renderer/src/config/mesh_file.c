@@ -1,6 +1,6 @@
-/* mesh_file.c: OBJ and PLY through assimp's C API, and the checks around
-   it; serialized files through mesh_serialized.c, joined here as the
-   others are. Assimp's logger is process-global: none is attached, so assimp logs
+/* mesh_file.c: OBJ through assimp's C API, and the checks around it; PLY
+   through the renderer's own reader (ply_check.c) and serialized files
+   through mesh_serialized.c, both joined here as OBJ is. Assimp's logger is process-global: none is attached, so assimp logs
    to its NullLogger and prints nothing (stdout is the renderer's JSON event
    stream; test_mesh_file.c checks it stays empty). Its last error message
    is global too (aiGetErrorString): it is read right after the failed call,
@@ -47,16 +47,13 @@ void mesh_data_free(struct mesh_data *m)
     memset(m, 0, sizeof *m);
 }
 
-/* What assimp cannot be trusted with (see ply_check.h for PLY; an empty
-   buffer trips an assertion that aborts the process). */
+/* What assimp cannot be trusted with (an empty buffer trips an assertion
+   that aborts the process). */
 static bool precheck(const unsigned char *data, size_t size, enum mesh_format format, struct error *err)
 {
     if (size == 0) return error_set(err, "empty file (expected a mesh)");
     if (size > MESH_FILE_BYTES_MAX) return error_set(err, "file larger than %zu bytes", MESH_FILE_BYTES_MAX);
-    if (format == MESH_FORMAT_PLY) {
-        struct ply_info info;
-        return ply_check(data, size, &info, err);
-    }
+    if (format == MESH_FORMAT_PLY) return true; /* ply_read checks the rest */
     if (size >= 4 && (!memcmp(data, "ply\n", 4) || !memcmp(data, "ply\r", 4)))
         return error_set(err, "line 1: a PLY file by its content (\"ply\"), not OBJ (expected a file named .ply)");
     const unsigned char *nul = memchr(data, '\0', size);
@@ -211,34 +208,35 @@ static bool collect(const struct aiScene *s, struct mesh_data *out, struct error
     return true;
 }
 
-/* One serialized shape as a mesh_data: the vertices its triangles use,
-   identical positions joined, as collect does for assimp's meshes (a
-   serialized mesh splits a vertex wherever its normals or texture
-   coordinates do). */
-static bool join_serialized(const struct mesh_serialized *in, struct mesh_data *out, struct error *err)
+/* Indexed triangles (a serialized shape, a PLY file) as a mesh_data: the
+   vertices the triangles use, identical positions joined, as collect does
+   for assimp's meshes (a serialized mesh splits a vertex wherever its
+   normals or texture coordinates do). Every index is in range. */
+static bool join_indexed(const struct vec3 *positions, int n_vertices, const int (*triangles)[3], int n_triangles,
+                         struct mesh_data *out, struct error *err)
 {
-    long long used_max = in->n_vertices < 3LL * in->n_triangles ? in->n_vertices : 3LL * in->n_triangles;
+    long long used_max = n_vertices < 3LL * n_triangles ? n_vertices : 3LL * n_triangles;
     struct vertex_table t;
     bool table = table_init(&t, used_max);
     out->vertices = malloc(sizeof *out->vertices * (size_t)used_max);
-    out->triangles = malloc(sizeof *out->triangles * (size_t)in->n_triangles);
-    int *remap = malloc(sizeof *remap * (size_t)in->n_vertices);
+    out->triangles = malloc(sizeof *out->triangles * (size_t)n_triangles);
+    int *remap = malloc(sizeof *remap * ((size_t)n_vertices + 1));
     if (!out->vertices || !out->triangles || !remap || !table) {
         free(remap);
         table_free(&t);
         mesh_data_free(out);
-        return error_set(err, "out of memory for %d triangles", in->n_triangles);
+        return error_set(err, "out of memory for %d triangles", n_triangles);
     }
-    for (int i = 0; i < in->n_vertices; ++i) remap[i] = -1;
-    for (int f = 0; f < in->n_triangles; ++f)
+    for (int i = 0; i < n_vertices; ++i) remap[i] = -1;
+    for (int f = 0; f < n_triangles; ++f)
         for (int c = 0; c < 3; ++c) {
-            int idx = in->triangles[f][c];
-            if (remap[idx] < 0) remap[idx] = table_join(&t, in->positions[idx], out);
+            int idx = triangles[f][c];
+            if (remap[idx] < 0) remap[idx] = table_join(&t, positions[idx], out);
             out->triangles[f][c] = remap[idx];
         }
     free(remap);
     table_free(&t);
-    out->n_triangles = in->n_triangles;
+    out->n_triangles = n_triangles;
     return true;
 }
 
@@ -309,7 +307,8 @@ bool mesh_file_parse_shape(const void *data, size_t size, enum mesh_format forma
     if (format == MESH_FORMAT_SERIALIZED) {
         struct mesh_serialized raw;
         if (!mesh_serialized_read(data, size, shape, &raw, err)) return false;
-        bool ok = join_serialized(&raw, out, err);
+        bool ok =
+            join_indexed(raw.positions, raw.n_vertices, (const int(*)[3])raw.triangles, raw.n_triangles, out, err);
         mesh_serialized_free(&raw);
         return ok;
     }
@@ -317,6 +316,14 @@ bool mesh_file_parse_shape(const void *data, size_t size, enum mesh_format forma
         return error_set(err, "shape %d out of range (an %s file holds one mesh: expected 0)", shape,
                          format == MESH_FORMAT_OBJ ? "OBJ" : "PLY");
     if (!precheck(data, size, format, err)) return false;
+    if (format == MESH_FORMAT_PLY) {
+        struct ply_mesh ply;
+        if (!ply_read(data, size, MESH_FILE_TRIANGLES_MAX, &ply, err)) return false;
+        bool ok =
+            join_indexed(ply.positions, ply.n_vertices, (const int(*)[3])ply.triangles, ply.n_triangles, out, err);
+        ply_mesh_free(&ply);
+        return ok;
+    }
     char *geometry = NULL;
     if (format == MESH_FORMAT_OBJ) {
         if (!(geometry = obj_geometry_only(data, size))) return error_set(err, "out of memory for %zu bytes", size);
@@ -325,8 +332,7 @@ bool mesh_file_parse_shape(const void *data, size_t size, enum mesh_format forma
     /* Triangulate in the import, nothing else: the index checks and the
        join are collect's (no aiApplyPostProcessing, see vertex_table). No
        normals or smoothing: the renderer uses geometric normals. */
-    const struct aiScene *s =
-        aiImportFileFromMemory(data, (unsigned)size, aiProcess_Triangulate, format == MESH_FORMAT_OBJ ? "obj" : "ply");
+    const struct aiScene *s = aiImportFileFromMemory(data, (unsigned)size, aiProcess_Triangulate, "obj");
     if (!s) {
         free(geometry);
         return error_set(err, "assimp: %s", aiGetErrorString());

@@ -1,6 +1,6 @@
-/* mesh_file.h: triangle meshes from OBJ and PLY files, read by assimp (the
-   only file that includes its headers is mesh_file.c), and from Mitsuba's
-   serialized files (mesh_serialized.h). In: the file's bytes; out:
+/* mesh_file.h: triangle meshes from OBJ files, read by assimp (the only
+   file that includes its headers is mesh_file.c), from PLY files, read by
+   ply_check.h, and from Mitsuba's serialized files (mesh_serialized.h). In: the file's bytes; out:
    vertices and triangles, or an error without a location (the config
    loader adds the file:line:column of the `file:` key). */
 #ifndef MESH_FILE_H
@@ -31,12 +31,13 @@ struct mesh_data {
 };
 
 /* Reads a mesh from data[0..size) in the given format: every face
-   triangulated (assimp's ear clipping, so convex and concave polygons
-   alike), identical vertices joined, every object and group of an OBJ file
+   triangulated (assimp's ear clipping for OBJ, ply_read's for PLY, so
+   convex and concave polygons alike), identical vertices joined, every object and group of an OBJ file
    in one mesh; lines and points are skipped, materials, normals and texture
-   coordinates ignored. Checks what assimp does not: an empty file, a binary
-   file as OBJ, a PLY file's structure (ply_check.h), vertices that are not
-   finite, no triangles. Writes nothing to stdout or stderr. False with err
+   coordinates ignored; zero-area triangles kept (config_scene.c drops a
+   surface's). Checks what assimp does not: an empty file, a binary file as
+   OBJ, a PLY file's structure (ply_check.h), vertices that are not finite,
+   no triangles. Writes nothing to stdout or stderr. False with err
    ("line 4: ...", "byte 96: ...", "assimp: ...") otherwise; out is then
    empty. A serialized file gives its first shape, as mesh_file_parse_shape
    does with shape 0. */

@@ -1,7 +1,10 @@
-/* ply_check.c: the PLY check before assimp (see ply_check.h for why). */
+/* ply_check.c: the renderer's own PLY reader (see ply_check.h for why):
+   one pass checks the file without building anything, a second one stores
+   the positions and the faces' corners, then each face is triangulated. */
 #include "config/ply_check.h"
 
 #include <ctype.h>
+#include <float.h>
 #include <limits.h>
 #include <math.h>
 #include <stdint.h>
@@ -27,6 +30,7 @@ struct ply_property {
     enum ply_type type;       /* of a scalar, or of a list's items */
     enum ply_type count_type; /* of a list's count */
     enum ply_role role;
+    int axis; /* of a coordinate: 0, 1, 2 for x, y, z */
 };
 
 struct ply_element {
@@ -123,6 +127,7 @@ static bool add_property(struct ply_header *h, char **tok, int n, int line, stru
     if (!strcmp(e->name, "vertex") && (!strcmp(name, "x") || !strcmp(name, "y") || !strcmp(name, "z"))) {
         if (p->list) return error_set(err, "line %d: vertex coordinate %s is a list (expected a number)", line, name);
         p->role = ROLE_COORD;
+        p->axis = name[0] - 'x';
     }
     if (!strcmp(e->name, "face") && (!strcmp(name, "vertex_indices") || !strcmp(name, "vertex_index"))) {
         if (!p->list || is_float(p->type))
@@ -257,6 +262,31 @@ static bool check_sizes(const struct ply_header *h, size_t size, struct error *e
     return true;
 }
 
+/* Where the second pass puts what the mesh needs (NULL in the first). */
+struct ply_store {
+    struct vec3 *positions; /* one per vertex */
+    int *face_n;            /* corners of each face */
+    int *corners;           /* every face's vertex indices, in order */
+    long long n_corners;
+};
+
+/* A coordinate as the float the renderer reads (as assimp did): false when
+   it is beyond the float range. The range test comes first: converting a
+   larger double to float is undefined behaviour in C99. */
+static bool coord_float(double v, double *out)
+{
+    if (!(fabs(v) <= (double)FLT_MAX)) return false;
+    *out = (double)(float)v;
+    return true;
+}
+
+static void set_axis(struct vec3 *p, int axis, double v)
+{
+    if (axis == 0) p->x = v;
+    else if (axis == 1) p->y = v;
+    else p->z = v;
+}
+
 /* Binary body. */
 struct reader {
     const unsigned char *p;
@@ -327,7 +357,7 @@ static bool check_index(double v, int n_vertices, long long i, const char *where
 }
 
 static bool walk_binary(const struct ply_header *h, const void *data, size_t size, struct ply_info *info,
-                        struct error *err)
+                        struct ply_store *st, struct error *err)
 {
     struct reader r = { data, h->body, size, h->format == PLY_BINARY_BE };
     int nv = (int)h->elements[h->vertex].count;
@@ -340,8 +370,14 @@ static bool walk_binary(const struct ply_header *h, const void *data, size_t siz
                 double v;
                 if (!p->list) {
                     if (!read_value(&r, p->type, &v)) goto truncated;
-                    if (p->role == ROLE_COORD && !isfinite(v))
+                    if (p->role != ROLE_COORD) continue;
+                    double f;
+                    if (!isfinite(v))
                         return error_set(err, "byte %zu: vertex %lld has a coordinate that is not finite", start, i);
+                    if (!coord_float(v, &f))
+                        return error_set(err, "byte %zu: vertex %lld has coordinate %g, beyond the float range", start,
+                                         i, v);
+                    if (st) set_axis(&st->positions[i], p->axis, f);
                     continue;
                 }
                 double count;
@@ -349,6 +385,7 @@ static bool walk_binary(const struct ply_header *h, const void *data, size_t siz
                 if (count < 0) return error_set(err, "byte %zu: %s %lld has a negative list count", start, el->name, i);
                 if (p->role == ROLE_INDICES && !check_face((long long)count, i, "byte", (long long)start, info, err))
                     return false;
+                if (st && p->role == ROLE_INDICES) st->face_n[i] = (int)count;
                 size_t item = (size_t)ply_types[p->type].size;
                 if ((size_t)count > (r.size - r.pos) / item) goto truncated;
                 if (p->role != ROLE_INDICES) {
@@ -358,6 +395,7 @@ static bool walk_binary(const struct ply_header *h, const void *data, size_t siz
                 for (long long c = 0; c < (long long)count; ++c) {
                     read_value(&r, p->type, &v);
                     if (!check_index(v, nv, i, "byte", (long long)start, err)) return false;
+                    if (st) st->corners[st->n_corners++] = (int)v;
                 }
             }
             continue;
@@ -396,7 +434,7 @@ static bool ascii_number(const char *s, bool integer, double *out)
 }
 
 static bool walk_ascii(const struct ply_header *h, const char *data, size_t size, struct ply_info *info,
-                       struct error *err)
+                       struct ply_store *st, struct error *err)
 {
     size_t pos = h->body;
     int line = h->body_line - 1, nv = (int)h->elements[h->vertex].count;
@@ -436,10 +474,19 @@ static bool walk_ascii(const struct ply_header *h, const char *data, size_t size
                 if (count_value) {
                     if (v < 0) return error_set(err, "line %d: negative list count %s", line, tok);
                     if (p->role == ROLE_INDICES && !check_face((long long)v, i, "line", line, info, err)) return false;
+                    if (st && p->role == ROLE_INDICES) st->face_n[i] = (int)v;
                     list_left = (long long)v;
                 } else if (p->list) {
                     if (p->role == ROLE_INDICES && !check_index(v, nv, i, "line", line, err)) return false;
+                    if (st && p->role == ROLE_INDICES) st->corners[st->n_corners++] = (int)v;
                     --list_left;
+                } else if (p->role == ROLE_COORD) {
+                    /* Straight to float (strtof rounds once), as assimp read them. */
+                    float f = strtof(tok, NULL);
+                    if (!isfinite(f))
+                        return error_set(err, "line %d: vertex %lld has coordinate %s, beyond the float range", line, i,
+                                         tok);
+                    if (st) set_axis(&st->positions[i], p->axis, (double)f);
                 }
                 if (!p->list || list_left == 0) {
                     list_left = -1;
@@ -459,17 +506,198 @@ static bool walk_ascii(const struct ply_header *h, const char *data, size_t size
     return true;
 }
 
+static bool walk(const struct ply_header *h, const void *data, size_t size, struct ply_info *info, struct ply_store *st,
+                 struct error *err)
+{
+    memset(info, 0, sizeof *info);
+    bool ok =
+        h->format == PLY_ASCII ? walk_ascii(h, data, size, info, st, err) : walk_binary(h, data, size, info, st, err);
+    if (ok) {
+        info->n_vertices = (int)h->elements[h->vertex].count;
+        info->n_faces = (int)h->elements[h->face].count;
+    }
+    return ok;
+}
+
 bool ply_check(const void *data, size_t size, struct ply_info *info, struct error *err)
 {
     memset(info, 0, sizeof *info);
     struct ply_header *h = malloc(sizeof *h);
     if (!h) return error_set(err, "out of memory");
-    bool ok = parse_header(data, size, h, err) && check_sizes(h, size, err) &&
-              (h->format == PLY_ASCII ? walk_ascii(h, data, size, info, err) : walk_binary(h, data, size, info, err));
-    if (ok) {
-        info->n_vertices = (int)h->elements[h->vertex].count;
-        info->n_faces = (int)h->elements[h->face].count;
-    }
+    bool ok = parse_header(data, size, h, err) && check_sizes(h, size, err) && walk(h, data, size, info, NULL, err);
     free(h);
     return ok;
+}
+
+/* Triangulation of one face: n - 2 triangles in the face's winding. */
+
+/* Twice the signed area of 2D triangle a, b, c (positive counter-clockwise). */
+static double cross2(const double *a, const double *b, const double *c)
+{
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/* Whether p lies in the closed triangle a, b, c (counter-clockwise), other
+   than at one of its corners. */
+static bool in_triangle(const double *p, const double *a, const double *b, const double *c)
+{
+    if ((p[0] == a[0] && p[1] == a[1]) || (p[0] == b[0] && p[1] == b[1]) || (p[0] == c[0] && p[1] == c[1]))
+        return false;
+    return cross2(a, b, p) >= 0.0 && cross2(b, c, p) >= 0.0 && cross2(c, a, p) >= 0.0;
+}
+
+struct tri_work {
+    double (*uv)[2];
+    int *prev, *next;
+    int cap;
+};
+
+/* Face idx[0..n) into tris[0..n-2). A convex face (every corner turning
+   the same way in the plane of its Newell normal) is a fan from its first
+   corner; a concave one is cut by ear clipping in that plane, the ears
+   tried in order from corner 1, so that a convex face gives the same fan;
+   when no ear is found (a self-intersecting or degenerate face) the corner
+   at hand is cut anyway, so every face gives n - 2 triangles. A face with
+   no plane (collinear corners) is a fan. Zero-area triangles are the
+   caller's (config_scene.c drops them). */
+static bool triangulate(const struct vec3 *pos, const int *idx, int n, long long face, struct tri_work *w,
+                        int (*tris)[3], struct error *err)
+{
+    int t = 0;
+    if (n > 3) {
+        struct vec3 nrm = { 0.0, 0.0, 0.0 };
+        for (int i = 0; i < n; ++i) {
+            struct vec3 a = pos[idx[i]], b = pos[idx[(i + 1) % n]];
+            nrm.x += (a.y - b.y) * (a.z + b.z);
+            nrm.y += (a.z - b.z) * (a.x + b.x);
+            nrm.z += (a.x - b.x) * (a.y + b.y);
+        }
+        double ax = fabs(nrm.x), ay = fabs(nrm.y), az = fabs(nrm.z);
+        int k = ax >= ay && ax >= az ? 0 : ay >= az ? 1 : 2; /* the axis dropped */
+        double sign = (k == 0 ? nrm.x : k == 1 ? nrm.y : nrm.z) < 0.0 ? -1.0 : 1.0;
+        bool flat = !(fmax(ax, fmax(ay, az)) > 0.0);
+        if (!flat && n > w->cap) {
+            free(w->uv);
+            free(w->prev);
+            free(w->next);
+            w->cap = n;
+            w->uv = malloc(sizeof *w->uv * (size_t)n);
+            w->prev = malloc(sizeof *w->prev * (size_t)n);
+            w->next = malloc(sizeof *w->next * (size_t)n);
+            if (!w->uv || !w->prev || !w->next) {
+                w->cap = 0;
+                return error_set(err, "out of memory for face %lld of %d corners", face, n);
+            }
+        }
+        bool convex = true;
+        if (!flat) {
+            /* Counter-clockwise in (u, v) for a face along its normal. */
+            for (int i = 0; i < n; ++i) {
+                struct vec3 p = pos[idx[i]];
+                double u = k == 0 ? p.y : k == 1 ? p.z : p.x, v = k == 0 ? p.z : k == 1 ? p.x : p.y;
+                w->uv[i][0] = u;
+                w->uv[i][1] = sign * v;
+            }
+            for (int i = 0; i < n && convex; ++i)
+                convex = cross2(w->uv[(i + n - 1) % n], w->uv[i], w->uv[(i + 1) % n]) >= 0.0;
+        }
+        if (!flat && !convex) {
+            if (n > PLY_CONCAVE_CORNERS_MAX)
+                return error_set(err,
+                                 "face %lld is a concave polygon of %d corners (expected at most %d for a "
+                                 "concave face)",
+                                 face, n, PLY_CONCAVE_CORNERS_MAX);
+            for (int i = 0; i < n; ++i) {
+                w->prev[i] = (i + n - 1) % n;
+                w->next[i] = (i + 1) % n;
+            }
+            int left = n, c = 1, misses = 0;
+            while (left > 3) {
+                int a = w->prev[c], b = w->next[c];
+                bool ear = cross2(w->uv[a], w->uv[c], w->uv[b]) > 0.0;
+                for (int r = w->next[b]; ear && r != a; r = w->next[r])
+                    ear = !in_triangle(w->uv[r], w->uv[a], w->uv[c], w->uv[b]);
+                if (!ear && ++misses <= left) {
+                    c = b;
+                    continue;
+                }
+                tris[t][0] = idx[a];
+                tris[t][1] = idx[c];
+                tris[t][2] = idx[b];
+                ++t;
+                w->next[a] = b;
+                w->prev[b] = a;
+                --left;
+                misses = 0;
+                c = b;
+            }
+            tris[t][0] = idx[w->prev[c]];
+            tris[t][1] = idx[c];
+            tris[t][2] = idx[w->next[c]];
+            return true;
+        }
+    }
+    for (int i = 1; i + 1 < n; ++i, ++t) {
+        tris[t][0] = idx[0];
+        tris[t][1] = idx[i];
+        tris[t][2] = idx[i + 1];
+    }
+    return true;
+}
+
+void ply_mesh_free(struct ply_mesh *m)
+{
+    free(m->positions);
+    free(m->triangles);
+    memset(m, 0, sizeof *m);
+}
+
+bool ply_read(const void *data, size_t size, long long max_triangles, struct ply_mesh *out, struct error *err)
+{
+    memset(out, 0, sizeof *out);
+    struct ply_info info;
+    struct ply_header *h = malloc(sizeof *h);
+    if (!h) return error_set(err, "out of memory");
+    bool ok = parse_header(data, size, h, err) && check_sizes(h, size, err) && walk(h, data, size, &info, NULL, err);
+    if (ok && info.n_triangles == 0)
+        ok = error_set(err, "no triangles (expected faces: OBJ f lines, or a PLY face element)");
+    if (ok && info.n_triangles > max_triangles)
+        ok = error_set(err, "%lld triangles (expected at most %lld)", info.n_triangles, max_triangles);
+    struct ply_store st = { NULL, NULL, NULL, 0 };
+    struct tri_work w = { NULL, NULL, NULL, 0 };
+    if (ok) {
+        /* n_triangles <= INT_MAX / 4 (check_face): the corners fit an int count. */
+        long long n_corners = info.n_triangles + 2LL * info.n_faces;
+        st.positions = calloc((size_t)info.n_vertices + 1, sizeof *st.positions);
+        st.face_n = malloc(sizeof *st.face_n * ((size_t)info.n_faces + 1));
+        st.corners = malloc(sizeof *st.corners * (size_t)n_corners);
+        out->triangles = malloc(sizeof *out->triangles * (size_t)info.n_triangles);
+        if (!st.positions || !st.face_n || !st.corners || !out->triangles)
+            ok = error_set(err, "out of memory for %lld triangles", info.n_triangles);
+        /* The second walk stores what the first one checked. */
+        ok = ok && walk(h, data, size, &info, &st, err);
+    }
+    long long c = 0;
+    int t = 0;
+    for (long long f = 0; ok && f < info.n_faces; ++f) {
+        int n = st.face_n[f];
+        ok = triangulate(st.positions, &st.corners[c], n, f, &w, &out->triangles[t], err);
+        c += n;
+        t += n - 2;
+    }
+    free(w.uv);
+    free(w.prev);
+    free(w.next);
+    free(st.face_n);
+    free(st.corners);
+    free(h);
+    if (!ok) {
+        free(st.positions);
+        ply_mesh_free(out);
+        return false;
+    }
+    out->positions = st.positions;
+    out->n_vertices = info.n_vertices;
+    out->n_triangles = t;
+    return true;
 }

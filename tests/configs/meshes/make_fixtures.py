@@ -109,6 +109,53 @@ def ply_ascii() -> bytes:
     return b
 
 
+def ply_body_newline() -> bytes:
+    """A valid binary little-endian PLY whose body starts with the byte 0x0a:
+    the first vertex's x is the float 0a 00 80 3f (1 + 10 ulp). Assimp 5.2.5
+    skipped that byte as if it ended the header's line, misread every count
+    and aborted on an assertion; the renderer reads PLY itself. A unit square
+    in y = 0 as two triangles, counter-clockwise seen from +y."""
+    x0 = struct.unpack("<f", b"\x0a\x00\x80\x3f")[0]
+    verts = [(x0, 0, 0), (0, 0, 0), (0, 0, 1), (1, 0, 1)]
+    b = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode()
+    for v in verts:
+        b += struct.pack("<fff", *v)
+    for f in [(1, 2, 3), (1, 3, 0)]:
+        b += struct.pack("<B3i", 3, *f)
+    assert b[b.index(b"end_header\n") + 11] == 0x0A
+    return b
+
+
+# A unit square in y = 0 (2 triangles) and 3 degenerate triangles: collinear
+# corners, a repeated corner, and a quad whose corners lie on one line (2
+# triangles once cut). Vertex 4 is used only by degenerate ones.
+DEGENERATE_PLY = b"""ply
+format ascii 1.0
+comment 2 sound triangles, 4 of zero area
+element vertex 5
+property float x
+property float y
+property float z
+element face 5
+property list uchar int vertex_indices
+end_header
+0 0 0
+1 0 0
+1 0 1
+0 0 1
+2 0 0
+3 0 3 2
+3 0 2 1
+3 0 1 4
+3 2 2 3
+4 0 1 4 1
+"""
+
+
 def lamp_grid_obj() -> str:
     """The lampshade's square lamp (side 0.6 at y = 2.6, emitting down) as 12
     triangles of unequal areas, for the mesh-light tests."""
@@ -296,6 +343,8 @@ def main() -> None:
     write(HERE / "polys_ascii.ply", ply_ascii())
     write(HERE / "polys_le.ply", ply_binary("<"))
     write(HERE / "polys_be.ply", ply_binary(">"))
+    write(HERE / "body_newline.ply", ply_body_newline())
+    write(HERE / "degenerate_tris.ply", DEGENERATE_PLY)
     write(HERE / "lamp_grid.obj", lamp_grid_obj())
     write(HERE / "lamp_sphere.obj", lamp_sphere_obj())
     write(HERE / "shapes_v4_single.serialized", serialized_shapes(4, False))
@@ -331,6 +380,7 @@ def main() -> None:
     write(BAD / "no_end_header.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n")
     write(BAD / "face_index.ply", ply_ascii().replace(b"\n4 0 3 2 1 7", b"\n4 0 3 2 9 7"))
     write(BAD / "degenerate.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")
+    write(BAD / "all_degenerate.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 3 2 1\n")
     write(
         BAD / "points_only.ply",
         b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
