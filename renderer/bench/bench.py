@@ -19,6 +19,8 @@ summary.py turns them into results/bench/summary.md. Sections:
   mesh_load       load time and peak memory of a 1M-triangle binary PLY
                   (render --print-config; config_load, stitching and scene
                   build apart, C, mesh_load.c)
+  portal_finder   `portals: auto` on a 100k-triangle shade: scene build
+                  with auto less without (mesh_load.c)
   mesh_lights     light vs antishadow_exact per sample on the Little Lamp
                   (a 400-triangle bulb behind two 32-gon portals), and on
                   the lampshade with a 16- and a 1,000-triangle bulb behind
@@ -920,6 +922,94 @@ def section_mesh_load(ctx: Context) -> dict[str, Any]:
     return results
 
 
+# ---- 12b. the auto portal finder -------------------------------------------------
+
+FINDER_GRID_N = 92  # cells per shade face side: 6 faces, 2 triangles a cell, less the hole: 98,852 triangles
+
+
+def write_shade_ply(path: Path, n: int) -> int:
+    """A binary PLY of a box shade [-0.5, 0.5]^3, each face an n x n grid of
+    cells split in two triangles, the bottom without the cells inside its
+    0.4 x 0.4 hole. Returns the triangle count."""
+    verts: list[np.ndarray] = []
+    tris: list[np.ndarray] = []
+    base = 0
+    s = np.linspace(-0.5, 0.5, n + 1)
+    u, w = np.meshgrid(s, s, indexing="ij")
+    for axis in range(3):
+        for side in (-0.5, 0.5):
+            cols = [u, w]
+            cols.insert(axis, np.full_like(u, side))
+            v = np.stack(cols, -1).reshape(-1, 3)
+            i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+            keep = np.ones((n, n), bool)
+            if axis == 1 and side < 0:  # the bottom: the hole
+                cu, cw = 0.5 * (s[:-1] + s[1:])[:, None], 0.5 * (s[:-1] + s[1:])[None, :]
+                keep = ~((np.abs(cu) < 0.2) & (np.abs(cw) < 0.2))
+            i = i[keep]
+            a, b, c, d = i, i + n + 1, i + n + 2, i + 1
+            tris.append(base + np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]))
+            verts.append(v)
+            base += len(v)
+    v_all = np.concatenate(verts).astype("<f4")
+    t_all = np.concatenate(tris)
+    faces = np.zeros(len(t_all), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    faces["n"] = 3
+    faces["i"] = t_all
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(v_all)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(t_all)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    with open(path, "wb") as out:
+        out.write(header.encode())
+        out.write(v_all.tobytes())
+        out.write(faces.tobytes())
+    return len(t_all)
+
+
+def section_portal_finder(ctx: Context) -> dict[str, Any]:
+    """`portals: auto` on a finely tessellated shade: a box of ~100k
+    triangles (one binary PLY, generated here) with a 0.4 x 0.4 hole in its
+    bottom, around a 0.2 x 0.2 light, over a floor. The finder's cost is
+    scene_create with `portals: auto` less scene_create without (mesh_load.c,
+    median of the rounds); the goal (issue 39) is under 1 s."""
+    rounds = 1 if ctx.quick else 5
+    folder = TMP / "portal_finder"
+    folder.mkdir(parents=True, exist_ok=True)
+    n_triangles = write_shade_ply(folder / "shade.ply", FINDER_GRID_N)
+    head = (
+        "# renderer/bench/bench.py section_portal_finder: a 100k-triangle shade around a light\n"
+        "camera: {position: [0, 1, 5], look_at: [0, 0, 0], up: [0, 1, 0], fov_y: 50}\n"
+        "film: {width: 32, height: 32}\n"
+        "materials:\n  grey: {type: diffuse, albedo: [0.6, 0.6, 0.6]}\n"
+        "shapes:\n  - {name: shade, type: mesh, material: grey, file: shade.ply}\n"
+        "  - {name: floor, type: quad, material: grey,"
+        " vertices: [[-10, -2, -10], [-10, -2, 10], [10, -2, 10], [10, -2, -10]]}\n"
+        "lights:\n  - name: bulb\n"
+        "    vertices: [[-0.1, 0.2, -0.1], [0.1, 0.2, -0.1], [0.1, 0.2, 0.1], [-0.1, 0.2, 0.1]]\n"
+        "    radiance: [4, 4, 4]\n    two_sided: true\n"
+        "render: {spp: 1}\n"
+    )
+    (folder / "plain.yaml").write_text(head)
+    (folder / "auto.yaml").write_text(head + "portals: auto\n")
+    stages = {
+        name: bl.run_json([str(ctx.bins["mesh_load"]), str(folder / f"{name}.yaml"), "--rounds", str(rounds)])
+        for name in ("plain", "auto")
+    }
+    out = subprocess.run(
+        [str(ctx.render), "--print-config", str(folder / "auto.yaml")], stdout=subprocess.PIPE, text=True, check=True
+    ).stdout
+    summary = [line[4:] for line in out.splitlines() if line.startswith("#   bulb")]
+    finder = {k: stages["auto"]["scene_create"][k] - stages["plain"]["scene_create"][k] for k in ("wall_s", "cpu_s")}
+    params = {"triangles": n_triangles, "grid": FINDER_GRID_N, "rounds": rounds, "target_s": 1.0}
+    results = {"finder": finder, "stages": stages, "print_config_summary": summary}
+    bl.write_result(ctx, "portal_finder", params, results)
+    log(f"portal finder: {n_triangles} triangles, {finder['wall_s']:.3f} s wall, {finder['cpu_s']:.3f} s CPU")
+    log(f"portal finder found: {summary}")
+    return results
+
+
 # ---- 13. mesh lights ------------------------------------------------------------
 
 LITTLE_LAMP = bl.ROOT / "configs" / "scenes" / "little_lamp.yaml"
@@ -1652,6 +1742,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "efficiency": section_efficiency,
     "portal_weights": section_portal_weights,
     "mesh_load": section_mesh_load,
+    "portal_finder": section_portal_finder,
     "mesh_lights": section_mesh_lights,
     "mitsuba": section_mitsuba,
     "time_split": section_time_split,
