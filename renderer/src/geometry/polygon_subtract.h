@@ -23,8 +23,10 @@ int polygon_subtract_triangle(const struct polygon *poly, struct vec3 normal, co
 
 /* The convex union of coplanar convex a and b, which must not overlap,
    when that union is convex (its convex hull has the area of a plus b
-   within rel_tol) and has at most max_vertices corners once vertices within
-   tol of the line of their neighbours are dropped. */
+   within rel_tol, above or below, and holds every corner of both within
+   tol) and has at most max_vertices corners once vertices within tol of
+   the line of their neighbours are dropped. False otherwise: a merge never
+   loses area. */
 bool polygon_merge_convex(const struct polygon *a, const struct polygon *b, struct vec3 normal, double tol,
                           double rel_tol, int max_vertices, struct polygon *out);
 
