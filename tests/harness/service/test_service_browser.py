@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import yaml
 from browser import Browser, chromium_fixture  # noqa: F401 (pytest finds it as `chromium`)
+from conftest import REPO
 from PIL import Image
-from test_service_server import REPO, TOKEN, Service, free_port
+from served import TOKEN, Service, free_port
 
 ARTIFACTS = REPO / "results" / "tmp" / "test-artifacts"
 

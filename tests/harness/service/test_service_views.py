@@ -47,11 +47,11 @@ def test_01_a_status_read_does_constant_work_whatever_the_runs(
     connect = sqlite3.connect
 
     def counted(*args: Any, **kwargs: Any) -> sqlite3.Connection:
-        conn = connect(*args, **kwargs)
+        conn: sqlite3.Connection = connect(*args, **kwargs)
         conn.set_trace_callback(statements.append)
         return conn
 
-    monkeypatch.setattr(q.sqlite3, "connect", counted)
+    monkeypatch.setattr(sqlite3, "connect", counted)  # the queue's connections: every statement counted
     builds: list[str] = []
     build = ViewBuilder.build
 
