@@ -32,6 +32,7 @@ SUBMITTED_NAME = "experiment.yaml"
 # A YAML document whose aliases expand to more nodes than this is refused
 # (an experiment has tens of nodes; a "billion laughs" has 10^9).
 MAX_EXPANDED_NODES = 20000
+MAX_PATH = 1024  # characters of a path an experiment names
 _WHERE = re.compile(r"^(?P<file>.*?):(?P<line>\d+):(?P<column>\d+)$")
 
 
@@ -193,12 +194,16 @@ def _path_error(text: str, key: str, message: str) -> SubmissionError:
 def _resolve(text: str, data: dict[str, Any], key: str, value: Any, roots: tuple[Path, ...]) -> Path:
     if not isinstance(value, str) or not value:
         raise _path_error(text, key, "expected a path (a non-empty string)")
+    if len(value) > MAX_PATH or "\x00" in value:
+        raise _path_error(text, key, f"expected a path of at most {MAX_PATH} characters, without NUL")
     try:
         return resolve_in_roots(value, roots)[0]
     except PathEscape as e:
         raise _path_error(text, key, f"path outside the --root folders: {e}") from None
     except FileNotFoundError as e:
         raise _path_error(text, key, str(e)) from None
+    except (OSError, ValueError):  # a name too long for the file system: as good as missing
+        raise _path_error(text, key, f"{value[:60]!r}...: no such file in the --root folders") from None
 
 
 def _paths(data: dict[str, Any]) -> list[tuple[str, Any]]:

@@ -56,6 +56,14 @@ ATTACKS = [
     ),
     ("huge_inset", experiment_text(insets=[{"name": "a", "x": 0, "y": 0, "width": 10**30, "height": 1}]), "<="),
     ("nan_lit_threshold", experiment_text(regions={"lit_threshold": float("nan")}), "finite"),
+    # Names too long for the file system (ENAMETOOLONG was a 500).
+    ("long_scene_name", experiment_text(scene="scenes/" + "a" * 5000 + ".yaml"), "at most 1024"),
+    ("deep_scene_path", experiment_text(scene="scenes/" + "/".join(["a"] * 400)), "no such file"),
+    (
+        "long_section_name",
+        experiment_text(figures={"region_sections": {"scene": "scenes/" + "b" * 300}}),
+        "no such file",
+    ),
     ("python_tag_deep", with_line(TINY, "seed: 1\n", "seed: !!python/name:os.system\n"), "tag"),
     ("binary_tag", with_line(TINY, "name: svc_tiny", "name: !!binary aGVsbG8="), "tag"),
 ]
