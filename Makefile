@@ -13,17 +13,17 @@ BUILD := renderer/build-san
 SAN_FLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 endif
 
-# -O3 runs 2-6% fewer instructions in the render passes than -O2 (bench-ab
-# INSTRUCTIONS=1, every case; results/bench/README.md, "Thirteenth pass")
-# and gives the same images bit for bit: it changes no floating-point rule.
-# Without -fno-tree-loop-distribution it split camera_row's vectorised
-# loop (render.c) into four, which then took 1.5x the instructions.
+# -O3 runs fewer instructions in the render passes than -O2 (bench-ab
+# INSTRUCTIONS=1, every case; docs/performance.md) and gives the same
+# images bit for bit: it changes no floating-point rule. Without
+# -fno-tree-loop-distribution it split camera_row's vectorised loop
+# (render/render_pool.c) into four, which then took more instructions.
 CFLAGS ?= -O3 -fno-tree-loop-distribution -g
 # ISO C mode also means no contraction into fused multiply-adds, which the
 # vectorised samplers rely on to match the one-point code bit for bit.
 WARN := -std=c99 -Wall -Wextra -Wpedantic -Wshadow
 # Nothing reads errno after a libm call: without the flag every sqrt keeps a
-# branch to the library for negative arguments (measured: 3% of a render).
+# branch to the library for negative arguments (docs/performance.md).
 # Nothing reads floating-point exception flags either: without
 # -fno-trapping-math GCC will not turn a guarded division into a select,
 # and the sampler loops marked `#pragma omp simd` (-fopenmp-simd: the

@@ -125,8 +125,8 @@ FM_INLINE double fm_atan2(double y, double x)
 /* fmin and fmax as glibc gives them (a NaN argument yields the other one;
    of two equal values the second, which for +0 and -0 C leaves open), but
    inline: without -ffinite-math-only GCC calls libm for fmin and fmax, and
-   polygon bounding boxes on the per-sample path made those calls 4-7% of a
-   portal strategy's profile. */
+   polygon bounding boxes on the per-sample path made those calls a
+   visible share of a portal strategy's profile (docs/performance.md). */
 FM_INLINE double fm_fmin(double a, double b)
 {
     return (a < b || b != b) ? a : b;

@@ -27,7 +27,7 @@ struct pair_bvh_node {
 
 /* At most this many items are searched as a flat list rather than the
    tree: the traversal's stack and node tests cost more than testing a few
-   boxes (multi_lamp's 6 pairs: 240 instructions a query down to ~60). */
+   boxes (measured on multi_lamp's few pairs; docs/performance.md). */
 #define PAIR_BVH_FLAT_MAX 16
 
 struct pair_bvh {

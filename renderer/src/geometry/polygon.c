@@ -450,8 +450,9 @@ FM_SIMD_CLONES struct vec3 polygon_vector_irradiance(const struct polygon *poly,
     /* The edges' angles are independent: each block of edges computes
        them in one vectorised loop (fm_atan2 is straight-line arithmetic,
        within 3 ulp of libm's, whose call, with its rounding-mode save and
-       restore, was 11% of antishadow_exact's profile on multi_lamp, where
-       every candidate pair's irradiance weight runs this at every point),
+       restore, was a hot spot of antishadow_exact's profile on multi_lamp,
+       where every candidate pair's irradiance weight runs this at every
+       point),
        then sums them in edge order. */
     for (int b = 0; b < n; b += IRRADIANCE_BLOCK) {
         int m = n - b < IRRADIANCE_BLOCK ? n - b : IRRADIANCE_BLOCK;

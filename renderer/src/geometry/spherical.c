@@ -192,8 +192,8 @@ struct vec3 sphrect_sample_dir(const struct sphrect *r, double u, double v, doub
    block of lanes: the per-point constants (rect_local, rect_constants),
    then the warp. Both are chains of divisions and square roots; split,
    each iteration is short enough for the processor to overlap
-   neighbouring ones (measured: 2% less time in the sampler than one loop
-   doing both). The stages read and write arrays of scalars indexed by
+   neighbouring ones (measured faster than one loop doing both; see
+   docs/performance.md). The stages read and write arrays of scalars indexed by
    lane, so that the loops have no local whose address is taken (OpenMP
    would turn those into per-lane arrays and defeat the vectoriser). */
 enum {
@@ -295,8 +295,8 @@ FM_INLINE struct vec3 rect_stage2(const double in[RF_COUNT][RECT_BLOCK], const d
    scattered back. The gathers are marked `omp simd` too: at -O2 GCC only
    vectorises a loop without the pragma when no remainder is left over
    ("very cheap" cost model), and gathered lane by lane with scalar
-   stores they cost as much as a stage (measured: 24 of 77 cycles per
-   pixel, 6 once vectorised). */
+   stores they cost as much as a stage (docs/performance.md has the
+   cycles). */
 FM_SIMD_CLONES
 void sphrect_sample_many(const struct sphrect_frame *const *frames, const struct vec3 *o, const double *u,
                          const double *v, int n, struct vec3 *wi, double *dist, double *solid_angle)

@@ -25,7 +25,7 @@ static void simplify(const struct polygon *in, struct polygon *out)
         changed = false;
         for (int i = 0; i < n && n >= 3; ++i) {
             /* Neighbours by selects: two integer divisions a vertex (%)
-               were a third of this function's time. */
+               were a large share of this function's time. */
             struct vec3 a = v[i == 0 ? n - 1 : i - 1], b = v[i], c = v[i + 1 == n ? 0 : i + 1];
             struct vec3 cr = vec3_cross(vec3_sub(b, a), vec3_sub(c, b));
             if (vec3_length2(cr) <= tol2 || vec3_length2(vec3_sub(b, a)) <= TARGET_REPEATED_REL2 * scale) {

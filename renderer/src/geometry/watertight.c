@@ -10,10 +10,10 @@
    hole, and the corners of the side quads lie on the long edges of the
    front and back ones (T-junctions). Embree's robust mode is watertight
    only across edges whose endpoints are identical, so rays slipped through
-   those lines: tools/firefly/scan.c counted 1209 to 1985 leaking aims per
-   line out of 800 200 (a band ~1e-8 wide), and one such BSDF ray, reaching
+   those lines (tools/firefly/scan.c counts the leaking aims of each line;
+   docs/performance.md has the counts), and one such BSDF ray, reaching
    the lamp where the portal strategies' pdf is 0, made the firefly of
-   pixel (130, 204) (tools/firefly/README.md). After stitching: 0. */
+   pixel (130, 204) (tools/firefly/README.md). After stitching none leak. */
 
 /* Grid cells per axis at most 2^21, so that a cell's key packs into 64
    bits; the cell size grows when the scene would need more. */

@@ -140,8 +140,8 @@ struct snapshot_info {
     uint64_t rays;              /* rays traced so far */
     uint64_t nonfinite_samples; /* samples dropped for NaN/Inf */
     bool compress;              /* ZIPS when true; none for timed snapshots,
-                                      where zlib costs ~40 ms per 256^2 frame
-                                      and gains ~3% on noisy floats */
+                                      where zlib costs most of a frame's write
+                                      and gains little on noisy floats */
 };
 
 /* Writes an EXR (ZIPS: zlib, one scanline per chunk; float channels B, G,

@@ -19,13 +19,11 @@
 /* Compression of the pixel chunks. Snapshots are rewritten every fraction
    of a second, so speed matters more than size. Float radiance has random
    low mantissa bytes that neither the ZIP byte split and predictor (made
-   for 16-bit halves) nor deflate can model: zlib gains only ~3% on noisy
-   pixels (~30% on black or constant areas) and takes ~90% of the write
-   time whatever the level. Measured on this machine (2 cores, idle), a
-   noisy 256x256 / 1024x1024 snapshot, fsync included: ZIP level 1
-   44 / 740 ms, ZIPS level 1 40 / 580 ms, ZIP level 6 48 / 815 ms, NONE
-   3.5 / 48 ms. ZIPS (one scanline per chunk) is the fastest zlib variant
-   and level 1 the fastest level at the same ratio. */
+   for 16-bit halves) nor deflate can model: zlib gains little on noisy
+   pixels (more on black or constant areas) and takes most of the write
+   time whatever the level (docs/performance.md has the timings). ZIPS
+   (one scanline per chunk) is the fastest zlib variant and level 1 the
+   fastest level at the same ratio. */
 #define FILM_EXR_COMPRESSION EXR_COMPRESSION_ZIPS
 #define FILM_ZIP_LEVEL       1
 

@@ -135,9 +135,10 @@ static void render_row(struct worker *w, int y, int64_t pass, struct integrator_
 
 /* How long a worker that finished its part of a pass keeps its core busy
    waiting for the next pass before it sleeps. On a virtual machine a core
-   left idle halts, and waking it again took 0.04-0.6 ms per pass and
-   worker, 1-7% of a 128-spp lampshade render at 2 threads; spinning, the
-   wait is below 0.03 ms. Longer than the end of a pass usually takes (the
+   left idle halts, and waking it again cost every pass and worker a
+   visible part of a lampshade render at 2 threads; spinning, the wait is
+   far shorter (docs/performance.md). Longer than the end of a pass
+   usually takes (the
    last rows, the main thread's turn), short enough not to matter to other
    processes between renders. */
 #define POOL_SPIN_S 2e-3
@@ -160,7 +161,8 @@ static void *worker_main(void *arg)
 {
     struct worker *w = arg;
     struct pass_control *pc = w->pc;
-    /* Denormals are never needed here and cost ~100x per operation. */
+    /* Denormals are never needed here, and each operation on one is far
+       slower than on a normal number. */
     _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
     _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
     int64_t seen = 0;

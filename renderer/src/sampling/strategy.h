@@ -150,10 +150,11 @@ struct vec3 strategy_sided_point(const struct strategy *s, struct vec3 p, struct
    sphere lies clearly below the horizon. Then neither a light sample nor
    a BSDF ray of direct lighting can reach an emitting face from p, and
    the direct integrator skips the point: its value is exactly zero. On
-   the lampshade that is 43% of the camera's points (the ceiling, the
-   upper walls). Scenes with more than STRATEGY_UNLIT_MAX_EMITTERS
-   emitters are not tested (false), a bound on what the test may cost a
-   lit point (on `multi_lamp`, six emitters, about 90 instructions).
+   the lampshade that is a large share of the camera's points (the
+   ceiling, the upper walls). Scenes with more than
+   STRATEGY_UNLIT_MAX_EMITTERS emitters are not tested (false), a bound on
+   what the test may cost a lit point (docs/performance.md has both
+   measurements).
    Independent of the strategy's kind. *hint is the emitter to
    test first; a lit point leaves there the emitter that lights it, so
    that a film row's next point, most often on the same surface, is
@@ -165,8 +166,8 @@ bool strategy_point_unlit(const struct strategy *s, struct vec3 p, struct vec3 n
    candidate pairs found there with their weights at pt->p, into
    pt->scratch. p and n are pt->p and pt->n, passed in registers: read
    back from pt right after strategy_prepare stored them, they can straddle
-   two of its stores, which the processor cannot forward (a stall measured
-   as 3% of antishadow_exact's time). */
+   two of its stores, which the processor cannot forward (a stall that
+   showed in antishadow_exact's profile). */
 void strategy_prepare_pairs(const struct strategy *s, struct strategy_point *pt, struct vec3 p, struct vec3 n);
 
 /* The pairs that may light p, into out (room for s->n_pairs): those the

@@ -34,7 +34,7 @@ static const struct polygon *visible_polygon(const struct strategy *s, const str
 
 /* The same as a target, finished when first asked for: at a point with
    several candidates most are only weighed (its normal, area and
-   rectangle frame were a third of the cost of making the target). */
+   rectangle frame were a large part of the cost of making the target). */
 const struct target *strategy_visible_target(const struct strategy *s, const struct strategy_point *pt, int i)
 {
     struct strategy_scratch *sc = pt->scratch;
@@ -60,8 +60,9 @@ const struct target *strategy_member_visible(const struct strategy *s, const str
 /* A pair's weight, or with poly set its `irradiance` form left to finish:
    scale times the projected solid angle of poly from the point, so that a
    point's candidates compute those together
-   (polygon_projected_solid_angle_many): their edge angles were a third of
-   antishadow_exact's time on multi_lamp, one short polygon at a time. */
+   (polygon_projected_solid_angle_many): their edge angles were a large
+   share of antishadow_exact's time on multi_lamp, one short polygon at a
+   time. */
 struct weight_term {
     double value;
     double scale;
@@ -228,7 +229,7 @@ FM_INLINE double edge_verdict(double ax, double ay, double az, double bx, double
    of its mesh light's pairs (the Little Lamp: two 32-gons), so the planes
    are not normalised: the centre's signed distance d = s / |m| from the
    plane with normal m is compared with the radius r as s against r |m|,
-   squared, with no square root or division (it was 23% of
+   squared, with no square root or division (it was a large share of
    antishadow_exact's time there). */
 FM_SIMD_CLONES static enum region mesh_pair_bound(const struct strategy *s, int i, struct vec3 p)
 {
@@ -288,8 +289,8 @@ static double mesh_portal_irradiance(const struct strategy *s, const struct stra
    all of it is seen), the portal (anti-antumbra: all of it is filled) or
    the smaller of the two (anti-penumbra: the visible part is within both).
    A point then clips and prepares only the pair it samples, instead of
-   every candidate: on multi_lamp those were a third of antishadow_exact's
-   time. */
+   every candidate: on multi_lamp those were a large share of
+   antishadow_exact's time. */
 static double pair_irradiance_estimate(const struct strategy *s, const struct strategy_pair *pair, enum region region,
                                        struct vec3 p, struct vec3 n)
 {
@@ -365,8 +366,7 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
            (capped at a hemisphere), so that the weight is O(1) in the
            portal's vertices too: the exact projected solid angle of a
            32-gon cost more than the sample it weighs (measured on the Little
-           Lamp at 16 spp: antishadow_exact 2.4-2.7x the CPU time of light,
-           1.3-1.4x with this). */
+           Lamp; docs/performance.md). */
         if (mesh) return weight_value(mesh_portal_irradiance(s, pair, p));
         const struct polygon *vis = visible_polygon(s, ptp, i);
         return vis ? irradiance_term(rgb_luminance(l->radiance), vis, p, n) : weight_value(0.0);

@@ -52,8 +52,8 @@ static inline bool light_clearly_below(double h, struct vec3 d)
    light-only strategies draw no sample of such a light, nor do the pairs
    that pick a mesh light's triangle (strategy.c): the sample's value was
    exactly zero and no ray was traced for it, but it was drawn, which on
-   the lampshade was 43% of the `light` strategy's samples (the ceiling,
-   the upper walls). */
+   the lampshade was a large share of the `light` strategy's samples (the
+   ceiling, the upper walls; docs/performance.md). */
 static inline bool light_culled(const struct light *l, struct vec3 p, struct vec3 n)
 {
     const struct polygon *poly = &l->target.polygon;

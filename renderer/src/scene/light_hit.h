@@ -5,10 +5,10 @@
    the ray counts only where a light is the first thing it meets, so the
    lights alone are looked at first and the whole scene is traced only for
    the segment in front of the light met. Through Embree that first look
-   cost 15-20 ns of a 170 ns camera sample on the lampshade (`make bench`
-   mitsuba section; an Embree call has a fixed cost even for a scene of one
-   quad). For a handful of convex polygons, a vectorised loop over the
-   row's rays, light by light, is several times cheaper.
+   was a noticeable part of a camera sample on the lampshade (an Embree
+   call has a fixed cost even for a scene of one quad; docs/performance.md
+   has the profile). For a handful of convex polygons, a vectorised loop
+   over the row's rays, light by light, is several times cheaper.
 
    The answer is the closest light whose plane the ray crosses in
    [tnear, tfar] inside the polygon, both faces (as Embree's triangles

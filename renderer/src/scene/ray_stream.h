@@ -3,8 +3,8 @@
    and rtcIntersectNp). A vectorised loop can then write a row's rays
    straight from its registers, and tracing them costs one call instead of a
    call, a context and a double-to-float conversion per ray (`make bench`:
-   the renderer's per-ray wrappers traced the raw ray mix 8% slower than
-   Embree alone). scene.c traces a stream (scene_occluded_stream,
+   the renderer's per-ray wrappers traced the raw ray mix slower than
+   Embree alone; docs/performance.md). scene.c traces a stream (scene_occluded_stream,
    scene_first_light_stream); the types here stay free of Embree's.
    It holds rays; tracing them is scene.c's job, the only place Embree is
    seen. */

@@ -107,10 +107,10 @@ bool scene_collect_faces(const struct config *cfg, struct watertight_face **out,
    vertex keep the shape's vertices, the fans of the faces that changed get
    their vertices appended. A quad goes in as Embree would split it
    ((v0, v1, v3) and (v2, v3, v1)), so the surface and every hit are the
-   same as a quad geometry's, bit for bit (80 renders compared), but traced
-   as triangles: Embree 3.13 traced the lampshade's camera rays 1.8x and
-   bounce rays 1.3x faster so, at high and medium build quality alike
-   (results/bench/NOTEBOOK.md, "Sixth pass"). The geometry carries the
+   same as a quad geometry's, bit for bit, but traced as triangles:
+   Embree 3.13 traces the lampshade's camera and bounce rays faster so, at
+   high and medium build quality alike (docs/performance.md;
+   results/bench/NOTEBOOK.md, "Sixth pass"). The geometry carries the
    shape's info, so hits map back to its material. */
 static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct watertight *w, int face0,
                       struct geometry_info info, struct error *err)

@@ -128,7 +128,7 @@ bool scene_intersect_geometry(const struct scene *s, struct vec3 o, struct vec3 
 bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h);
 /* Closest hits of the n rays o + t d[i], t > 0 (d[i] unit), rays from one
    point such as the camera rays of a film row. They are traced as a
-   coherent stream, which Embree traces as packets: about twice the single-
+   coherent stream, which Embree traces as packets: well above the single-
    ray rate for camera rays (`make bench`, raw limit), through `rays`, a
    stream with room for n rays. found[i] tells whether ray i hit; hits[i]
    is then set, as scene_intersect(s, o, d[i], INFINITY, ...) gives it, bit
