@@ -21,18 +21,37 @@ replicates:
   (se_e_L/e_L)^2, light's rel_mse row. With precision the summary's
   speed-up standard error includes this term (summary.rows_for_point).
 
-Allocation (one round): while some value is predicted above the target,
-the value furthest from it (largest predicted rel. SE / target) gets one
-replicate, in whichever of its two cells one more replicate lowers its
-predicted variance most: a cell's term a K/(K + k) after k more. Light's
-cell serves every value of its point, so its replicates are shared. A
-cell at precision.max_replicates gets no more (the value's other cell
-may); one given as many new replicates in this round as it has gets no
-more this round (at most doubling per round, so that the next round's
-standard errors decide again), and its value waits for the next round. Predictions use the current
-standard errors, themselves noisy; the sweep measures again after each
-round, so an under- or over-estimate costs a round or a few replicates,
-never a wrong verdict: the verdict is the measured rel. SE.
+Two stages, no peeking (Stein's two-stage procedure). Stopping as soon as
+the *estimated* relative standard error is below the target picks the runs
+whose variance happened to be underestimated (and, the SE being relative,
+whose mean happened to be large): on the fake renderer (3 first
+replicates, target 3%, cap 16) such rounds reported 2.5% where the
+estimates' spread was 3.7%, and +-2 SE covered the true ratio 81% of the
+time. So the sweep looks once:
+
+1. the first stage, budget.replicates = n0 replicates of every cell,
+   gives each value's terms;
+2. `allocate` fixes the second stage from them: while some value's
+   predicted relative variance, its terms inflated by variance_safety(n0)
+   (the one-sided SAFETY_CONFIDENCE upper bound of a variance from n0
+   replicates), is above the target's, the value furthest from it gets one
+   replicate, in whichever of its two cells lowers its predicted variance
+   most: a cell's term a K/(K + k) after k more (light's cell serves every
+   value of its point, so its replicates are shared; a cell at
+   precision.max_replicates gets no more, the value's other cell may);
+   then every cell of a value is topped up to MIN_FINAL_REPLICATES (or the
+   cap), so that no reported standard error rests on a handful of
+   replicates;
+3. the second stage is run, and every value and its standard error come
+   from all the replicates of its cells. The measured rel. SE is the
+   verdict (reached or not), but nothing more is added on it.
+
+Measured on 200 seeded sweeps of a numpy copy of the fake renderer (both
+points, 400 values; 3 + up to 16 replicates, target 3%): +-1 SE / +-2 SE
+cover the true ratio 66% / 94% of the time (efficiency; speed-up 66% /
+93%), against 50% / 81% with the rounds; 99.8% of the values reach the
+target, with 15 replicates per cell on average. A resumed sweep derives
+the same second stage from the same first replicates, so it adds nothing.
 """
 
 from __future__ import annotations
@@ -50,6 +69,11 @@ MEASURES = (EFFICIENCY, SPEEDUP)
 COLUMNS = PRECISION_COLUMNS  # the columns summary.csv gains with precision (summary.columns)
 # (point, strategy)
 Cell = tuple[str, str]
+# The one-sided confidence at which the first stage's variances are bounded (variance_safety).
+SAFETY_CONFIDENCE = 0.8
+# Every cell of a headline value ends with at least this many replicates (or the cap): a
+# standard error from fewer is itself too noisy to report as one (module docstring).
+MIN_FINAL_REPLICATES = 8
 
 
 @dataclass(frozen=True)
@@ -111,17 +135,22 @@ def reached(value: Value, target: float) -> bool:
     return math.isfinite(value.rel_se) and value.rel_se <= target
 
 
-def allocate(values: list[Value], counts: dict[Cell, int], precision: Precision) -> list[Cell]:
-    """The replicates to add in the next round, one cell per replicate in
-    the order they were given (the most urgent first: a round cut short by
-    the time cap keeps a prefix); empty when every value is predicted to
-    reach the target or no cell that would help can grow (module docstring)."""
+def allocate(
+    values: list[Value], counts: dict[Cell, int], precision: Precision, safety: float = 1.0, minimum: int = 0
+) -> list[Cell]:
+    """The second stage's replicates, one cell per replicate in the order
+    they were given (the most urgent first: a stage cut short by the time
+    cap keeps a prefix); empty when every value is predicted to reach the
+    target or no cell that would help can grow. `values` are the first
+    stage's, `safety` the factor its variance terms are inflated by
+    (variance_safety), `minimum` the replicates every cell of a value ends
+    with at least (capped; its top-ups come last: module docstring)."""
     target2 = precision.rel_se**2
     extra: dict[Cell, int] = {}
     order: list[Cell] = []
 
     def predicted(v: Value) -> float:
-        return sum(a * counts[c] / (counts[c] + extra.get(c, 0)) for c, a in v.terms if counts.get(c))
+        return sum(safety * a * counts[c] / (counts[c] + extra.get(c, 0)) for c, a in v.terms if counts.get(c))
 
     def below_cap(c: Cell) -> bool:
         return counts.get(c, 0) > 0 and counts[c] + extra.get(c, 0) < precision.max_replicates
@@ -131,20 +160,59 @@ def allocate(values: list[Value], counts: dict[Cell, int], precision: Precision)
         n, k = counts[c], extra.get(c, 0)
         return a * n / (n + k) - a * n / (n + k + 1)
 
-    open_ = [v for v in values if not reached(v, precision.rel_se) and v.terms]
+    open_ = [v for v in values if v.terms]
     while open_:
         worst = max(open_, key=predicted)
         if predicted(worst) <= target2:
             break
-        candidates = [t for t in worst.terms if below_cap(t[0])]
-        cell = max(candidates, key=gain)[0] if candidates else None
-        if cell is None or extra.get(cell, 0) >= counts[cell]:
-            # Capped, or its best cell doubled this round: the next round decides again.
-            open_.remove(worst)
+        candidates = [t for t in worst.terms if below_cap(t[0]) and gain(t) > 0]
+        if not candidates:
+            open_.remove(worst)  # capped (or nothing helps): it is marked if it falls short
             continue
+        cell = max(candidates, key=gain)[0]
         extra[cell] = extra.get(cell, 0) + 1
         order.append(cell)
+    for v in values:
+        for c in ((v.point, v.strategy), (v.point, BASELINE)):
+            while counts.get(c, 0) > 0 and counts[c] + extra.get(c, 0) < min(minimum, precision.max_replicates):
+                extra[c] = extra.get(c, 0) + 1
+                order.append(c)
     return order
+
+
+def variance_safety(n0: int, confidence: float = SAFETY_CONFIDENCE) -> float:
+    """The factor a variance estimated from n0 replicates is multiplied by
+    to bound the true one at `confidence` (one-sided, normal replicates):
+    (n0 - 1) / chi2_{n0-1}(1 - confidence): 4.5 at n0 = 3, 3.0 at 4,
+    1.8 at 8 for confidence 0.8."""
+    df = n0 - 1
+    if df < 1:
+        return math.inf
+    return df / _chi2_quantile(1.0 - confidence, df)
+
+
+def _chi2_quantile(p: float, df: int) -> float:
+    lo, hi = 0.0, float(df)
+    while _chi2_cdf(hi, df) < p:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _chi2_cdf(mid, df) < p else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _chi2_cdf(x: float, df: int) -> float:
+    """The regularized lower incomplete gamma P(df/2, x/2), by its series."""
+    if x <= 0:
+        return 0.0
+    a, z = df / 2.0, x / 2.0
+    term = total = 1.0 / a
+    k = 1
+    while term > total * 1e-15:
+        term *= z / (a + k)
+        total += term
+        k += 1
+    return min(1.0, total * math.exp(-z + a * math.log(z) - math.lgamma(a)))
 
 
 def mark_rows(rows: list[dict[str, Any]], precision: Precision) -> None:

@@ -14,10 +14,11 @@ The stages, in order (references.py says more of each):
    noise exceeds reference.noise_ratio of the smallest error in some
    region is extended (extend.py, render --resume) and the metrics redone,
    at most MAX_EXTENSION_ROUNDS times or until reference.max_time_s;
-5. with `precision:` (precision.py), rounds: the headline values' relative
-   standard errors, replicates added where the variance is (new seeds),
-   metrics and the noise check again, until every headline value reaches
-   the target or a cap (precision.max_replicates, precision.max_time_s);
+5. with `precision:` (precision.py), two stages: the headline values'
+   relative standard errors from the first budget.replicates replicates
+   fix how many more each (point, strategy) gets (new seeds, at most
+   precision.max_replicates, cut to precision.max_time_s); they are run,
+   and the metrics and the noise check done again, once;
 6. the tidy summary (summary.py): summary.csv/json, one row per (point,
    strategy, region); the printed table is its `lit` (or image) region;
    and the manifest (manifest.py): renderer, commit, machine, wall time,
@@ -58,7 +59,7 @@ from portal_harness.execution.batch import SweepOptions, execute_specs
 from portal_harness.execution.execute import plan_jobs
 from portal_harness.execution.plan import PlannedRun, more_replicates, plan_runs
 from portal_harness.execution.region_renders import region_maps, region_sections
-from portal_harness.experiment.model import Experiment
+from portal_harness.experiment.model import Experiment, Precision
 from portal_harness.reference import references
 from portal_harness.reference.choice import choose_reference_strategies
 from portal_harness.reference.lifecycle import (
@@ -71,10 +72,6 @@ from portal_harness.reference.lifecycle import (
 )
 from portal_harness.reference.noise_check import RegionCheck
 from portal_harness.reference.references import PointReference
-
-# A guard on precision rounds (each at most doubles a cell's replicates, so
-# max_replicates ends them long before).
-MAX_PRECISION_ROUNDS = 30
 
 
 def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = None) -> int:
@@ -133,15 +130,17 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
         problems, checks = measured
         rows = summarize(experiment, runs, refs, conn, manifests)
         if experiment.precision is not None:
+            p = experiment.precision
             rounds: list[dict[str, Any]] = []
-            stop = ""
-            for _ in range(MAX_PRECISION_ROUNDS):
-                values = precision.headline_values(rows, experiment.precision)
-                stop, added = _precision_round(
-                    experiment, runs, values, manifests, options, started - spent_before, out
-                )
-                if not added:
-                    break
+            # Two stages (precision.py): the first budget.replicates of every cell
+            # fix how many replicates each needs; the estimates and their standard
+            # errors come from all of them, and no value is looked at again.
+            n0 = experiment.budget.replicates if experiment.budget is not None else 0
+            first = [r for r in runs if r.replicate < n0]
+            first_rows = rows if len(first) == len(runs) else summarize(experiment, first, refs, conn, manifests)
+            values = precision.headline_values(first_rows, p)
+            added, cut = _second_stage(experiment, runs, values, manifests, options, started - spent_before, out)
+            if added:
                 runs += added
                 record_plan(conn, experiment, runs, refs, pilot_keys, sections)
                 manifests.update(execute_specs([r.spec for r in added], options, conn, desc="replicates"))
@@ -161,12 +160,12 @@ def sweep(experiment: Experiment, options: SweepOptions, out: TextIO | None = No
                 problems, checks = measured
                 rows = summarize(experiment, runs, refs, conn, manifests)
                 rounds.append({"added": len(added), "elapsed_s": round(time.monotonic() - started, 1)})
-            values = precision.headline_values(rows, experiment.precision)
+            values = precision.headline_values(rows, p)
             precision_info = {
-                **precision.report(values, experiment.precision),
-                "max_replicates": experiment.precision.max_replicates,
-                "max_time_s": experiment.precision.max_time_s,
-                "stopped": stop or "rounds",
+                **precision.report(values, p),
+                "max_replicates": p.max_replicates,
+                "max_time_s": p.max_time_s,
+                "stopped": _stopped(values, _cell_counts(runs), p, cut),
                 "rounds": rounds,
                 "spent_s": round(spent_before + time.monotonic() - started, 1),
             }
@@ -256,7 +255,7 @@ def _render_time(manifests: dict[str, dict[str, Any]]) -> float:
     return total
 
 
-def _precision_round(
+def _second_stage(
     experiment: Experiment,
     runs: list[PlannedRun],
     values: list[precision.Value],
@@ -264,25 +263,34 @@ def _precision_round(
     options: SweepOptions,
     started: float,
     out: TextIO,
-) -> tuple[str, list[PlannedRun]]:
-    """The next round's runs (precision.allocate), cut to what fits in
-    precision.max_time_s by the measured wall time of a run; and why there
-    is none: "reached", "max_time_s" or "max_replicates"."""
-    p = experiment.precision
-    assert p is not None and experiment.budget is not None
+) -> tuple[list[PlannedRun], bool]:
+    """The second stage's runs: the replicates the first stage's `values`
+    call for (precision.allocate, with the first stage's safety factor and
+    precision.MIN_FINAL_REPLICATES) that `runs` does not hold yet (a resumed
+    sweep holds them), cut to what fits in precision.max_time_s by the
+    measured wall time of a run; and whether the cut dropped some."""
+    p, budget = experiment.precision, experiment.budget
+    assert p is not None and budget is not None
+    n0 = budget.replicates
+    have = _cell_counts(runs)
+    first = {cell: min(n, n0) for cell, n in have.items()}
     missing = [v for v in values if not precision.reached(v, p.rel_se)]
-    if not missing:
-        return "reached", []
-    worst = max(missing, key=lambda v: v.rel_se if v.rel_se == v.rel_se else float("inf"))
-    print(
-        f"precision: {len(missing)} of {len(values)} headline values above rel. SE {p.rel_se:g} "
-        f"(worst: {worst.name}, {worst.rel_se:.3g})",
-        file=out,
-    )
-    counts = _cell_counts(runs)
-    order = precision.allocate(values, counts, p)
-    if not order:
-        return "max_replicates", []
+    if missing:
+        worst = max(missing, key=lambda v: v.rel_se if v.rel_se == v.rel_se else float("inf"))
+        print(
+            f"precision: first stage ({n0} replicates): {len(missing)} of {len(values)} headline values above "
+            f"rel. SE {p.rel_se:g} (worst: {worst.name}, {worst.rel_se:.3g})",
+            file=out,
+        )
+    order = precision.allocate(values, first, p, precision.variance_safety(n0), precision.MIN_FINAL_REPLICATES)
+    seen, todo = dict(first), []
+    for cell in order:
+        seen[cell] += 1
+        if seen[cell] > have.get(cell, 0):
+            todo.append(cell)
+    if not todo:
+        return [], False
+    cut = False
     if p.max_time_s:
         walls = [
             float(w)
@@ -290,20 +298,34 @@ def _precision_round(
             if isinstance(w := ((manifests.get(r.key) or {}).get("timings") or {}).get("wall_s"), (int, float))
         ]
         # x 1.5: a run's metrics and the harness's own work come on top of its render
-        per_run = 1.5 * (statistics.fmean(walls) if walls else experiment.budget.time_s)
-        parallel = plan_jobs(experiment.budget.threads, options.jobs)
+        per_run = 1.5 * (statistics.fmean(walls) if walls else budget.time_s)
+        parallel = plan_jobs(budget.threads, options.jobs)
         left = p.max_time_s - (time.monotonic() - started)
-        fit = int(left * parallel / max(per_run, 1e-3))
-        if fit <= 0:
-            return "max_time_s", []
-        order = order[:fit]
-    added = more_replicates(experiment, runs, options.renderer_version, None, _counts_after(counts, order))
+        fit = max(int(left * parallel / max(per_run, 1e-3)), 0)
+        cut, todo = fit < len(todo), todo[:fit]
+        if not todo:
+            return [], cut
+    added = more_replicates(experiment, runs, options.renderer_version, None, _counts_after(have, todo))
     by = _cell_counts(added)
     print(
         "precision: adding " + ", ".join(f"{n} x {strategy} at {point}" for (point, strategy), n in sorted(by.items())),
         file=out,
     )
-    return "", added
+    return added, cut
+
+
+def _stopped(values: list[precision.Value], counts: dict[precision.Cell, int], p: Precision, cut: bool) -> str:
+    """Why the sweep ended where it did: "reached" (every value), else "max_time_s" (the
+    second stage was cut), "max_replicates" (a value short of it has a cell at the cap),
+    or "second_stage" (the first stage underestimated a variance; no third stage)."""
+    short = [v for v in values if not precision.reached(v, p.rel_se)]
+    if not short:
+        return "reached"
+    if cut:
+        return "max_time_s"
+    if any(counts.get(c, 0) >= p.max_replicates for v in short for c, _ in v.terms):
+        return "max_replicates"
+    return "second_stage"
 
 
 def _counts_after(counts: dict[precision.Cell, int], order: list[precision.Cell]) -> dict[precision.Cell, int]:

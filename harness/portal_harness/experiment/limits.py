@@ -4,7 +4,8 @@ is planned: so a submission of a billion replicates is refused in
 microseconds, with the limit it breaks and its value.
 
 - points: the sweep's cross product;
-- runs: points x strategies x replicates;
+- runs: points x strategies x replicates (with `precision:`, its
+  max_replicates: the most the sweep may run; the time and bytes too);
 - total_time_s: the budgeted render time of the runs, the references
   (their extension included) and the pilots;
 - snapshots: per run, counted from the snapshot schedule over the run's
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 
 from portal_harness.core.errors import ConfigError
 from portal_harness.experiment import contract, facets
-from portal_harness.experiment.model import Budget, ReferenceSettings
+from portal_harness.experiment.model import Budget, Precision, ReferenceSettings
 from portal_harness.experiment.schema import Reader
 
 # Pixel samples per second of one render: above what any render here reaches
@@ -174,9 +175,9 @@ _WHERE = {
 }
 
 
-def check(work: Work, limits: Limits, r: Reader) -> None:
+def check(work: Work, limits: Limits, r: Reader, where: dict[str, tuple[str, str]] | None = None) -> None:
     """LimitError for the first limit the work breaks (points first: the
-    other counts multiply them)."""
+    other counts multiply them); `where` replaces some limits' keys."""
     for limit, value in (
         ("max_pixels", float(work.pixels)),
         ("max_points", float(work.points)),
@@ -187,7 +188,7 @@ def check(work: Work, limits: Limits, r: Reader) -> None:
     ):
         maximum = float(getattr(limits, limit))
         if value > maximum:
-            key, what = _WHERE[limit]
+            key, what = {**_WHERE, **(where or {})}[limit]
             line = r.line_of(key)
             raise LimitError(r.file, key, limit, value, maximum, what, *(line if line else (None, None)))
 
@@ -211,9 +212,12 @@ def limit_work(
     budget: Budget,
     reference: ReferenceSettings,
     pixels: int,
+    precision: Precision | None = None,
 ) -> None:
     """Counts an experiment's work from its parsed sections (no point asked
-    of the renderer, no run planned) and checks it against the limits."""
+    of the renderer, no run planned) and checks it against the limits. With
+    `precision`, every (point, strategy) is counted at the replicates the
+    sweep may reach, precision.max_replicates, not the first stage's."""
     points = check_points(r, limits, sweep)
     cap = max(limits.max_points, 1)
     ref_points = capped_product([len(v) for k, v in sweep if not facets.shares_reference(k)], cap)
@@ -225,7 +229,7 @@ def limit_work(
         points=points,
         reference_points=ref_points,
         strategies=len(strategies),
-        replicates=budget.replicates,
+        replicates=precision.max_replicates if precision is not None else budget.replicates,
         run_time_s=run_time_bound_s(budget.time_s, budget.spp, pixels),
         snapshots=snapshot_count(budget.snapshots, units, budget.time_s, budget.spp, pixels),
         reference_time_s=parts * ref_time + pilots,
@@ -233,4 +237,5 @@ def limit_work(
         pixels=pixels,
         channels=len(names.exr_channels),
     )
-    check(work, limits, r)
+    runs_key = ("precision.max_replicates", "runs (points x strategies x precision.max_replicates)")
+    check(work, limits, r, {"max_runs": runs_key} if precision is not None else None)

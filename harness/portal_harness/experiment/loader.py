@@ -221,7 +221,7 @@ def load_experiment(
         )
 
     if limits is not None and budget is not None:
-        limit_work(r, limits, names, tuple(sweep), strategies, budget, reference, width * height)
+        limit_work(r, limits, names, tuple(sweep), strategies, budget, reference, width * height, precision)
     elif limits is not None:
         check_points(r, limits, tuple(sweep))
     points = read_points(r, renderer, scene, tuple(sweep), fixed_overrides, axis, facet_keys)

@@ -71,3 +71,22 @@ def test_03_snapshot_counts_follow_the_schedule() -> None:
 @pytest.mark.parametrize("path", sorted((REPO / "configs" / "experiments").glob("*.yaml")), ids=lambda p: p.stem)
 def test_04_every_experiment_of_the_repository_is_within_the_defaults(path: Path, real_renderer: Path) -> None:
     load_experiment(path, str(real_renderer), limits=Limits())
+
+
+def test_05_precision_is_counted_at_its_max_replicates(
+    write_experiment: Callable[..., Path], fake_renderer: Path
+) -> None:
+    # 2 points x 2 strategies x 3 replicates = 12 runs; precision may run 2 x 2 x 40 = 160
+    budget = {**BUDGET, "replicates": 3}
+    plain = write_experiment("plain", budget=budget)
+    load_experiment(plain, str(fake_renderer), limits=Limits(max_runs=100))
+    path = write_experiment("precise", budget=budget, precision={"rel_se": 0.05, "of": ["lit"], "max_replicates": 40})
+    with pytest.raises(LimitError, match="max_runs") as e:
+        load_experiment(path, str(fake_renderer), limits=Limits(max_runs=100))
+    assert e.value.value == 160 and e.value.key == "precision.max_replicates" and e.value.line is not None
+    assert "precision.max_replicates" in str(e.value)
+    load_experiment(path, str(fake_renderer), limits=Limits(max_runs=160))
+    # the time budget counts them too: 160 runs of at most 0.2 s, plus the references
+    with pytest.raises(LimitError, match="max_total_time_s"):
+        load_experiment(path, str(fake_renderer), limits=Limits(max_total_time_s=160 * 0.2))
+    load_experiment(plain, str(fake_renderer), limits=Limits(max_total_time_s=160 * 0.2))
