@@ -86,6 +86,7 @@ def test_01_a_submitted_experiment_runs_to_done_with_events_images_summary_figur
     image = client.get(f"{viewer}/img/0.js")
     assert image.status_code == 200 and "PORTAL_IMAGE(0" in image.text
     assert client.get(f"{viewer}/..%2F..%2F..%2Findex.sqlite").status_code == 404
+    assert client.get(f"{viewer}/%00").status_code == 404  # was a 500 (issue 42)
     assert client.get("/viewer/viewer.html").status_code == 200
 
 
