@@ -24,6 +24,7 @@ COMMANDS = (
     "import-mitsuba",
     "report",
     "serve",
+    "results-page",
 )
 
 
