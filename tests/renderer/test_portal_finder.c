@@ -654,6 +654,46 @@ static void test_tessellated_shade(void)
     check_shade("tessellated bottom", shapes, light, (6.0 / 14) * (6.0 / 14), -1);
 }
 
+/* The edge test of open_region (portal_finder.c): a tessellated bottom
+   with two holes far apart (one of them a single missing triangle), a
+   duplicated triangle and a triangle wound the other way. The duplicate
+   leaves its edges unbalanced, so they count as free and widen the region
+   that is subtracted exactly; the holes must come out whole. */
+static void test_edge_test_holes(void)
+{
+    static char shapes[1 << 16];
+    int n = snprintf(shapes, sizeof shapes,
+                     "  - {type: mesh, material: grey,\n"
+                     "     vertices: [[-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5],\n"
+                     "                [-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 0, 0.5], [-0.5, 0, 0.5]],\n"
+                     "     quads: [[0, 3, 2, 1], [4, 5, 1, 0], [5, 6, 2, 1], [6, 7, 3, 2], [7, 4, 0, 3]]}\n"
+                     "  - {type: mesh, material: grey, vertices: [");
+    const int g = 10;
+    for (int i = 0; i <= g; ++i)
+        for (int j = 0; j <= g; ++j)
+            n += snprintf(shapes + n, sizeof shapes - (size_t)n, "%s[%.17g, 0, %.17g]", i || j ? ", " : "",
+                          -0.5 + (double)i / g, -0.5 + (double)j / g);
+    n += snprintf(shapes + n, sizeof shapes - (size_t)n, "],\n     triangles: [");
+    bool first = true;
+    for (int i = 0; i < g; ++i)
+        for (int j = 0; j < g; ++j) {
+            if (i >= 1 && i < 3 && j >= 1 && j < 4) continue; /* a 2 x 3 hole */
+            int a = i * (g + 1) + j, b = a + g + 1;
+            bool drop_second = i == 7 && j == 6; /* a one-triangle hole */
+            bool flip = i == 5 && j == 2, dup = i == 4 && j == 8;
+            n += snprintf(shapes + n, sizeof shapes - (size_t)n, "%s[%d, %d, %d]", first ? "" : ", ", a, flip ? b + 1 : b,
+                          flip ? b : b + 1);
+            if (dup) n += snprintf(shapes + n, sizeof shapes - (size_t)n, ", [%d, %d, %d]", a, b, b + 1);
+            if (!drop_second) n += snprintf(shapes + n, sizeof shapes - (size_t)n, ", [%d, %d, %d]", a, b + 1, a + 1);
+            first = false;
+        }
+    snprintf(shapes + n, sizeof shapes - (size_t)n, "]}\n");
+    const char *light =
+        "  - {name: bulb, vertices: [[-0.2, 0.9, -0.2], [0.2, 0.9, -0.2], [0.2, 0.9, 0.2], [-0.2, 0.9, 0.2]],"
+        " radiance: [1, 1, 1], two_sided: true}\n";
+    check_shade("edge test, two holes", shapes, light, 0.2 * 0.3 + 0.5 * 0.1 * 0.1, -1);
+}
+
 static void test_fallbacks(void)
 {
     const char *welded = "  - {type: mesh, material: grey,\n"
@@ -794,6 +834,7 @@ static const struct test_case tests[] = {
     { "rendered_multi_lamp", test_rendered_multi_lamp },
     { "robust_meshing", test_robust_meshing },
     { "tessellated_shade", test_tessellated_shade },
+    { "edge_test_holes", test_edge_test_holes },
     { "fallbacks", test_fallbacks },
     { "deterministic", test_deterministic },
 };
