@@ -222,7 +222,7 @@ test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 # mypy --strict cover the same files; mitsuba is not installed in this venv
 # (tools/crosscheck runs in .venv-xcheck), so mypy takes its imports as missing.
 # A Python file that git tracks outside these folders fails the target.
-PY_LINT := harness tests/harness tests/support tests/bench tests/tools tests/docs tests/crosscheck tools/closed_form tools/crosscheck tools/little_lamp tools/sobol tools/white_room renderer/bench tests/configs/meshes \
+PY_LINT := harness tests/harness tests/support tests/bench tests/tools tests/docs tests/crosscheck tools/closed_form tools/crosscheck tools/held_out tools/little_lamp tools/sobol tools/white_room renderer/bench tests/configs/meshes \
            tools/service_load
 PY_MYPY := harness/portal_harness $(filter-out harness,$(PY_LINT))
 SPACE := $(eval) $(eval)
