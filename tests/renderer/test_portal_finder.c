@@ -681,8 +681,8 @@ static void test_edge_test_holes(void)
             int a = i * (g + 1) + j, b = a + g + 1;
             bool drop_second = i == 7 && j == 6; /* a one-triangle hole */
             bool flip = i == 5 && j == 2, dup = i == 4 && j == 8;
-            n += snprintf(shapes + n, sizeof shapes - (size_t)n, "%s[%d, %d, %d]", first ? "" : ", ", a, flip ? b + 1 : b,
-                          flip ? b : b + 1);
+            n += snprintf(shapes + n, sizeof shapes - (size_t)n, "%s[%d, %d, %d]", first ? "" : ", ", a,
+                          flip ? b + 1 : b, flip ? b : b + 1);
             if (dup) n += snprintf(shapes + n, sizeof shapes - (size_t)n, ", [%d, %d, %d]", a, b, b + 1);
             if (!drop_second) n += snprintf(shapes + n, sizeof shapes - (size_t)n, ", [%d, %d, %d]", a, b + 1, a + 1);
             first = false;
@@ -692,6 +692,111 @@ static void test_edge_test_holes(void)
         "  - {name: bulb, vertices: [[-0.2, 0.9, -0.2], [0.2, 0.9, -0.2], [0.2, 0.9, 0.2], [-0.2, 0.9, 0.2]],"
         " radiance: [1, 1, 1], two_sided: true}\n";
     check_shade("edge test, two holes", shapes, light, 0.2 * 0.3 + 0.5 * 0.1 * 0.1, -1);
+}
+
+/* A drum shade (open at both ends) of n_seg segments, radius r, from
+   y = 0 to 1: an outer wall whose middle ring has a waist (inward by 2 to
+   3 mm, alternately, so its quads are not planar), and, when `inner`, an
+   inner wall 1 cm inside joined to it by flat rims. The hull's side
+   facets then have no triangle in them: only the layer rule
+   (layer_covers) can close them. `skip` >= 0 leaves out the outer wall's
+   segment skip (both rings), a real hole when there is no inner wall. */
+static int drum_shape(char *out, size_t size, int n_seg, double r, bool inner, int skip)
+{
+    int n = snprintf(out, size, "  - {type: mesh, material: grey, vertices: [");
+    int walls = inner ? 2 : 1;
+    for (int w = 0; w < walls; ++w)
+        for (int ring = 0; ring < 3; ++ring)
+            for (int k = 0; k < n_seg; ++k) {
+                double a = 2.0 * M_PI * k / n_seg;
+                double rr = w ? r - 0.01 : ring == 1 ? r - 0.002 - 0.001 * (k % 2) : r;
+                n += snprintf(out + n, size - (size_t)n, "%s[%.17g, %.17g, %.17g]", w || ring || k ? ", " : "",
+                              rr * cos(a), 0.5 * ring, rr * sin(a));
+            }
+    n += snprintf(out + n, size - (size_t)n, "],\n     triangles: [");
+    bool first = true;
+#define DRUM_V(w, ring, k) ((w)*3 * n_seg + (ring)*n_seg + ((k) % n_seg))
+#define DRUM_QUAD(a, b, c, d)                                                                                          \
+    do {                                                                                                               \
+        n += snprintf(out + n, size - (size_t)n, "%s[%d, %d, %d], [%d, %d, %d]", first ? "" : ", ", a, b, c, a, c, d); \
+        first = false;                                                                                                 \
+    } while (0)
+    for (int w = 0; w < walls; ++w)
+        for (int ring = 0; ring < 2; ++ring)
+            for (int k = 0; k < n_seg; ++k) {
+                if (w == 0 && k == skip) continue;
+                DRUM_QUAD(DRUM_V(w, ring, k), DRUM_V(w, ring, k + 1), DRUM_V(w, ring + 1, k + 1),
+                          DRUM_V(w, ring + 1, k));
+            }
+    for (int k = 0; inner && k < n_seg; ++k) {
+        DRUM_QUAD(DRUM_V(0, 0, k), DRUM_V(0, 0, k + 1), DRUM_V(1, 0, k + 1), DRUM_V(1, 0, k));
+        DRUM_QUAD(DRUM_V(0, 2, k), DRUM_V(0, 2, k + 1), DRUM_V(1, 2, k + 1), DRUM_V(1, 2, k));
+    }
+#undef DRUM_QUAD
+#undef DRUM_V
+    n += snprintf(out + n, size - (size_t)n, "]}\n");
+    return n;
+}
+
+/* The layer rule on drum shades, each checked for completeness from the
+   light side (at least 3e5 escaping rays) and the receiver side. */
+static void test_drum_layers(void)
+{
+    static char shapes[1 << 16];
+    const int n_seg = 24;
+    const double r = 0.5, ngon = 0.5 * n_seg * sin(2.0 * M_PI / n_seg);
+    const char *light = "  - {name: bulb, vertices: [[-0.05, 0.5, -0.05], [0.05, 0.5, -0.05], [0.05, 0.5, 0.05],"
+                        " [-0.05, 0.5, 0.05]], radiance: [1, 1, 1], two_sided: true}\n";
+    static char text[1 << 17];
+    for (int variant = 0; variant < 2; ++variant) {
+        /* 0: inner and outer wall, rims: the two openings and nothing else.
+           1: one wall with a segment missing (negative control of the
+           watertight condition): that segment's facet stays a portal. */
+        drum_shape(shapes, sizeof shapes, n_seg, r, variant == 0, variant == 0 ? -1 : 5);
+        snprintf(text, sizeof text, "%sshapes:\n%s%slights:\n%sportals: auto\n", shade_scene_head, floor_shape, shapes,
+                 light);
+        struct config cfg;
+        struct scene sc;
+        if (!build_text(text, &cfg, &sc)) {
+            CHECK_MSG(false, "drum variant %d", variant);
+            continue;
+        }
+        const struct auto_portal_report *rep = &sc.auto_portals[0];
+        struct polygon ports[64];
+        int n = portals_of(&sc, 0, ports, 64);
+        CHECK_MSG(rep->enclosed, "drum %d: %s", variant, rep->note);
+        double caps = variant == 0 ? 2.0 * ngon * (r - 0.01) * (r - 0.01) : 2.0 * ngon * r * r;
+        double hole = variant == 0 ? 0.0 : 2.0 * r * sin(M_PI / n_seg); /* the missing segment's facet */
+        if (variant == 0) {
+            CHECK_MSG(n == 2 && fabs(rep->area - caps) <= 1e-9, "drum 0: %d portals, area %.9g (caps %.9g)", n,
+                      rep->area, caps);
+        } else {
+            CHECK_MSG(rep->area >= caps + hole - 1e-9, "drum 1: area %.9g < caps and hole %.9g", rep->area,
+                      caps + hole);
+            /* The missing segment's middle, seen from the light, is on a portal. */
+            double a = 2.0 * M_PI * 5.5 / n_seg;
+            struct vec3 o = vec3_make(0.0, 0.5, 0.0), d = vec3_make(cos(a), 0.0, sin(a));
+            bool on = false;
+            for (int k = 0; k < n && !on; ++k) {
+                double t;
+                on = polygon_intersect_ray(&ports[k], o, d, &t);
+            }
+            CHECK_MSG(on, "drum 1: the missing segment is on no portal");
+        }
+        if (rep->enclosed) {
+            struct portal_coverage c = light_side(&sc, 0, ports, n, 300000, 1L << 22, 71);
+            long n_open, missed = receiver_side(&sc, 0, ports, n, 20000, 73, &n_open);
+            printf("  drum %d: %d portal(s), area %.6g, light side %ld/%ld escaped, missed %ld, bound %.3g, blocked "
+                   "%.4f; receiver side %ld open segments, missed %ld\n",
+                   variant, n, rep->area, c.n_escaped, c.n_rays, c.n_missed, c.bound, c.blocked_fraction, n_open,
+                   missed);
+            CHECK_MSG(c.n_escaped >= 300000 && c.n_missed == 0 && missed == 0,
+                      "drum %d: %ld escaped, missed %ld (light side), %ld (receiver side)", variant, c.n_escaped,
+                      c.n_missed, missed);
+        }
+        scene_destroy(&sc);
+        config_free(&cfg);
+    }
 }
 
 static void test_fallbacks(void)
@@ -835,6 +940,7 @@ static const struct test_case tests[] = {
     { "robust_meshing", test_robust_meshing },
     { "tessellated_shade", test_tessellated_shade },
     { "edge_test_holes", test_edge_test_holes },
+    { "drum_layers", test_drum_layers },
     { "fallbacks", test_fallbacks },
     { "deterministic", test_deterministic },
 };

@@ -4,9 +4,11 @@
 
    The construction is complete by design. P is the convex hull of the
    shapes around the light (the shapes that rays from the light meet first,
-   nearest first, until their hull holds the light strictly inside); every
-   part of P's boundary that no opaque surface lying in it covers becomes a
-   portal. A segment from a point of the light (inside P) to a point
+   nearest first, until their hull holds the light strictly inside, then
+   without any of them whose removal leaves less open area); every part of
+   P's boundary that no opaque surface lying in it covers becomes a
+   portal, except whole facets that a layer of surface just under them
+   provably closes (layer_covers in portal_finder.c). A segment from a point of the light (inside P) to a point
    outside P crosses P's boundary exactly once; if nothing blocks it, it
    crosses where no surface lies, which is on a portal. That holds for any
    convex P that strictly contains the light: the choice of shapes only
