@@ -240,7 +240,8 @@ test: lint-c test-c test-c-san test-py lint-py
 # The experiments `make figures` runs, in order: the ratio sweep, its
 # variants (both samplers: after it, as they share its references; path
 # tracing), the third-party Little Lamp, then the scenes of several lamps
-# (the weights share multi_lamp's direct reference). NAME.yaml is the small
+# (the weights share multi_lamp's direct reference), the same scenes with
+# automatic portals, and the White Room at night. NAME.yaml is the small
 # default, NAME_full.yaml the paper-quality version (FULL=1).
 # Two passes: a later sweep may extend a reference an earlier one shares
 # (the samplers' runs ask more of the ratio sweep's), so every sweep is
@@ -248,7 +249,8 @@ test: lint-c test-c test-c-san test-py lint-py
 # EXPERIMENTS=NAME... runs only those (e.g. one FULL experiment at a time:
 # make figures FULL=1 EXPERIMENTS=lampshade_ratio), in the order given.
 FIGURE_EXPERIMENTS := lampshade_ratio lampshade_ratio_samplers lampshade_ratio_path little_lamp multi_lamp \
-                      multi_lamp_weights
+                      multi_lamp_weights auto_portals auto_portals_multi_lamp auto_portals_little_lamp \
+                      white_room_night
 EXPERIMENTS ?= $(FIGURE_EXPERIMENTS)
 FIGURE_FILE = configs/experiments/$${e}$(if $(FULL),_full,).yaml
 figures: $(BUILD)/render $(VENV_STAMP)
