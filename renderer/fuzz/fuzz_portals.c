@@ -21,7 +21,7 @@
 
 #include "base/rng.h"
 #include "config/config.h"
-#include "scene/portal_finder.h"
+#include "scene/portal_coverage.h"
 #include "scene/scene.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

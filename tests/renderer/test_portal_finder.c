@@ -14,7 +14,7 @@
 #include "geometry/polygon_subtract.h"
 #include "sampling/integrator.h"
 #include "sampling/strategy.h"
-#include "scene/portal_finder.h"
+#include "scene/portal_coverage.h"
 #include "scene/scene.h"
 #include "scene_util.h"
 #include "direct_estimate.h"
@@ -621,7 +621,7 @@ static void test_tessellated_shade(void)
     check_shade("tessellated bottom", shapes, light, (6.0 / 14) * (6.0 / 14), -1);
 }
 
-/* The edge test of open_region (portal_finder.c): a tessellated bottom
+/* The edge test of open_region (geometry/facet_cover.c): a tessellated bottom
    with two holes far apart (one of them a single missing triangle), a
    duplicated triangle and a triangle wound the other way. The duplicate
    leaves its edges unbalanced, so they count as free and widen the region

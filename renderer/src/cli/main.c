@@ -15,7 +15,7 @@
 #include "config/print_config.h"
 #include "render/render.h"
 #include "render/resume.h"
-#include "scene/portal_finder.h"
+#include "scene/portal_report.h"
 #include "scene/scene.h"
 #include "base/version.h"
 
@@ -138,7 +138,7 @@ static int render_and_report(const struct config *cfg, const struct scene *scene
 }
 
 /* render --print-config: the config, and what `portals: auto` found
-   (portal_finder.h: YAML comments after the config, or the JSON member
+   (portal_report.h: YAML comments after the config, or the JSON member
    "auto_portals"), both made in memory before anything is written. */
 static bool print_config_and_portals(const struct config *cfg, const struct scene *scene,
                                      enum print_config_format format, struct error *err)
