@@ -37,8 +37,8 @@ bool polygon_list_push(struct polygon_list *ps, const struct polygon *p);
    tris[0..n_tris) lying in its plane (within FACET_COVER_REL), appended to
    *out as convex pieces of at most POLYGON_INPUT_MAX corners. False only
    on memory. */
-bool facet_uncovered_part(const struct convex_hull *h, const struct vec3 *points, int fi,
-                          const struct vec3 (*tris)[3], int n_tris, struct polygon_list *out);
+bool facet_uncovered_part(const struct convex_hull *h, const struct vec3 *points, int fi, const struct vec3 (*tris)[3],
+                          int n_tris, struct polygon_list *out);
 
 /* Whether the surfaces of tris[0..n_tris) just under facet fi of h cover
    it: no unblocked segment from a point of the convex hull of

@@ -44,7 +44,8 @@ static bool summary_coverage(const struct scene *s, int i, long n_rays, struct p
     struct polygon *copy = malloc(sizeof *copy * (size_t)(n > 0 ? n : 1));
     if (!copy) return error_set(err, "out of memory");
     for (int k = 0; k < n; ++k) polygon_copy(&copy[k], &s->portals[l->first_portal + k].target.polygon);
-    bool ok = portal_finder_coverage(s, i, rep->planes, rep->n_planes, copy, n, n_rays, PORTAL_FINDER_SEED + 1, cov, err);
+    bool ok =
+        portal_finder_coverage(s, i, rep->planes, rep->n_planes, copy, n, n_rays, PORTAL_FINDER_SEED + 1, cov, err);
     free(copy);
     return ok;
 }
