@@ -55,7 +55,8 @@ static void put(struct text *t, const char *fmt, ...)
     for (int tries = 0; tries < 2 && !t->failed; ++tries) {
         va_list ap;
         va_start(ap, fmt);
-        int m = vsnprintf(t->s + t->n, t->cap - t->n, fmt, ap);
+        /* No buffer yet: ask for the length only (NULL + 0 is undefined). */
+        int m = vsnprintf(t->s ? t->s + t->n : NULL, t->cap - t->n, fmt, ap);
         va_end(ap);
         if (m < 0) break;
         if ((size_t)m < t->cap - t->n) {

@@ -68,7 +68,8 @@ bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, 
     struct vec3 *gp = malloc(sizeof *gp * (size_t)n_g_cap);
     int *gi = malloc(sizeof *gi * (size_t)n_g_cap);
     struct vec3 *ln = malloc(sizeof *ln * (size_t)n_g_cap);
-    struct cover_edge *e = malloc(sizeof *e * (size_t)(3 * n_tris + 1));
+    /* A triangle cut at depth d keeps up to four corners: four edges each. */
+    struct cover_edge *e = malloc(sizeof *e * (size_t)(4 * n_tris + 1));
     struct layer_poly *sp = malloc(sizeof *sp * (size_t)(n_tris + 1));
     struct vec3 *fl = malloc(sizeof *fl * (size_t)nf); /* the facet's inward 2-D edge lines */
     bool fl_ok = fl != NULL;
