@@ -38,8 +38,14 @@ def test_01_a_second_server_on_the_same_store_refuses_and_changes_nothing(
             assert time.monotonic() < deadline, "the sweep never started"
             time.sleep(0.05)
         index_rows = len(first.get("/api/experiments"))
-        with sqlite3.connect(results / "index.sqlite") as conn:
-            worker = conn.execute("SELECT pid FROM service_experiments WHERE id = ?", (experiment_id,)).fetchone()[0]
+        # `running` is written just before the worker is spawned and its pid just after: wait for both.
+        worker = None
+        while worker is None:
+            assert time.monotonic() < deadline, "the worker's pid was never recorded"
+            with sqlite3.connect(results / "index.sqlite") as conn:
+                row = conn.execute("SELECT pid FROM service_experiments WHERE id = ?", (experiment_id,)).fetchone()
+            worker = row[0]
+            time.sleep(0.05)
 
         second = Service(results, root, fake_renderer, free_port(), token=None)
         started = time.monotonic()
