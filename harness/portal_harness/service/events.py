@@ -25,7 +25,7 @@ import anyio
 
 from portal_harness.service import queue as q
 from portal_harness.service.progress import head
-from portal_harness.service.views import Views, stamp
+from portal_harness.service.views import Views
 
 KEEPALIVE_S = 15.0
 # Progress events of a stream at most this often (50 clients of 2 renders at 4 Hz made 600 events/s).
@@ -113,8 +113,8 @@ async def _opening(views: Views, experiment_id: str) -> dict[str, Any] | None:
     row = views.queue.get(experiment_id)
     if row is None:
         return None
-    cached = views.cached(experiment_id)
-    if cached is None or cached.stamp != stamp(row):
+    cached = views.servable(row)
+    if cached is None:
         cached = await anyio.to_thread.run_sync(views.current, row)
     return {**cached.view, **head(row, cached.view["progress"])}
 

@@ -205,14 +205,17 @@ class ViewBuilder:
                 }
             )
         planned = [r for r in runs if r["role"] == ROLE_RUN]
-        progress = 1.0 if status == q.DONE else (sum(r["progress"] for r in planned) / len(planned) if planned else 0.0)
-        if status in (q.QUEUED, q.RUNNING):
-            # Every run done, the sweep may still measure and draw: never 100% before it is done.
-            progress = min(progress, UNFINISHED_MAX)
+        progress = sum(r["progress"] for r in planned) / len(planned) if planned else 0.0
         return {**head(row, progress), "runs": runs}
 
 
 def head(row: dict[str, Any], progress: float) -> dict[str, Any]:
+    """The row's status, times and error (always current) with `progress`, which may come from an older
+    view: 1 once done, and never 100% before (every run done, the sweep may still measure and draw)."""
+    if row["status"] == q.DONE:
+        progress = 1.0
+    elif row["status"] in (q.QUEUED, q.RUNNING):
+        progress = min(progress, UNFINISHED_MAX)
     return {
         "id": row["id"],
         "name": row["name"],

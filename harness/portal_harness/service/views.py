@@ -94,16 +94,29 @@ class Views:
             return found
         return self._rebuild(row)
 
-    def status(self, row: dict[str, Any]) -> dict[str, Any]:
-        """The status read: head of the row, progress and counts from the cache."""
-        c = self.current(row)
+    def status(self, row: dict[str, Any], c: Cached | None = None) -> dict[str, Any]:
+        """The status read: head of the row, progress and counts from the cache `c` (by default current)."""
+        c = c if c is not None else self.current(row)
         return {**head(row, c.view["progress"]), "run_count": c.runs, "renders": c.counts}
 
-    def detail_of(self, row: dict[str, Any]) -> bytes:
+    def detail_of(self, row: dict[str, Any], c: Cached | None = None) -> bytes:
         """The detail view of the row's experiment (its status and every render), as JSON."""
-        c = self.current(row)
+        c = c if c is not None else self.current(row)
         first = json.dumps(head(row, c.view["progress"]), separators=(",", ":")).encode()
         return first[:-1] + b',"runs":' + c.runs_json + b"}"
+
+    def servable(self, row: dict[str, Any]) -> Cached | None:
+        """A cache a read may answer `row` with at once, without I/O: the current one, or, while the
+        experiment is queued or running, the last one (its status and times come from the row, always
+        current; its progress and renders are at most one refresher period late, and the refresher is
+        told to catch up). None when a build is due: nothing cached, or the experiment finished since."""
+        experiment_id = str(row["id"])
+        with self._lock:
+            found = self._cache.get(experiment_id)
+            if found is not None and found.stamp != stamp(row) and row["status"] not in q.FINISHED:
+                self._watched[experiment_id] = time.monotonic()
+                return found
+        return found if found is not None and found.stamp == stamp(row) else None
 
     def get(self, experiment_id: str, fresh: bool = False) -> dict[str, Any] | None:
         """The whole view (a dict), rebuilt if `fresh`; None if there is no such experiment."""

@@ -144,6 +144,17 @@ def _failure_reason(layout: ResultsLayout, name: str) -> str:
     return f"{len(lines)} failed: " + "; ".join(lines[:5]) + (" ..." if len(lines) > 5 else "")
 
 
+def be_nicer(steps: int) -> None:
+    """Raises this process's niceness and, on Linux with autogroups, its session's: the dispatcher starts
+    the worker in a session of its own (so that a cancel kills its whole group), and the scheduler then
+    weighs that session's group against the API's group as equals whatever the processes' nice values;
+    the group's own nice is what yields the cores to the API (without it, 50 clients' reads stalled
+    0.5-0.8 s in bursts behind the renders; tools/service_load, docs/service.md)."""
+    os.nice(steps)
+    with contextlib.suppress(OSError):  # no autogroups (another kernel, or CONFIG_SCHED_AUTOGROUP off)
+        Path("/proc/self/autogroup").write_text(f"{steps}\n")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m portal_harness.service.worker")
     p.add_argument("--id", required=True)
@@ -158,7 +169,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     _die_with(args.parent)
     if args.nice:
-        os.nice(args.nice)
+        be_nicer(args.nice)
     try:
         return run(
             args.id, args.results, args.renderer, args.scheduler, args.jobs, not args.no_figures, tuple(args.roots)

@@ -7,6 +7,7 @@ report` reads an experiment the service stored."""
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 from collections.abc import Callable
 from pathlib import Path
@@ -85,6 +86,21 @@ def test_01_a_status_read_does_constant_work_whatever_the_runs(
     del statements[:], builds[:]
     listed = client.get("/api/experiments").json()
     assert {e["id"] for e in listed} == {"many-10", "many-2000"} and len(statements) == 1 and builds == []
+    # A running experiment whose row changed is answered at once from its last view (status and times from
+    # the row, renders caught up by the refresher): 50 clients reading it at the change wait for no build.
+    with sqlite3.connect(results / "index.sqlite") as conn:
+        conn.execute("UPDATE service_experiments SET status = 'running', started = 1 WHERE id = 'many-10'")
+    del statements[:], builds[:]
+    for _ in range(5):
+        read = client.get("/api/experiments/many-10?runs=false").json()
+        assert read["status"] == "running" and read["progress"] < 1
+    assert (len(statements), len(builds)) == (5, 0)
+    # A finished one is built once at its first read, so that its final view is never stale.
+    with sqlite3.connect(results / "index.sqlite") as conn:
+        conn.execute("UPDATE service_experiments SET status = 'failed', finished = 2 WHERE id = 'many-10'")
+    for _ in range(5):
+        assert client.get("/api/experiments/many-10?runs=false").json()["status"] == "failed"
+    assert builds == ["many-10"]
     # A stream opens with a summary, not 2000 render events.
     assert client.delete("/api/experiments/many-2000", headers=AUTH).json()["status"] == "cancelled"
     events = events_of(client, "many-2000")
@@ -122,3 +138,22 @@ def test_02_progress_report_and_summary_of_a_served_experiment(
         out = tmp_path / f"report{i}"
         assert main(["report", target, "--out", str(out), *common]) == 0
         assert (out / "viewer.html").is_file()
+
+
+@pytest.mark.skipif(not Path("/proc/self/autogroup").exists(), reason="no scheduler autogroups on this kernel")
+def test_03_a_nicer_worker_yields_its_whole_session_to_the_api() -> None:
+    """The worker runs in a session of its own; with autogroups, its processes' nice alone does not yield
+    the cores to the API's session (the groups weigh as equals), so the worker also nices its group."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import os; from portal_harness.service.worker import be_nicer; be_nicer(7); "
+        "print(os.nice(0)); print(open('/proc/self/autogroup').read().split()[-1])"
+    )
+    # A new session, as the dispatcher starts a worker: never the test runner's own group.
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, start_new_session=True
+    )
+    own_nice = os.nice(0)
+    assert done.stdout.split() == [str(min(own_nice + 7, 19)), "7"], done.stdout
