@@ -11,6 +11,7 @@
 
 #include "config/config.h"
 #include "geometry/convex_hull.h"
+#include "geometry/mesh_components.h"
 #include "geometry/polygon_subtract.h"
 #include "sampling/integrator.h"
 #include "sampling/strategy.h"
@@ -585,6 +586,58 @@ static void test_robust_meshing(void)
     check_shade("one-sided, facing away from the hole", welded, up, 0.0, 0);
 }
 
+/* A lamp modelled as one mesh: the shade of test_robust_meshing and, in
+   the same mesh but not connected to it, a stand beside it (a vertical
+   panel). The hull of the whole mesh reaches out to the stand and leaves
+   the gap between them open; the hull of the shade's piece alone gives
+   the hole, as a shade of its own does. */
+static void test_one_mesh_lamp(void)
+{
+    const char *light =
+        "  - {name: bulb, vertices: [[-0.2, 0.9, -0.2], [0.2, 0.9, -0.2], [0.2, 0.9, 0.2], [-0.2, 0.9, 0.2]],"
+        " radiance: [1, 1, 1], two_sided: true}\n";
+    const char *lamp = "  - {type: mesh, material: grey,\n"
+                       "     vertices: [[-0.5, 0, -0.5], [0.5, 0, -0.5], [0.5, 0, 0.5], [-0.5, 0, 0.5],\n"
+                       "                [-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5],\n"
+                       "                [-0.2, 0, -0.2], [0.2, 0, -0.2], [0.2, 0, 0.2], [-0.2, 0, 0.2],\n"
+                       "                [1.5, -1.5, -0.3], [1.5, -1.5, 0.3], [1.5, 1.2, 0.3], [1.5, 1.2, -0.3]],\n"
+                       "     quads: [[4, 7, 6, 5], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7],\n"
+                       "             [0, 8, 9, 1], [1, 9, 10, 2], [2, 10, 11, 3], [3, 11, 8, 0], [12, 13, 14, 15]]}\n";
+    check_shade("shade and stand in one mesh", lamp, light, 0.16, 1);
+    static char text[1 << 14];
+    snprintf(text, sizeof text, "%sshapes:\n%s%slights:\n%sportals: auto\n", shade_scene_head, floor_shape, lamp,
+             light);
+    struct config cfg;
+    struct scene sc;
+    if (!build_text(text, &cfg, &sc)) {
+        CHECK(false);
+        return;
+    }
+    const char *note = sc.auto_portals[0].note;
+    CHECK_MSG(strstr(note, "1 portal(s) on the hull of 1 connected piece(s) of shapes") != NULL, "%s", note);
+    scene_destroy(&sc);
+    config_free(&cfg);
+}
+
+/* mesh_components: pieces by shared position, not by shared index. */
+static void test_mesh_components(void)
+{
+    /* Two quads sharing an edge by position only (unwelded, as at a UV
+       seam), a triangle apart, and a triangle sharing index 9 with it. */
+    const struct vec3 v[] = { { 0, 0, 0 }, { 1, 0, 0 }, { 1, 1, 0 },   { 0, 1, 0 }, { 1, 0, 0 },
+                              { 2, 0, 0 }, { 2, 1, 0 }, { 1, 1, 0 },   { 5, 5, 5 }, { 6, 5, 5 },
+                              { 5, 6, 5 }, { 7, 7, 7 }, { -0.0, 0, 0 } };
+    const int quads[][4] = { { 0, 1, 2, 3 }, { 4, 5, 6, 7 } };
+    const int tris[][3] = { { 8, 9, 10 }, { 9, 11, 10 }, { 12, 3, 2 } };
+    int label[5];
+    int n = mesh_components(v, 13, quads, 2, tris, 3, label);
+    CHECK_MSG(n == 2, "%d pieces", n);
+    CHECK(label[0] == 0 && label[1] == 0 && label[4] == 0); /* -0 and 0 are one position */
+    CHECK(label[2] == 1 && label[3] == 1);
+    /* Nothing: no faces, no pieces. */
+    CHECK(mesh_components(v, 13, quads, 0, tris, 0, label) == 0);
+}
+
 /* A finely meshed shade: the box's bottom (with its hole) a 14 x 14 grid
    of triangle pairs less the 6 x 6 cells of the hole. The greedy merge of
    the bottom's many open pieces once accepted a 2-D hull that did not
@@ -906,6 +959,8 @@ static const struct test_case tests[] = {
     { "rendered_multi_lamp", test_rendered_multi_lamp },
     { "robust_meshing", test_robust_meshing },
     { "tessellated_shade", test_tessellated_shade },
+    { "one_mesh_lamp", test_one_mesh_lamp },
+    { "mesh_components", test_mesh_components },
     { "edge_test_holes", test_edge_test_holes },
     { "drum_layers", test_drum_layers },
     { "fallbacks", test_fallbacks },

@@ -8,6 +8,7 @@
 #include "config/config.h"
 #include "geometry/convex_hull.h"
 #include "geometry/facet_cover.h"
+#include "geometry/mesh_components.h"
 #include "scene/portal_coverage.h"
 
 /* Light vertices must lie this far inside every facet of P, relative to
@@ -24,64 +25,162 @@ struct finder {
     int n_light_pts;
 };
 
+/* A candidate for the enclosure: a shape, or one connected piece of a
+   shape (geometry/mesh_components.h), with the nearest distance at which
+   the light's rays met it and the vertices of its faces (owned). */
 struct candidate {
     int shape;
+    int piece; /* -1: the whole shape */
     double t_min;
+    struct vec3 *verts;
+    int n_verts;
 };
+
+/* A list of candidates, nearest first; { 0, NULL } is empty. */
+struct candidates {
+    int n;
+    struct candidate *c;
+};
+
+static void candidates_free(struct candidates *cs)
+{
+    for (int i = 0; i < cs->n; ++i) free(cs->c[i].verts);
+    free(cs->c);
+    *cs = (struct candidates){ 0, NULL };
+}
 
 static int compare_candidates(const void *a, const void *b)
 {
     const struct candidate *p = a, *q = b;
     if (p->t_min != q->t_min) return p->t_min < q->t_min ? -1 : 1;
-    return p->shape - q->shape;
+    if (p->shape != q->shape) return p->shape - q->shape;
+    return p->piece - q->piece;
 }
 
-/* The shapes the light's rays meet first, nearest first, without the
-   room-sized ones. Returns the count (into *out, owned), -1 on memory. */
-static int find_candidates(const struct finder *f, struct candidate **out)
+/* Where the light's rays met one shape: the nearest distance overall and
+   per connected piece (label: the piece of each face; computed at the
+   shape's first hit). */
+struct shape_hits {
+    double t_min;
+    int *label;
+    int n_pieces;
+    double *piece_t;
+};
+
+/* Appends the candidate of shape `shape`'s piece `piece` (-1: the whole
+   shape, every vertex) met at t, unless it is room-sized. False on memory. */
+static bool push_candidate(const struct finder *f, struct candidates *cs, int shape, int piece, const int *label,
+                           double t)
+{
+    const struct shape_desc *sh = &f->cfg->shapes[shape];
+    struct vec3 *v = malloc(sizeof *v * (size_t)(sh->n_vertices > 0 ? sh->n_vertices : 1));
+    if (!v) return false;
+    int n = 0;
+    if (piece < 0) {
+        memcpy(v, sh->vertices, sizeof *v * (size_t)sh->n_vertices);
+        n = sh->n_vertices;
+    } else {
+        /* Every vertex of the piece's faces, once (a vertex index belongs
+           to one piece: the faces that share it are connected). */
+        char *taken = calloc((size_t)(sh->n_vertices > 0 ? sh->n_vertices : 1), 1);
+        if (!taken) {
+            free(v);
+            return false;
+        }
+        for (int face = 0; face < sh->n_quads + sh->n_triangles; ++face) {
+            if (label[face] != piece) continue;
+            const int *idx = face < sh->n_quads ? sh->quads[face] : sh->triangles[face - sh->n_quads];
+            for (int k = 0; k < (face < sh->n_quads ? 4 : 3); ++k)
+                if (!taken[idx[k]]) taken[idx[k]] = 1, v[n++] = sh->vertices[idx[k]];
+        }
+        free(taken);
+    }
+    struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
+    for (int i = 0; i < n; ++i) {
+        lo = vec3_make(fmin(lo.x, v[i].x), fmin(lo.y, v[i].y), fmin(lo.z, v[i].z));
+        hi = vec3_make(fmax(hi.x, v[i].x), fmax(hi.y, v[i].y), fmax(hi.z, v[i].z));
+    }
+    if (n == 0 || vec3_length(vec3_sub(hi, lo)) > PORTAL_FINDER_MAX_SHAPE_FRACTION * f->s->scale) {
+        free(v);
+        return true;
+    }
+    struct candidate *grown = realloc(cs->c, sizeof *grown * (size_t)(cs->n + 1));
+    if (!grown) {
+        free(v);
+        return false;
+    }
+    cs->c = grown;
+    cs->c[cs->n++] = (struct candidate){ shape, piece, t, v, n };
+    return true;
+}
+
+/* The candidates the light's rays meet first, nearest first, without the
+   room-sized ones: by shape into *shapes, and by connected piece into
+   *pieces (the same list when no shape met has more than one piece).
+   False on memory or an Embree error. */
+static bool find_candidates(const struct finder *f, struct candidates *shapes, struct candidates *pieces)
 {
     const struct scene *s = f->s;
     const struct config *cfg = f->cfg;
-    double *t_min = malloc(sizeof *t_min * (size_t)(cfg->n_shapes > 0 ? cfg->n_shapes : 1));
+    struct shape_hits *hits = calloc((size_t)(cfg->n_shapes > 0 ? cfg->n_shapes : 1), sizeof *hits);
     struct emission_sampler es;
     struct error err;
-    if (!t_min || !emission_sampler_init(&es, s, f->emitter, &err)) {
-        free(t_min);
-        return -1;
+    if (!hits || !emission_sampler_init(&es, s, f->emitter, &err)) {
+        free(hits);
+        return false;
     }
-    for (int i = 0; i < cfg->n_shapes; ++i) t_min[i] = INFINITY;
+    bool ok = true;
+    for (int i = 0; i < cfg->n_shapes; ++i) hits[i].t_min = INFINITY;
     struct rng r = rng_seeded(PORTAL_FINDER_SEED, (uint64_t)f->emitter, 1);
-    for (int i = 0; i < PORTAL_FINDER_RAYS; ++i) {
+    for (int i = 0; ok && i < PORTAL_FINDER_RAYS; ++i) {
         double u[EMISSION_UNIFORMS];
         struct vec3 p, n, d;
         for (int j = 0; j < EMISSION_UNIFORMS; ++j) u[j] = rng_uniform(&r);
         emission_sample(&es, u, &p, &n, &d);
         struct hit h;
-        int g;
-        if (!scene_intersect_geometry(s, scene_offset_origin(s, p, n, d), d, INFINITY, &h, &g)) continue;
+        int g, face;
+        if (!scene_intersect_geometry(s, scene_offset_origin(s, p, n, d), d, INFINITY, &h, &g, &face)) continue;
         int shape = s->geometries[g].shape;
-        if (shape >= 0) t_min[shape] = fmin(t_min[shape], h.t);
+        if (shape < 0 || face < 0) continue;
+        struct shape_hits *sh = &hits[shape];
+        sh->t_min = fmin(sh->t_min, h.t);
+        if (!sh->label) {
+            const struct shape_desc *d0 = &cfg->shapes[shape];
+            sh->label = malloc(sizeof *sh->label * (size_t)(d0->n_quads + d0->n_triangles + 1));
+            sh->n_pieces = sh->label
+                               ? mesh_components(d0->vertices, d0->n_vertices, (const int(*)[4])d0->quads, d0->n_quads,
+                                                 (const int(*)[3])d0->triangles, d0->n_triangles, sh->label)
+                               : -1;
+            sh->piece_t = sh->n_pieces > 0 ? malloc(sizeof *sh->piece_t * (size_t)sh->n_pieces) : NULL;
+            ok = sh->piece_t != NULL;
+            for (int k = 0; ok && k < sh->n_pieces; ++k) sh->piece_t[k] = INFINITY;
+        }
+        if (ok) sh->piece_t[sh->label[face]] = fmin(sh->piece_t[sh->label[face]], h.t);
     }
     emission_sampler_free(&es);
-    struct candidate *c = malloc(sizeof *c * (size_t)(cfg->n_shapes > 0 ? cfg->n_shapes : 1));
-    int n = 0;
-    for (int i = 0; c && i < cfg->n_shapes; ++i) {
-        if (!isfinite(t_min[i])) continue;
-        const struct shape_desc *sh = &cfg->shapes[i];
-        struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
-        for (int v = 0; v < sh->n_vertices; ++v) {
-            struct vec3 x = sh->vertices[v];
-            lo = vec3_make(fmin(lo.x, x.x), fmin(lo.y, x.y), fmin(lo.z, x.z));
-            hi = vec3_make(fmax(hi.x, x.x), fmax(hi.y, x.y), fmax(hi.z, x.z));
+    *shapes = *pieces = (struct candidates){ 0, NULL };
+    bool split = false;
+    for (int i = 0; ok && i < cfg->n_shapes; ++i) {
+        if (!isfinite(hits[i].t_min)) continue;
+        ok = push_candidate(f, shapes, i, -1, NULL, hits[i].t_min);
+        if (hits[i].n_pieces == 1) {
+            ok = ok && push_candidate(f, pieces, i, -1, NULL, hits[i].t_min);
+            continue;
         }
-        if (vec3_length(vec3_sub(hi, lo)) > PORTAL_FINDER_MAX_SHAPE_FRACTION * s->scale) continue;
-        c[n++] = (struct candidate){ i, t_min[i] };
+        split = true;
+        for (int k = 0; ok && k < hits[i].n_pieces; ++k)
+            if (isfinite(hits[i].piece_t[k])) ok = push_candidate(f, pieces, i, k, hits[i].label, hits[i].piece_t[k]);
     }
-    free(t_min);
-    if (!c) return -1;
-    qsort(c, (size_t)n, sizeof *c, compare_candidates);
-    *out = c;
-    return n;
+    for (int i = 0; i < cfg->n_shapes; ++i) free(hits[i].label), free(hits[i].piece_t);
+    free(hits);
+    if (!ok || !split) candidates_free(pieces);
+    if (!ok) {
+        candidates_free(shapes);
+        return false;
+    }
+    qsort(shapes->c, (size_t)shapes->n, sizeof *shapes->c, compare_candidates);
+    if (pieces->c) qsort(pieces->c, (size_t)pieces->n, sizeof *pieces->c, compare_candidates);
+    return true;
 }
 
 /* How the light sits in the hull: the largest plane distance of a light
@@ -105,11 +204,11 @@ static double light_depth(const struct finder *f, const struct convex_hull *h, b
 static bool hull_of(const struct finder *f, const struct candidate *c, int k, struct vec3 *points, int *n_points,
                     struct convex_hull *h, struct error *err)
 {
+    (void)f;
     int n = 0;
     for (int i = 0; i < k; ++i) {
-        const struct shape_desc *sh = &f->cfg->shapes[c[i].shape];
-        memcpy(points + n, sh->vertices, sizeof *points * (size_t)sh->n_vertices);
-        n += sh->n_vertices;
+        memcpy(points + n, c[i].verts, sizeof *points * (size_t)c[i].n_verts);
+        n += c[i].n_verts;
     }
     *n_points = n;
     return convex_hull_build(points, n, h, err);
@@ -282,33 +381,119 @@ static bool try_hull(const struct finder *f, const struct candidate *c, int n, s
     return false;
 }
 
+/* The enclosure built from one candidate list, into *best (owned) with
+   *k, the count of candidates it is the hull of. *found false: no hull of
+   them holds the light strictly inside (*touches: one holds it on its
+   boundary or pierces it). False only on memory. */
+static bool choose(const struct finder *f, const struct candidates *cs, struct choice *best, int *k_out, bool *found,
+                   bool *touches)
+{
+    const struct candidate *c = cs->c;
+    int n_c = cs->n;
+    size_t n_pts = 0;
+    for (int i = 0; i < n_c; ++i) n_pts += (size_t)c[i].n_verts;
+    *best = (struct choice){ .points = malloc(sizeof *best->points * (n_pts > 0 ? n_pts : 1)) };
+    *found = *touches = false;
+    if (!best->points) return false;
+    int k = 0, n_points = 0;
+    for (k = 1; k <= n_c && !*found; ++k) {
+        struct error herr;
+        if (!hull_of(f, c, k, best->points, &n_points, &best->h, &herr)) continue;
+        bool some;
+        double depth = light_depth(f, &best->h, &some);
+        *found = depth < -INSIDE_REL * best->h.size;
+        *touches = !*found && some;
+        if (!*found) convex_hull_free(&best->h);
+    }
+    --k;
+    *k_out = k;
+    if (!*found) return true;
+    bool ok = portals_of_hull(f, &best->h, best->points, &best->ports, &best->open_area, &best->hull_area, &best->bad);
+    /* The tightest of the hulls that add the next nearby candidates (met
+       within twice the distance of the last one taken): the least open
+       area. Each is complete; more candidates only make P fit them better. */
+    double reach = 2.0 * c[k - 1].t_min;
+    for (int more = k + 1; ok && more <= n_c && more <= k + PORTAL_FINDER_MAX_EXTRA && c[more - 1].t_min <= reach;
+         ++more)
+        if (try_hull(f, c, more, n_pts, true, best, &ok)) k = more;
+    /* Then the chosen candidates without one of them, while that leaves
+       less open area and still holds the light strictly inside: a stand or
+       a socket met first by the light's rays stretches the hull well
+       beyond the shade (each such hull is complete as well). */
+    struct candidate *set = ok ? malloc(sizeof *set * (size_t)n_c) : NULL,
+                     *sub = ok ? malloc(sizeof *sub * (size_t)n_c) : NULL;
+    if (ok && (!set || !sub)) ok = false;
+    int n_set = k;
+    if (ok) {
+        /* The candidates of the hull chosen above: the first k. */
+        for (int i = 0; i < k; ++i) set[i] = c[i];
+    }
+    for (bool improved = ok; improved && n_set > 1;) {
+        improved = false;
+        for (int j = 0; ok && j < n_set && !improved; ++j) {
+            int n_sub = 0;
+            for (int i = 0; i < n_set; ++i)
+                if (i != j) sub[n_sub++] = set[i];
+            if (try_hull(f, sub, n_sub, n_pts, false, best, &ok)) {
+                for (int i = 0; i < n_sub; ++i) set[i] = sub[i];
+                n_set = k = n_sub;
+                improved = true;
+            }
+        }
+    }
+    free(set);
+    free(sub);
+    *k_out = k;
+    return ok;
+}
+
+/* Whether the portals of an enclosure can be used as they are (else the
+   light gets none: find_for_light says why). */
+static bool usable(const struct choice *ch)
+{
+    return !ch->bad && ch->open_area <= PORTAL_FINDER_MAX_OPEN_FRACTION * ch->hull_area &&
+           ch->ports.n <= PORTAL_FINDER_MAX_PORTALS;
+}
+
 /* Decides and applies the portals of one light. False only on memory. */
 static bool find_for_light(struct finder *f, struct error *err)
 {
     struct auto_portal_report *rep = f->rep;
     const char *name = f->cfg->lights[f->emitter].name;
-    struct candidate *c = NULL;
-    int n_c = find_candidates(f, &c);
-    if (n_c < 0) return error_set(err, "out of memory finding the portals of light \"%s\"", name);
-    size_t n_pts = 0;
-    for (int i = 0; i < n_c; ++i) n_pts += (size_t)f->cfg->shapes[c[i].shape].n_vertices;
-    struct choice best = { .points = malloc(sizeof *best.points * (n_pts > 0 ? n_pts : 1)) };
-    if (!best.points) {
-        free(c);
+    struct candidates shapes, pieces;
+    if (!find_candidates(f, &shapes, &pieces))
+        return error_set(err, "out of memory finding the portals of light \"%s\"", name);
+    struct choice best;
+    int k = 0;
+    bool found, touches;
+    bool ok = choose(f, &shapes, &best, &k, &found, &touches);
+    /* By connected pieces too, when a shape met has several (a lamp
+       modelled as one mesh): kept when its portals are usable and leave
+       less open area. Bounded: the choice costs hulls in the square of
+       the candidates it keeps. */
+    const char *unit = "shape(s)";
+    if (ok && pieces.n > 0 && pieces.n <= PORTAL_FINDER_MAX_PIECES) {
+        struct choice alt;
+        int k_alt = 0;
+        bool found_alt, touches_alt;
+        ok = choose(f, &pieces, &alt, &k_alt, &found_alt, &touches_alt);
+        if (ok && found_alt && usable(&alt) && (!found || !usable(&best) || alt.open_area < best.open_area)) {
+            choice_free(&best);
+            best = alt;
+            k = k_alt;
+            found = true;
+            unit = "connected piece(s) of shapes";
+        } else {
+            choice_free(&alt);
+        }
+    }
+    int n_c = shapes.n;
+    candidates_free(&shapes);
+    candidates_free(&pieces);
+    if (!ok) {
+        choice_free(&best);
         return error_set(err, "out of memory finding the portals of light \"%s\"", name);
     }
-    int k = 0, n_points = 0;
-    bool found = false, touches = false;
-    for (k = 1; k <= n_c && !found; ++k) {
-        struct error herr;
-        if (!hull_of(f, c, k, best.points, &n_points, &best.h, &herr)) continue;
-        bool some;
-        double depth = light_depth(f, &best.h, &some);
-        found = depth < -INSIDE_REL * best.h.size;
-        touches = !found && some;
-        if (!found) convex_hull_free(&best.h);
-    }
-    --k;
     if (!found) {
         if (touches) {
             rep->warn = true;
@@ -319,49 +504,8 @@ static bool find_for_light(struct finder *f, struct error *err)
         } else {
             snprintf(rep->note, sizeof rep->note, "light \"%s\": no shape encloses it: no portals", name);
         }
-        free(best.points);
-        free(c);
-        return true;
-    }
-    bool ok = portals_of_hull(f, &best.h, best.points, &best.ports, &best.open_area, &best.hull_area, &best.bad);
-    /* The tightest of the hulls that add the next nearby shapes (met
-       within twice the distance of the last one taken): the least open
-       area. Each is complete; more shapes only make P fit them better. */
-    double reach = 2.0 * c[k - 1].t_min;
-    for (int more = k + 1; ok && more <= n_c && more <= k + PORTAL_FINDER_MAX_EXTRA && c[more - 1].t_min <= reach;
-         ++more)
-        if (try_hull(f, c, more, n_pts, true, &best, &ok)) k = more;
-    /* Then the chosen shapes without one of them, while that leaves less
-       open area and still holds the light strictly inside: a stand or a
-       socket met first by the light's rays stretches the hull well beyond
-       the shade (each such hull is complete as well). */
-    struct candidate *set = ok ? malloc(sizeof *set * (size_t)n_c) : NULL,
-                     *sub = ok ? malloc(sizeof *sub * (size_t)n_c) : NULL;
-    if (ok && (!set || !sub)) ok = false;
-    int n_set = k;
-    if (ok) {
-        /* The shapes of the hull chosen above: the first k candidates. */
-        for (int i = 0; i < k; ++i) set[i] = c[i];
-    }
-    for (bool improved = ok; improved && n_set > 1;) {
-        improved = false;
-        for (int j = 0; ok && j < n_set && !improved; ++j) {
-            int n_sub = 0;
-            for (int i = 0; i < n_set; ++i)
-                if (i != j) sub[n_sub++] = set[i];
-            if (try_hull(f, sub, n_sub, n_pts, false, &best, &ok)) {
-                for (int i = 0; i < n_sub; ++i) set[i] = sub[i];
-                n_set = k = n_sub;
-                improved = true;
-            }
-        }
-    }
-    free(set);
-    free(sub);
-    if (!ok) {
         choice_free(&best);
-        free(c);
-        return error_set(err, "out of memory finding the portals of light \"%s\"", name);
+        return true;
     }
     const struct convex_hull *h = &best.h;
     const struct polygon_list *ports = &best.ports;
@@ -369,20 +513,20 @@ static bool find_for_light(struct finder *f, struct error *err)
     rep->hull_area = hull_area;
     if (open_area > PORTAL_FINDER_MAX_OPEN_FRACTION * hull_area) {
         snprintf(rep->note, sizeof rep->note,
-                 "light \"%s\": the hull of the %d nearest shape(s) around it is %.0f%% open: no portals", name, k,
+                 "light \"%s\": the hull of the %d nearest %s around it is %.0f%% open: no portals", name, k, unit,
                  100.0 * open_area / hull_area);
     } else if (best.bad) {
         rep->warn = true;
         snprintf(rep->note, sizeof rep->note,
-                 "light \"%s\": an opening of the hull of the %d nearest shape(s) around it is no valid polygon: "
+                 "light \"%s\": an opening of the hull of the %d nearest %s around it is no valid polygon: "
                  "no portals (sampled as `light` samples it)",
-                 name, k);
+                 name, k, unit);
     } else if (ports->n > PORTAL_FINDER_MAX_PORTALS) {
         rep->warn = true;
         snprintf(rep->note, sizeof rep->note,
-                 "light \"%s\": the hull of the %d nearest shape(s) around it leaves %d open pieces (more than %d): "
+                 "light \"%s\": the hull of the %d nearest %s around it leaves %d open pieces (more than %d): "
                  "no portals (sampled as `light` samples it)",
-                 name, k, ports->n, PORTAL_FINDER_MAX_PORTALS);
+                 name, k, unit, ports->n, PORTAL_FINDER_MAX_PORTALS);
     } else {
         struct error aerr = { { 0 } };
         if (!scene_add_portals(f->s, f->emitter, ports->p, ports->n, &aerr)) {
@@ -404,12 +548,11 @@ static bool find_for_light(struct finder *f, struct error *err)
                 rep->box_lo = vec3_make(fmin(rep->box_lo.x, x.x), fmin(rep->box_lo.y, x.y), fmin(rep->box_lo.z, x.z));
                 rep->box_hi = vec3_make(fmax(rep->box_hi.x, x.x), fmax(rep->box_hi.y, x.y), fmax(rep->box_hi.z, x.z));
             }
-            snprintf(rep->note, sizeof rep->note, "light \"%s\": %d portal(s) on the hull of %d shape(s)", name,
-                     ports->n, k);
+            snprintf(rep->note, sizeof rep->note, "light \"%s\": %d portal(s) on the hull of %d %s", name, ports->n, k,
+                     unit);
         }
     }
     choice_free(&best);
-    free(c);
     return ok || error_set(err, "out of memory finding the portals of light \"%s\"", name);
 }
 

@@ -5,7 +5,9 @@
    The construction is complete by design. P is the convex hull of the
    shapes around the light (the shapes that rays from the light meet first,
    nearest first, until their hull holds the light strictly inside, then
-   without any of them whose removal leaves less open area); every part of
+   without any of them whose removal leaves less open area; the same with
+   the shapes' connected pieces in place of the shapes, when a shape met
+   has several, and the tighter of the two is kept); every part of
    P's boundary that no opaque surface lying in it covers becomes a
    portal, except whole facets that a layer of surface just under them
    provably closes (facet_layer_covers, geometry/facet_cover.h). A segment from a point of the light (inside P) to a point
@@ -43,6 +45,10 @@ struct config; /* config.h */
 /* Shapes beyond the first hull that holds the light tried for a tighter
    one (the nearby ones only). */
 #define PORTAL_FINDER_MAX_EXTRA 16
+/* The connected pieces of the shapes met (a lamp modelled as one mesh
+   holds its shade, arm and base) are tried as candidates besides the
+   whole shapes when they are at most this many. */
+#define PORTAL_FINDER_MAX_PIECES 64
 /* The seed of the finder's rays (a constant: the portals must not depend
    on render.seed, which a resumed or repeated run may change); the
    coverage counts of portal_report.h use the next one. */

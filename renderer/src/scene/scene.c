@@ -72,7 +72,7 @@ static bool add_mesh(struct scene *s, const struct vec3 *verts, int n_verts, con
     unsigned id = rtcAttachGeometry(s->rtc_scene, g);
     rtcReleaseGeometry(g);
     if (id != (unsigned)s->n_geometries) return error_set(err, "unexpected Embree geometry id %u", id);
-    s->geometries[s->n_geometries++] = info;
+    s->geometries[s->n_geometries++] = info; /* it owns info.prim_face from here */
     return true;
 }
 
@@ -123,7 +123,8 @@ static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct
     int n_verts = sh->n_vertices + 3 * n_fan;
     int *tris = malloc(sizeof *tris * (size_t)(3 * (n_tris + n_fan) + 1));
     struct vec3 *verts = malloc(sizeof *verts * (size_t)(n_verts > 0 ? n_verts : 1));
-    bool ok = tris && verts;
+    info.prim_face = malloc(sizeof *info.prim_face * (size_t)(n_tris + n_fan + 1));
+    bool ok = tris && verts && info.prim_face;
     if (!ok) error_set(err, "out of memory for the faces of a shape");
     if (ok) {
         memcpy(verts, sh->vertices, sizeof *verts * (size_t)sh->n_vertices);
@@ -133,21 +134,28 @@ static bool add_shape(struct scene *s, const struct shape_desc *sh, const struct
             const int *v = sh->quads[q];
             const int split[6] = { v[0], v[1], v[3], v[2], v[3], v[1] };
             for (int k = 0; k < 6; ++k) tris[3 * nt + k] = split[k];
+            info.prim_face[nt] = info.prim_face[nt + 1] = q;
             nt += 2;
         }
         for (int t = 0; t < sh->n_triangles; ++t) {
             if (watertight_changed(w, face0 + sh->n_quads + t)) continue;
             for (int v = 0; v < 3; ++v) tris[3 * nt + v] = sh->triangles[t][v];
-            ++nt;
+            info.prim_face[nt++] = sh->n_quads + t;
         }
         for (int f = face0; f < face0 + sh->n_quads + sh->n_triangles; ++f)
-            for (int k = w->first[f]; k < w->first[f + 1]; ++k, ++nt)
+            for (int k = w->first[f]; k < w->first[f + 1]; ++k, ++nt) {
+                info.prim_face[nt] = f - face0;
                 for (int v = 0; v < 3; ++v) {
                     verts[nv] = w->tris[k].v[v];
                     tris[3 * nt + v] = nv++;
                 }
-        if (nt > 0) ok = add_mesh(s, verts, nv, tris, nt, info, err);
+            }
+        if (nt > 0) {
+            ok = add_mesh(s, verts, nv, tris, nt, info, err);
+            if (ok) info.prim_face = NULL; /* the scene's now */
+        }
     }
+    free(info.prim_face);
     free(tris);
     free(verts);
     return ok;
@@ -287,7 +295,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
     if (!stitched) goto fail;
     for (int i = 0, face0 = 0; i < cfg->n_shapes; ++i) {
         const struct shape_desc *sh = &cfg->shapes[i];
-        struct geometry_info info = { sh->material, -1, false, i };
+        struct geometry_info info = { sh->material, -1, false, i, NULL };
         for (int v = 0; v < sh->n_vertices; ++v) bounds_add(&lo, &hi, sh->vertices[v]);
         if (!add_shape(s, sh, &w, face0, info, err)) {
             watertight_free(&w);
@@ -303,7 +311,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
         const struct shape_desc *mesh = &cfg->lights[i].mesh;
         if (mesh->n_triangles > 0) {
             /* One geometry for the whole mesh: its primitive k is light k. */
-            struct geometry_info info = { -1, e->first_light, true, -1 };
+            struct geometry_info info = { -1, e->first_light, true, -1, NULL };
             for (int v = 0; v < mesh->n_vertices; ++v) bounds_add(&lo, &hi, mesh->vertices[v]);
             if (!add_mesh(s, mesh->vertices, mesh->n_vertices, &mesh->triangles[0][0], mesh->n_triangles, info, err))
                 goto fail;
@@ -320,7 +328,7 @@ bool scene_create(const struct config *cfg, struct scene *s, struct error *err)
             continue;
         }
         const struct polygon *poly = &s->lights[e->first_light].target.polygon;
-        struct geometry_info info = { -1, e->first_light, false, -1 };
+        struct geometry_info info = { -1, e->first_light, false, -1, NULL };
         int fan[3 * (POLYGON_MAX - 2)];
         for (int k = 0; k + 2 < poly->n; ++k) fan[3 * k] = 0, fan[3 * k + 1] = k + 1, fan[3 * k + 2] = k + 2;
         for (int v = 0; v < poly->n; ++v) bounds_add(&lo, &hi, poly->v[v]);
@@ -365,6 +373,7 @@ void scene_destroy(struct scene *s)
         if (s->emitters[i].rtc_scene) rtcReleaseScene(s->emitters[i].rtc_scene);
     free(s->emitters);
     free(s->portals);
+    for (int i = 0; s->geometries && i < s->n_geometries; ++i) free(s->geometries[i].prim_face);
     free(s->geometries);
     for (int i = 0; s->auto_portals && i < s->n_emitters; ++i) free(s->auto_portals[i].planes);
     free(s->auto_portals);
@@ -450,12 +459,14 @@ bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double
 }
 
 bool scene_intersect_geometry(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h,
-                              int *geometry)
+                              int *geometry, int *face)
 {
     struct RTCRayHit rh;
     if (!trace_closest(s->rtc_scene, o, d, tmax, &rh)) return false;
     hit_from_embree(s, o, d, &rh, h);
     *geometry = (int)rh.hit.geomID;
+    const int *prim_face = s->geometries[rh.hit.geomID].prim_face;
+    *face = prim_face ? prim_face[rh.hit.primID] : -1;
     return true;
 }
 

@@ -44,6 +44,7 @@ struct geometry_info {
     int light;           /* -1 for surfaces; the first light of a mesh light */
     bool light_per_prim; /* a mesh light: primitive k is light `light + k` */
     int shape;           /* index into config.shapes, -1 for lights */
+    int *prim_face;      /* a shape's: the shape's face (its quads, then its triangles) of each primitive; owned */
 };
 
 /* The light a hit on primitive prim of geometry g found, -1 for a surface. */
@@ -120,9 +121,10 @@ void scene_destroy(struct scene *s);
 bool scene_add_portals(struct scene *s, int emitter, const struct polygon *portals, int n, struct error *err);
 
 /* scene_intersect that also gives the index (into s->geometries) of the
-   geometry hit, for the portal finder. */
+   geometry hit and, on a shape, the shape's face hit (its quads, then its
+   triangles; -1 on a light), for the portal finder. */
 bool scene_intersect_geometry(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h,
-                              int *geometry);
+                              int *geometry, int *face);
 
 /* Closest hit along o + t d, t in (0, tmax) (d unit). False on a miss. */
 bool scene_intersect(const struct scene *s, struct vec3 o, struct vec3 d, double tmax, struct hit *h);
