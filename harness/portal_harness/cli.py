@@ -610,3 +610,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
         return 0
+    except OSError as e:
+        # A path the system refuses (a name too long, a folder we may not read) that no check named first:
+        # one line, never a traceback.
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"portal-harness {args.command}: {where}{e.strerror or e}", file=sys.stderr)
+        return 1

@@ -83,6 +83,11 @@ def test_05_missing_renderer_and_bad_arguments_exit_2(cli: CliRunner, fake_scene
     assert status == 2 and f"{tmp_path / 'nope.yaml'}: No such file or directory" in err
     status, _, err = cli("figures", str(tmp_path / "nope.yaml"))
     assert status == 2
+    # A name the system refuses (longer than NAME_MAX): one located line, no traceback.
+    too_long = tmp_path / ("a" * 300 + ".yaml")
+    for command in ("sweep", "figures"):
+        status, _, err = cli(command, str(too_long))
+        assert status == 2 and "File name too long" in err and "Traceback" not in err, err
 
 
 def test_06_figures_before_sweep_is_a_clear_error(cli: CliRunner, write_experiment: Callable[..., Path]) -> None:

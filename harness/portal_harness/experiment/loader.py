@@ -49,7 +49,10 @@ def load_experiment(
     stores submitted files apart from the root folder their paths name).
     With `limits`, the work it asks for is checked (limits.py) before any
     point is asked of the renderer."""
-    p = Path(path).resolve() if Path(path).exists() else Path(path)
+    try:
+        p = Path(path).resolve() if Path(path).exists() else Path(path)
+    except OSError:  # no such file can exist (a name too long): read_yaml_lines says so, located
+        p = Path(path)
     folder = relative_to if relative_to is not None else p.parent
     data, lines = read_yaml_lines(p, "experiment file")
     r = Reader(str(path), lines)

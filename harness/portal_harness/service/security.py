@@ -93,6 +93,6 @@ def resolve_in_roots(text: str, roots: Sequence[Path]) -> tuple[Path, Path]:
         path = root / candidate
         if path.exists() or path.is_symlink():
             if not inside(path, [root]):
-                raise PathEscape(f"{text!r}: a symbolic link leads outside the --root folder {root}")
+                raise PathEscape(f"{text!r}: a symbolic link leads outside its --root folder")
             return root, path
     raise FileNotFoundError(f"{text!r}: no such file in the --root folders")

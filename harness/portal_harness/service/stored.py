@@ -16,7 +16,10 @@ from portal_harness.service.settings import SPOOL_NAME
 def _id_of(layout: ResultsLayout, path: Path) -> str | None:
     """The experiment id `path` names: RESULTS/service/ID[/experiment.yaml], or a bare ID."""
     spool = (layout.root / SPOOL_NAME).resolve()
-    candidate = path.resolve() if path.exists() else None
+    try:
+        candidate = path.resolve() if path.exists() else None
+    except OSError:  # no such path can exist (a name too long): the loader says so
+        return None
     if candidate is None:
         return path.name if len(path.parts) == 1 and (spool / path.name).is_dir() else None
     folder = candidate.parent if candidate.is_file() else candidate

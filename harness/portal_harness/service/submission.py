@@ -197,7 +197,10 @@ def _resolve(text: str, data: dict[str, Any], key: str, value: Any, roots: tuple
     if len(value) > MAX_PATH or "\x00" in value:
         raise _path_error(text, key, f"expected a path of at most {MAX_PATH} characters, without NUL")
     try:
-        return resolve_in_roots(value, roots)[0]
+        root, path = resolve_in_roots(value, roots)
+        if not path.is_file():  # a folder: named relative to its root, never by the root's own path
+            raise _path_error(text, key, f"{value[:60]!r}: not a file (a folder) in the --root folders")
+        return root
     except PathEscape as e:
         raise _path_error(text, key, f"path outside the --root folders: {e}") from None
     except FileNotFoundError as e:

@@ -59,6 +59,7 @@ ATTACKS = [
     # Names too long for the file system (ENAMETOOLONG was a 500).
     ("long_scene_name", experiment_text(scene="scenes/" + "a" * 5000 + ".yaml"), "at most 1024"),
     ("deep_scene_path", experiment_text(scene="scenes/" + "/".join(["a"] * 400)), "no such file"),
+    ("scene_is_a_folder", experiment_text(scene="scenes"), "not a file (a folder)"),
     (
         "long_section_name",
         experiment_text(figures={"region_sections": {"scene": "scenes/" + "b" * 300}}),
