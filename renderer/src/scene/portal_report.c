@@ -1,5 +1,6 @@
 #include "scene/portal_report.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -35,8 +36,11 @@ static void write_polygon(FILE *out, const struct polygon *p)
     fputs("]", out);
 }
 
-/* The coverage of emitter i's found portals: n_rays rays, fixed seed. */
-static bool summary_coverage(const struct scene *s, int i, long n_rays, struct portal_coverage *cov, struct error *err)
+/* The coverage of emitter i's found portals: batches of n_rays rays (fixed
+   seeds) until PORTAL_FINDER_SUMMARY_ESCAPED rays escaped or max_batches
+   batches were cast. */
+static bool summary_coverage(const struct scene *s, int i, long n_rays, int max_batches, struct portal_coverage *cov,
+                             struct error *err)
 {
     const struct auto_portal_report *rep = &s->auto_portals[i];
     const struct light *l = &s->lights[s->emitters[i].first_light];
@@ -44,8 +48,17 @@ static bool summary_coverage(const struct scene *s, int i, long n_rays, struct p
     struct polygon *copy = malloc(sizeof *copy * (size_t)(n > 0 ? n : 1));
     if (!copy) return error_set(err, "out of memory");
     for (int k = 0; k < n; ++k) polygon_copy(&copy[k], &s->portals[l->first_portal + k].target.polygon);
-    bool ok =
-        portal_finder_coverage(s, i, rep->planes, rep->n_planes, copy, n, n_rays, PORTAL_FINDER_SEED + 1, cov, err);
+    memset(cov, 0, sizeof *cov);
+    bool ok = true;
+    for (int batch = 0; ok && batch < max_batches && cov->n_escaped < PORTAL_FINDER_SUMMARY_ESCAPED; ++batch) {
+        struct portal_coverage c;
+        ok = portal_finder_coverage(s, i, rep->planes, rep->n_planes, copy, n, n_rays,
+                                    PORTAL_FINDER_SEED + 1 + (uint64_t)batch, &c, err);
+        cov->n_rays += c.n_rays, cov->n_escaped += c.n_escaped, cov->n_missed += c.n_missed;
+        cov->n_portal += c.n_portal, cov->n_through += c.n_through;
+    }
+    cov->blocked_fraction = cov->n_portal ? 1.0 - (double)cov->n_through / (double)cov->n_portal : 0.0;
+    cov->bound = cov->n_escaped ? 3.0 / (double)cov->n_escaped : INFINITY;
     free(copy);
     return ok;
 }
@@ -66,7 +79,7 @@ bool portal_finder_write_summary(const struct scene *s, const struct config *cfg
             continue;
         }
         struct portal_coverage cov;
-        if (!summary_coverage(s, i, n_rays, &cov, err)) return false;
+        if (!summary_coverage(s, i, n_rays, PORTAL_FINDER_SUMMARY_MAX_BATCHES, &cov, err)) return false;
         fprintf(out,
                 "#   %s: %d portal(s), area %.6g m^2 (%.1f%% of the enclosure's %.6g m^2), blocked %.4f, bound %.3g "
                 "(%ld of %ld rays escaped, %ld missed)\n",
@@ -108,7 +121,7 @@ bool portal_finder_write_json(const struct scene *s, const struct config *cfg, l
                 rep->warn ? "true" : "false");
         json_write_string(out, rep->note);
         struct portal_coverage cov = { 0 };
-        if (rep->enclosed && !summary_coverage(s, i, n_rays, &cov, err)) return false;
+        if (rep->enclosed && !summary_coverage(s, i, n_rays, 1, &cov, err)) return false;
         fprintf(out, ",\"n_portals\":%d", rep->enclosed ? rep->n_portals : 0);
         json_key_number(out, "area", rep->enclosed ? rep->area : 0.0);
         json_key_number(out, "hull_area", rep->hull_area);
