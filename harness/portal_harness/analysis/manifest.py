@@ -108,6 +108,30 @@ def git_commit() -> dict[str, Any] | None:
     return {"commit": head.stdout.strip(), "dirty": bool(dirty.stdout.strip()) if dirty.returncode == 0 else None}
 
 
+SWEEPS = "sweeps.json"  # beside the manifest, in the results folder only (.gitignore keeps it out)
+
+
+def _sweeps_wall(layout: ResultsLayout, name: str, wall_time_s: float, rendered: bool) -> float:
+    """Appends this sweep to the folder's sweep log and returns the wall time of its sweeps that rendered."""
+    path = layout.experiment_dir(name) / SWEEPS
+    try:
+        log = json.loads(path.read_text())
+        sweeps = [x for x in log if isinstance(x, dict)] if isinstance(log, list) else []
+    except (OSError, ValueError):
+        sweeps = []
+    sweeps.append(
+        {
+            "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            "wall_time_s": round(wall_time_s, 1),
+            "rendered": rendered,
+        }
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    store.write_json_atomic(path, sweeps)
+    walls = [x.get("wall_time_s") for x in sweeps if x.get("rendered")]
+    return float(sum(w for w in walls if isinstance(w, (int, float)) and not isinstance(w, bool)))
+
+
 def write(
     layout: ResultsLayout,
     name: str,
@@ -118,12 +142,13 @@ def write(
     render_time_s: float,
     precision: dict[str, Any] | None,
 ) -> Path:
-    """Writes the manifest. `rendered`: this sweep rendered something; one
-    that rendered nothing (all cached: make figures' second pass) keeps the
-    wall time of the sweep before it, the one that did the work."""
-    previous = read(layout, name) or {}
-    kept = previous.get("wall_time_s")
-    wall = wall_time_s if rendered or not isinstance(kept, (int, float)) else float(kept)
+    """Writes the manifest. `rendered`: this sweep rendered something. The
+    manifest's wall time is the sum over the sweeps of this results folder
+    that rendered (SWEEPS, not committed: a sweep on a fresh clone starts
+    from zero, whatever manifest it found): make figures' second pass may
+    add the precision's last replicates, and a sweep resumed after a crash
+    adds its own time; a sweep that rendered nothing adds none."""
+    wall = _sweeps_wall(layout, name, wall_time_s, rendered)
     by: dict[str, dict[str, int]] = {}
     for (point, strategy), n in replicates.items():
         by.setdefault(point, {})[strategy] = n

@@ -194,6 +194,16 @@ def test_a_sweep_adds_replicates_until_the_target_is_reached(
         json.loads((results / "experiments" / "tiny" / "manifest.json").read_text())["wall_time_s"]
         == (manifest["wall_time_s"])
     )
+    # The wall time is the sum over the sweeps of this results folder that rendered: one more that renders
+    # adds its own; a fresh results folder (no sweep log) starts from zero, whatever manifest it holds.
+    sweeps = json.loads((results / "experiments" / "tiny" / "sweeps.json").read_text())
+    assert [x["rendered"] for x in sweeps] == [True, False]
+    assert manifest["wall_time_s"] == pytest.approx(sweeps[0]["wall_time_s"], abs=0.11)
+    (results / "experiments" / "tiny" / "sweeps.json").write_text(
+        json.dumps([{"wall_time_s": 1000.0, "rendered": True}])
+    )
+    cli("sweep", str(exp), "--no-progress")
+    assert json.loads((results / "experiments" / "tiny" / "manifest.json").read_text())["wall_time_s"] == 1000.0
 
 
 def test_a_sweep_stops_at_the_cap_and_marks_what_was_not_reached(
