@@ -11,7 +11,7 @@ import csv
 import json
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from portal_harness import __version__
@@ -310,18 +310,22 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "results-page",
         parents=[common],
-        help="regenerate the tables of docs/results.md from the stored summaries",
+        help="regenerate the tables of docs/results.md and the README from the stored summaries",
         description="Rewrites the generated block of the results page (docs/results.md) from "
         "results/experiments/NAME/summary.csv (by default the committed ones of the FULL experiments): "
         "per experiment, the efficiency relative to light in the lit region and the insets, with standard "
-        "errors and bounds. The page's hand-written text is kept. With --check, changes nothing and exits 1 "
-        "when the page is stale.",
+        "errors and bounds; and the README's results table (analysis/readme_table.py) from the FULL "
+        "summaries. The hand-written text around them is kept. With --check, changes nothing and exits 1 "
+        "when either is stale.",
     )
     p.add_argument(
         "experiments", nargs="*", metavar="NAME", help="experiments to list (default: every FULL one, NAME_full)"
     )
     p.add_argument("--page", type=Path, help="the page (default: docs/results.md of the repository)")
-    p.add_argument("--check", action="store_true", help="exit 1 if the page differs from what would be written")
+    p.add_argument(
+        "--readme", type=Path, help="the README whose results table is generated (default: the repository's)"
+    )
+    p.add_argument("--check", action="store_true", help="exit 1 if a page differs from what would be written")
     return parser
 
 
@@ -500,26 +504,41 @@ def cmd_query(args: argparse.Namespace) -> int:
 
 
 def cmd_results_page(args: argparse.Namespace) -> int:
-    from portal_harness.analysis import results_page
+    from portal_harness.analysis import readme_table, results_page
 
     page = args.page or find_repo_root() / "docs" / "results.md"
+    readme = args.readme or find_repo_root() / "README.md"
     experiments_dir = _layout(args).root / "experiments"
-    if args.check:
-        try:
-            current = page.read_text()
-        except OSError as e:
-            raise HarnessError(f"{page}: cannot read ({e.strerror})") from None
-        expected = results_page.replace_block(
-            current, results_page.generated_block(experiments_dir, args.experiments), str(page)
+
+    def results(text: str) -> str:
+        return results_page.replace_block(
+            text, results_page.generated_block(experiments_dir, args.experiments), str(page)
         )
+
+    def table(text: str) -> str:
+        return readme_table.replace(text, readme_table.table(experiments_dir), str(readme))
+
+    pages: tuple[tuple[Path, Callable[[str], str]], ...] = ((page, results), (readme, table))
+    stale = 0
+    for path, regenerate in pages:
+        try:
+            current = path.read_text()
+        except OSError as e:
+            raise HarnessError(f"{path}: cannot read ({e.strerror})") from None
+        expected = regenerate(current)
+        if args.check:
+            if expected != current:
+                print(f"{path}: stale; run `portal-harness results-page`", file=sys.stderr)
+                stale = 1
+            else:
+                print(f"{path}: up to date")
+            continue
         if expected != current:
-            print(f"{page}: stale; run `portal-harness results-page`", file=sys.stderr)
-            return 1
-        print(f"{page}: up to date")
-        return 0
-    changed = results_page.write_page(page, experiments_dir, args.experiments)
-    print(f"{page}: {'rewritten' if changed else 'unchanged'}")
-    return 0
+            tmp = path.with_suffix(path.suffix + ".tmp")  # replaced atomically: a failure leaves the old file
+            tmp.write_text(expected)
+            tmp.replace(path)
+        print(f"{path}: {'rewritten' if expected != current else 'unchanged'}")
+    return stale
 
 
 def cmd_reindex(args: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from portal_harness.analysis import precision
 from portal_harness.core.errors import HarnessError
 from portal_harness.core.regions import LIT
 
@@ -72,6 +73,12 @@ def experiment_table(name: str, rows: Sequence[dict[str, str]]) -> str:
         f"Efficiency relative to `light`, {', '.join(replicates) or '?'} replicates; "
         "+- one standard error; >= / <= a lower / upper bound."
     )
+    if any(r.get("precision_target") not in (None, "") for r in done):
+        target = next(r["precision_target"] for r in done if r.get("precision_target") not in (None, ""))
+        out.append(
+            f"Precision target: a relative standard error of at most {float(target):g} on every headline value; "
+            "(\\*) marks one that did not reach it within the budget's caps."
+        )
     out.append("")
     out.append("| point | region | " + " | ".join(f"`{s}`" for s in strategies) + " |")
     out.append("|---|---|" + "---|" * len(strategies))
@@ -80,11 +87,14 @@ def experiment_table(name: str, rows: Sequence[dict[str, str]]) -> str:
             cells = []
             for s in strategies:
                 r = by_key.get((point, s, region))
-                cells.append(
+                cell = (
                     format_value(r["efficiency_vs_light"], r["efficiency_vs_light_stderr"], r.get("bound", ""))
                     if r
                     else "-"
                 )
+                if r and precision.unreached(r, precision.EFFICIENCY):
+                    cell += " (\\*)"
+                cells.append(cell)
             if all(c == "-" for c in cells):
                 continue
             label = "lit" if region == LIT else f"inset {region}"

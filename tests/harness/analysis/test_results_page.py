@@ -17,7 +17,13 @@ from portal_harness.cli import main
 from portal_harness.core.errors import HarnessError
 
 FIELDS = ["point", "strategy", "status", "region", "region_kind", "replicates"]
-FIELDS += ["efficiency_vs_light", "efficiency_vs_light_stderr", "bound"]
+FIELDS += [
+    "efficiency_vs_light",
+    "efficiency_vs_light_stderr",
+    "bound",
+    "precision_target",
+    "efficiency_vs_light_rel_se",
+]
 
 
 def _summary(folder: Path, rows: list[dict[str, str]]) -> None:
@@ -105,3 +111,52 @@ def test_05_the_committed_page_is_current_and_check_sees_a_stale_one(tmp_path: P
     shutil.copy(REPO / "docs" / "results.md", stale)
     stale.write_text(stale.read_text().replace("1.080 +- 0.020", "1.2 +- 0.020"))
     assert main(["results-page", "--check", "--page", str(stale), *results]) == 1
+
+
+def test_values_short_of_their_precision_target_are_marked() -> None:
+    target = {"precision_target": "0.1"}
+    rows = [
+        _row("s_L=0.3", "light", "lit", "1.0", "0.01", **target),
+        _row("s_L=0.3", "portal", "lit", "0.162", "0.019", efficiency_vs_light_rel_se="0.116", **target),
+        _row("s_L=0.3", "antishadow", "lit", "4.38", "0.37", efficiency_vs_light_rel_se="0.085", **target),
+    ]
+    text = rp.experiment_table("x_full", rows)
+    assert "| s_L=0.3 | lit | 0.162 +- 0.019 (\\*) | 4.38 +- 0.37 |" in text
+    assert "relative standard error of at most 0.1" in text
+    # without precision: no target line, no mark
+    plain = rp.experiment_table("x", [{k: v for k, v in r.items() if "precision" not in k} for r in rows])
+    assert "(\\*)" not in plain and "Precision target" not in plain
+
+
+def test_the_readme_table_comes_from_the_full_summaries(tmp_path: Path) -> None:
+    from portal_harness.analysis import readme_table as rt
+
+    experiments = tmp_path / "experiments"
+    target = {"precision_target": "0.1", "efficiency_vs_light_rel_se": "0.05"}
+    _summary(
+        experiments / "lampshade_ratio_full",
+        [
+            _row("s_L=1.2", "light", "lit", "1.0", "0.04", **target),
+            _row("s_L=1.2", "antishadow", "lit", "6.56", "0.43", **target),
+            _row(
+                "s_L=1.2", "antishadow_exact", "lit", "6.96", "0.53", **(target | {"efficiency_vs_light_rel_se": "0.2"})
+            ),
+        ],
+    )
+    block = rt.table(experiments)
+    assert "| lampshade, ratio 4, direct | 6.56 ± 0.43 | 6.96 ± 0.53 (\\*) | 5 |" in block
+    assert "ratio 0.25" not in block  # no such point in the summary
+    assert "`white_room_night_full`" in block.split("Not run at paper quality yet:")[1]
+    # --check sees a stale README, and the command rewrites only the block
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Title\n\nbefore\n\n{rt.BEGIN}\nold\n{rt.END}\n\nafter\n")
+    args = ["--results", str(tmp_path), "--page", str(REPO / "docs" / "results.md"), "--readme", str(readme)]
+    shutil.copytree(REPO / "results" / "experiments", experiments, dirs_exist_ok=True)  # the page's summaries too
+    _summary(experiments / "lampshade_ratio_full2", [])  # not named by any row: ignored
+    assert main(["results-page", "--check", *args]) == 1
+    text = readme.read_text()
+    assert "old" in text
+    assert main(["results-page", *args]) == 0
+    text = readme.read_text()
+    assert text.startswith("# Title\n\nbefore\n\n") and text.endswith("\n\nafter\n") and "old" not in text
+    assert main(["results-page", "--check", *args]) == 0
