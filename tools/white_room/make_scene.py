@@ -36,13 +36,13 @@ import numpy.typing as npt
 
 from portal_harness.mitsuba_import import MitsubaImportError, import_scene
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "crosscheck"))
+import obj_to_ply  # tools/crosscheck/obj_to_ply.py: its OBJ reader
+from obj_to_ply import ObjError
+
 DEGENERATE_REL = 1e-8
 MESH_DIR = "meshes"
 WHITESPACE = np.array([0x09, 0x0A, 0x0B, 0x0C, 0x0D, 0x20], dtype=np.uint8)
-
-
-class ObjError(Exception):
-    """An OBJ line that cannot be converted, with its file and line."""
 
 
 @dataclass(frozen=True)
@@ -53,38 +53,9 @@ class Converted:
     dropped: int  # degenerate triangles left out
 
 
-def _corner(token: str, count: int, where: str) -> int:
-    head = token.split("/", 1)[0]
-    try:
-        i = int(head)
-    except ValueError:
-        raise ObjError(f"{where}: bad vertex index {token!r}") from None
-    k = i - 1 if i > 0 else count + i
-    if i == 0 or not 0 <= k < count:
-        raise ObjError(f"{where}: vertex index {i} out of range (1..{count} or -{count}..-1)")
-    return k
-
-
 def read_obj(path: Path) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.int64]]:
-    """Positions (float32) and fan-triangulated faces of an OBJ file."""
-    verts: list[tuple[float, float, float]] = []
-    tris: list[tuple[int, int, int]] = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        fields = line.split()
-        if not fields:
-            continue
-        if fields[0] == "v":
-            try:
-                verts.append((float(fields[1]), float(fields[2]), float(fields[3])))
-            except (ValueError, IndexError):
-                raise ObjError(f"{path}:{number}: bad vertex {line.strip()!r}") from None
-        elif fields[0] == "f":
-            c = [_corner(t, len(verts), f"{path}:{number}") for t in fields[1:]]
-            if len(c) < 3:
-                raise ObjError(f"{path}:{number}: a face needs at least 3 vertices")
-            tris.extend((c[0], c[k], c[k + 1]) for k in range(1, len(c) - 1))
-    if not tris:
-        raise ObjError(f"{path}: no faces")
+    """Positions (float32) and fan-triangulated faces of an OBJ file (the cross-check's reader)."""
+    verts, tris = obj_to_ply.read_obj(path)
     return np.array(verts, dtype=np.float32), np.array(tris, dtype=np.int64)
 
 
