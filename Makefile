@@ -50,6 +50,8 @@ TEST_SUPPORT_OBJS := $(TEST_SUPPORT_SRCS:tests/renderer/%.c=$(BUILD)/tests/%.o)
 # The benchmark programs and the fuzzers' plain replay drivers, built with
 # the library's flags by every test-c so that they cannot rot.
 BENCH_BINS := $(BUILD)/bench/micro $(BUILD)/bench/raw_embree $(BUILD)/bench/mesh_load
+# The firefly diagnostics (tools/firefly): built by every test-c as well.
+TOOL_BINS := $(BUILD)/tools/firefly $(BUILD)/tools/replay $(BUILD)/tools/scan
 FUZZ_REPLAY := $(BUILD)/fuzz/fuzz_config_replay
 FUZZ_CORPUS := configs/scenes tests/configs/good tests/configs/bad $(wildcard tests/configs/fuzz)
 FUZZ_MESH_REPLAY := $(BUILD)/fuzz/fuzz_mesh_replay
@@ -146,6 +148,13 @@ $(BUILD)/bench/%: $(BUILD)/bench/%.o $(BUILD)/librender.a
 
 bench-bins: $(BENCH_BINS)
 
+$(BUILD)/tools/%.o: tools/firefly/%.c $(FLAGS_STAMP) | $(DEPS_STAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
+
+$(BUILD)/tools/%: $(BUILD)/tools/%.o $(BUILD)/librender.a
+	$(CC) $(ALL_CFLAGS) $^ -o $@ $(LDLIBS)
+
 $(BUILD)/fuzz/%.o: renderer/fuzz/%.c $(FLAGS_STAMP) | $(DEPS_STAMP)
 	@mkdir -p $(@D)
 	$(CC) $(CPPFLAGS) $(ALL_CFLAGS) -c $< -o $@
@@ -177,7 +186,7 @@ $(FUZZ_BUILD)/fuzz_portals: renderer/fuzz/fuzz_portals.c $(SRCS) $(wildcard rend
 
 # C tests: every tests/renderer/test_*.c is its own executable. The runner
 # also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
-test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY) $(FUZZ_PORTALS_REPLAY)
+test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(TOOL_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY) $(FUZZ_PORTALS_REPLAY)
 	@tests/run_c_tests.sh $(BUILD)
 	@tests/check_run_c_tests.sh $(BUILD)
 	@$(FUZZ_REPLAY) $(FUZZ_CORPUS)
@@ -352,7 +361,7 @@ crosscheck: $(BUILD)/render
 clean:
 	rm -rf renderer/build renderer/build-san $(FUZZ_BUILD)
 
--include $(OBJS:.o=.d) $(BUILD)/obj/cli/main.d $(TEST_BINS:=.d) $(TEST_SUPPORT_OBJS:.o=.d) $(BENCH_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
+-include $(OBJS:.o=.d) $(BUILD)/obj/cli/main.d $(TEST_BINS:=.d) $(TEST_SUPPORT_OBJS:.o=.d) $(BENCH_BINS:=.d) $(TOOL_BINS:=.d) $(BUILD)/fuzz/fuzz_config.d \
   $(BUILD)/fuzz/fuzz_mesh.d $(BUILD)/fuzz/fuzz_portals.d $(BUILD)/fuzz/replay.d
 
 # Kill-loop stress (issue 5): each kill loop of tests/renderer/test_faults.c

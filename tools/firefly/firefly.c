@@ -60,7 +60,6 @@ int main(int argc, char **argv)
     struct vec3 blo = vec3_make(-a - 1e-3, 2.2 - 1e-3, -a - 1e-3), bhi = vec3_make(a + 1e-3, 2.65 + 1e-3, a + 1e-3);
     struct rng rng;
     rng_seed(&rng, 12345, 0, 0);
-    struct integrator_stats stats = { 0 };
     long total = 0, traced = 0, hit_light = 0, through_portal_hits = 0, zero = 0, small = 0, zero_in_portal = 0;
     long regions[8] = { 0 }, n_where[4] = { 0 };
     for (long ip = 0; ip < n_points; ++ip) {
@@ -77,7 +76,7 @@ int main(int argc, char **argv)
         for (long k = 0; k < per_point; ++k) {
             double u[2] = { rng_uniform(&rng), rng_uniform(&rng) };
             struct bsdf_query q;
-            bsdf_setup(&sc, &v, u, &stats, &q);
+            bsdf_setup(&sc, &v, u, &q);
             ++total;
             if (!q.trace || !hits_box(q.ray.o, q.ray.d, blo, bhi)) continue;
             ++traced;

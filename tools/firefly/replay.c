@@ -10,6 +10,7 @@
 #include "config/config.h"
 #include "sampling/integrator.h"
 #include "base/rng.h"
+#include "scene/ray_stream.h"
 #include "scene/scene.h"
 #include "sampling/shading.h"
 #include "sampling/strategy.h"
@@ -44,6 +45,12 @@ int main(int argc, char **argv)
     struct camera cam;
     camera_init(&cam, &cfg.camera, cfg.width, cfg.height);
     struct integrator_stats stats = { 0 };
+    struct ray_stream rs;
+    struct error rerr;
+    if (!ray_stream_init(&rs, 1, &rerr)) {
+        fprintf(stderr, "%s\n", rerr.message);
+        return 1;
+    }
     double sum = 0.0, sum2 = 0.0;
     for (long pass = 0; pass < spp; ++pass) {
         struct rng r = rng_seeded(seed, (uint64_t)y * (uint64_t)cfg.width + (uint64_t)x, (uint64_t)pass);
@@ -53,7 +60,7 @@ int main(int argc, char **argv)
         struct vec3 d = camera_ray(&cam, x + jx.u, y + jy.u);
         struct hit h;
         bool found;
-        scene_intersect_coherent(&sc, cam.origin, &d, 1, &h, &found);
+        scene_intersect_coherent(&sc, cam.origin, &d, 1, &rs, &h, &found);
         struct rng rsave = rr.rng;
         struct rgb c = integrator_radiance_from(&it, &scr, cam.origin, d, found ? &h : NULL, &rr, &stats);
         sum += c.r;
@@ -74,7 +81,7 @@ int main(int argc, char **argv)
             struct light_sample ls;
             bool ok = strategy_sample(&st, &sp, ul, &ls);
             struct bsdf_query bq;
-            bsdf_setup(&sc, &v, ub, &stats, &bq);
+            bsdf_setup(&sc, &v, ub, &bq);
             int l = scene_first_light(&sc, bq.ray.o, bq.ray.d, bq.ray.tmax);
             double pdf = l >= 0 ? strategy_pdf(&st, &sp, l, bq.ray.d) : -1;
             double t = (2.2 - bq.ray.o.y) / bq.ray.d.y;
@@ -94,5 +101,6 @@ int main(int argc, char **argv)
     }
     double mean = sum / spp;
     printf("mean R=%.6f var-of-mean=%.3g\n", mean, (sum2 / spp - mean * mean) / spp);
+    ray_stream_free(&rs);
     return 0;
 }
