@@ -274,6 +274,8 @@ static void test_override_errors(void)
         { "camera", "1", "--set camera: camera is a mapping (only scalars can be overridden)" },
         { "camera.fov_y.x", "1", "--set camera.fov_y.x: camera.fov_y is a scalar" },
         { "camera..x", "1", "--set camera..x: empty key in the path" },
+        /* Includes are merged before overrides: one cannot add a file. */
+        { "include", "/etc/passwd", "--set include: includes are read with the file; an override cannot add one" },
         { "render.spp", "abc", "--set render.spp=abc: expected a non-negative integer, got \"abc\"" },
         { "render.spp", "-3", "--set render.spp=-3: expected a non-negative integer, got -3" },
         { "render.tme", "5", "--set render.tme=5: unknown key \"tme\" in render (expected integrator," },

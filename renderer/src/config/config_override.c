@@ -49,6 +49,10 @@ bool config_apply_override(struct loader *L, int k)
     if (strlen(o->path) >= sizeof path) return error_set(L->err, "--set %.64s...: path too long", o->path);
     memcpy(path, o->path, strlen(o->path) + 1);
     if (!L->root) return error_set(L->err, "--set %s: the document is empty", o->path);
+    /* Includes are merged when the file is read, before any override: an
+       override of `include` would be ignored, so it is refused. */
+    if (!strcmp(o->path, "include") || !strncmp(o->path, "include.", 8))
+        return error_set(L->err, "--set %s: includes are read with the file; an override cannot add one", o->path);
     int cur = L->root;
     char *comp = path;
     for (;;) {
