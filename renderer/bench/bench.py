@@ -1206,18 +1206,20 @@ def ours_steady(short: dict[str, Any], long: dict[str, Any], px: int) -> dict[st
     return {"samples_per_s": extra / wall, "samples_per_cpu_s": extra / cpu, "cores": cpu / wall}
 
 
-def mitsuba_scene(ctx: Context, folder: Path, max_depth: int, sets: tuple[str, ...] = (), tag: str = "") -> Path:
-    """The lampshade as Mitsuba gets it: our effective config (render
-    --print-config, with `sets` applied), which the cross-check's converter
-    turns into Mitsuba's scene, written into `folder`."""
+def mitsuba_scene(
+    ctx: Context, folder: Path, max_depth: int, sets: tuple[str, ...] = (), tag: str = "", scene: Path = LAMPSHADE
+) -> Path:
+    """A scene (the lampshade by default) as Mitsuba gets it: our effective
+    config (render --print-config, with `sets` applied), which the
+    cross-check's converter turns into Mitsuba's scene, written into `folder`."""
     folder.mkdir(parents=True, exist_ok=True)
-    eff = folder / f"lampshade{tag}.yaml"
+    eff = folder / f"{scene.stem}{tag}.yaml"
     set_args = [a for x in sets for a in ("--set", x)]
     p = subprocess.run(
         [
             str(ctx.render),
             "--print-config",
-            str(LAMPSHADE),
+            str(scene),
             "--set",
             f"render.max_depth={max_depth}",
             *set_args,
@@ -1433,6 +1435,105 @@ def function_medians(runs: list[dict[str, Any]], names: set[str]) -> dict[str, f
     """Each function's ns per sample, median over the runs (0 in a run
     where perf saw none of it)."""
     return {n: median([x["functions_ns_per_sample"].get(n, 0.0) for x in runs]) for n in names}
+
+
+WHITE_ROOM = bl.ROOT / "configs" / "scenes" / "white_room_night.yaml"
+
+
+def peak_rss_mb(path: Path) -> float:
+    """The peak resident memory that /usr/bin/time -f %M wrote (kB), in MB."""
+    return int(path.read_text().split()[-1]) / 1024.0
+
+
+def section_white_room(ctx: Context) -> dict[str, Any]:
+    """The White Room at night (99k triangles in 7.7 MB of PLY, two mesh
+    bulbs of 2,208 triangles each, 54 auto portals) in our renderer and in
+    Mitsuba 3 (llvm_ad_rgb, its Embree in robust mode as ours always is, so
+    that both do the same work): the time from start to the first sample
+    (ours: the process's wall time less its render time; Mitsuba's:
+    mi.load_dict), samples per second (ours: `light` and
+    `antishadow_exact`; Mitsuba: its steady passes) and the peak resident
+    memory of each process (/usr/bin/time). Issue 40."""
+    q = ctx.quick
+    rounds = 1 if q else 3
+    spp = {"direct": 2 if q else 16, "path": 1 if q else 8}
+    passes = 3
+    max_depth = 8
+    python, env = mitsuba_env()
+    folder = TMP / "white_room"
+    eff = mitsuba_scene(ctx, folder, max_depth, scene=WHITE_ROOM)
+    out = TMP / "runs" / "white_room"
+    rss = folder / "rss.txt"
+    timed = ("/usr/bin/time", "-o", str(rss), "-f", "%M")
+    runs: dict[str, list[dict[str, Any]]] = {}
+    for r in range(rounds):
+        log(f"white_room: round {r + 1}/{rounds}")
+        for integ in ("direct", "path"):
+            steps: list[Callable[[], None]] = []
+            for strategy in ("light", "antishadow_exact"):
+
+                def ours(integ: str = integ, strategy: str = strategy, r: int = r) -> None:
+                    args = ["--threads", "2", "--strategy", strategy, "--integrator", integ, "--seed", str(r + 1)]
+                    args += ["--set", f"render.max_depth={max_depth}", "--spp", str(spp[integ])]
+                    a = bl.run_render(ctx, WHITE_ROOM, out / f"{integ}_{strategy}", *args, prefix=timed)
+                    runs.setdefault(f"{integ}/{strategy}", []).append(
+                        {
+                            "load_s": a.process_wall_s - a.time_s,
+                            "samples_per_s": a.samples / max(a.time_s, 1e-9),
+                            "peak_rss_mb": peak_rss_mb(rss),
+                            "run": a.summary(),
+                        }
+                    )
+
+                steps.append(ours)
+
+            def mitsuba(integ: str = integ, r: int = r) -> None:
+                m = mitsuba_time(python, env, eff, integ, spp[integ], passes, r + 1, folder, prefix=timed, robust=True)
+                rates = mitsuba_rates(m)
+                runs.setdefault(f"{integ}/mitsuba", []).append(
+                    {
+                        "load_s": m["load_s"],
+                        "samples_per_s": rates["steady_samples_per_s"],
+                        "first_pass_s": rates["first_wall_s"],
+                        "peak_rss_mb": peak_rss_mb(rss),
+                        "mitsuba": m.get("mitsuba"),
+                    }
+                )
+
+            steps.append(mitsuba)
+            for step in steps if r % 2 == 0 else steps[::-1]:
+                step()
+    table: dict[str, Any] = {}
+    for key, rs in runs.items():
+        table[key] = {k: bl.median([float(x[k]) for x in rs]) for k in ("load_s", "samples_per_s", "peak_rss_mb")}
+    ratios: dict[str, Any] = {}
+    for integ in ("direct", "path"):
+        m = table[f"{integ}/mitsuba"]
+        for strategy in ("light", "antishadow_exact"):
+            o = table[f"{integ}/{strategy}"]
+            ratios[f"{integ}/{strategy}_vs_mitsuba"] = {
+                "samples_per_s": o["samples_per_s"] / m["samples_per_s"],
+                "load_s": o["load_s"] / m["load_s"],
+                "peak_rss": o["peak_rss_mb"] / m["peak_rss_mb"],
+            }
+    params = {
+        "config": str(WHITE_ROOM.relative_to(bl.ROOT)),
+        "rounds": rounds,
+        "threads": 2,
+        "spp": spp,
+        "max_depth": max_depth,
+        "mitsuba": {"variant": MITSUBA_VARIANT, "passes": passes, "robust": True},
+        "order": "per round and integrator: ours (light, antishadow_exact), then Mitsuba; reversed on odd rounds",
+        "medians": "of the rounds",
+    }
+    results = {"table": table, "ratios": ratios, "runs": runs}
+    bl.write_result(ctx, "white_room", params, results)
+    for key, row in table.items():
+        log(
+            f"white_room {key}: load {row['load_s']:.2f} s, {row['samples_per_s']:.3g} samples/s, "
+            f"peak {row['peak_rss_mb']:.0f} MB"
+        )
+    return results
 
 
 def section_time_split(ctx: Context) -> dict[str, Any]:
@@ -1747,6 +1848,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "mitsuba": section_mitsuba,
     "time_split": section_time_split,
     "mitsuba_efficiency": section_mitsuba_efficiency,
+    "white_room": section_white_room,
 }
 
 
