@@ -130,11 +130,29 @@ def choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> Chosen 
     return Chosen(cell.run_dir / image, chosen_t, {m["region"]: m["rel_mse"] for m in at if m["image"] == image})
 
 
+def common_time(times: list[list[float]], upper: float, tolerance: float = EQUAL_TIME_TOLERANCE) -> float:
+    """The latest time, up to `upper`, at which every run (its image times)
+    has an image that pick_time takes and whose times agree: `upper` when
+    they agree there, else the latest of the runs' image times at which they
+    do (a path-traced run whose last pass overshot the budget by more than
+    the tolerance is compared at the snapshot all runs share, not at its
+    previous snapshot beside the others' finals); `upper` when none does
+    (the figure then says that the times differ)."""
+    candidates = sorted({t for ts in times for t in ts if t <= upper * (1 + tolerance)}, reverse=True)
+    for t in [upper, *candidates]:
+        picked = [pick_time(ts, t, tolerance) for ts in times]
+        if all(p is not None for p in picked) and times_agree([p for p in picked if p is not None], tolerance):
+            return t
+    return upper
+
+
 def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: ExperimentData, point: Point) -> float:
-    """The configured comparison time, else the shortest final time of the point's runs."""
+    """The configured comparison time, else the latest time up to the shortest
+    final time of the point's runs at which each run has an image (common_time)."""
     if experiment.equal_time_s is not None:
         return experiment.equal_time_s
-    finals = []
+    finals: list[float] = []
+    times: list[list[float]] = []
     for strategy in experiment.strategies:
         cell = data.runs.get((point.id, strategy))
         if cell_done(cell):
@@ -142,7 +160,9 @@ def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: Experimen
             row = index.run_row(conn, cell.key)
             if row is not None and row["final_time_s"]:
                 finals.append(float(row["final_time_s"]))
-    return min(finals) if finals else math.inf
+                metrics = index.metrics_of(conn, cell.key, cell.reference_key)
+                times.append(sorted({float(m["time_s"]) for m in metrics if m["error"] is None}))
+    return common_time(times, min(finals)) if finals else math.inf
 
 
 def reference_groups(data: ExperimentData) -> list[list[Point]]:

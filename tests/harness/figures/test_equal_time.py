@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from portal_harness.figures.data import EQUAL_TIME_TOLERANCE, pick_time, times_agree
+from portal_harness.figures.data import EQUAL_TIME_TOLERANCE, common_time, pick_time, times_agree
 
 # The runs of one point of lampshade_ratio (s_L = 0.075) in a fresh
 # `make figures`: snapshots every 0.5 s, finals a pass past the 2 s budget.
@@ -43,3 +43,18 @@ def test_03_a_later_image_beyond_the_tolerance_is_not_taken() -> None:
 )
 def test_04_times_agree_within_the_tolerance(times: list[float], agree: bool) -> None:
     assert times_agree(times) is agree
+
+
+def test_05_a_run_that_overshot_by_more_than_the_tolerance_moves_the_comparison_to_a_shared_snapshot() -> None:
+    # white_room_night_full, path tracing: passes of ~0.05 s, light's last one ended at 2.05 s; compared at
+    # the shortest final (1.98 s) light would show its 1.51 s snapshot beside the others' finals.
+    runs = [[0.5, 1.01, 1.51, 2.05], [0.52, 1.02, 1.503, 1.98], [0.5, 1.0, 1.52, 2.0]]
+    t = common_time(runs, 1.98)
+    assert t == pytest.approx(1.52)
+    picked = [pick_time(r, t) for r in runs]
+    assert picked == [1.51, 1.503, 1.52] and times_agree([p for p in picked if p is not None])
+    # runs that all end within the tolerance keep the shortest final
+    finals = [[*SCHEDULE, f] for f in FINALS.values()]
+    assert common_time(finals, min(FINALS.values())) == min(FINALS.values())
+    # nothing shared: the shortest final, whose figure then says the times differ
+    assert common_time([[1.0], [2.0]], 1.0) == 1.0
