@@ -131,19 +131,27 @@ def choose_image(conn: sqlite3.Connection, cell: Cell, time_s: float) -> Chosen 
 
 
 def common_time(times: list[list[float]], upper: float, tolerance: float = EQUAL_TIME_TOLERANCE) -> float:
-    """The latest time, up to `upper`, at which every run (its image times)
-    has an image that pick_time takes and whose times agree: `upper` when
-    they agree there, else the latest of the runs' image times at which they
-    do (a path-traced run whose last pass overshot the budget by more than
-    the tolerance is compared at the snapshot all runs share, not at its
-    previous snapshot beside the others' finals); `upper` when none does
-    (the figure then says that the times differ)."""
-    candidates = sorted({t for ts in times for t in ts if t <= upper * (1 + tolerance)}, reverse=True)
-    for t in [upper, *candidates]:
+    """The time to compare runs at (their image times given): the latest
+    time up to `upper` (the shortest final) at which the images pick_time
+    takes agree within the tolerance; a run whose last pass overshot the
+    budget by more than the tolerance is then compared at the snapshot all
+    runs share, not at its previous snapshot beside the others' finals.
+    When no time agrees (path tracing's passes can be longer than the
+    tolerance, so no two runs have images that close), the time whose
+    images are the closest in time (the figure prints each image's time and
+    says that they differ)."""
+    best, best_spread = upper, math.inf
+    for t in [upper, *sorted({t for ts in times for t in ts}, reverse=True)]:
         picked = [pick_time(ts, t, tolerance) for ts in times]
-        if all(p is not None for p in picked) and times_agree([p for p in picked if p is not None], tolerance):
+        chosen = [p for p in picked if p is not None]
+        if len(chosen) < len(picked) or not chosen or min(chosen) <= 0:
+            continue
+        if t <= upper * (1 + tolerance) and times_agree(chosen, tolerance):
             return t
-    return upper
+        spread = max(chosen) / min(chosen)
+        if spread < best_spread:
+            best, best_spread = t, spread
+    return best
 
 
 def equal_time(experiment: Experiment, conn: sqlite3.Connection, data: ExperimentData, point: Point) -> float:
