@@ -351,7 +351,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (l->n_portals != rep->n_portals) fail("the portals are not the ones reported", t.s);
         struct polygon *ports = malloc(sizeof *ports * (size_t)(l->n_portals + 1));
         if (!ports) abort();
-        for (int k = 0; k < l->n_portals; ++k) polygon_copy(&ports[k], &sc.portals[l->first_portal + k].target.polygon);
+        for (int k = 0; k < l->n_portals; ++k)
+            polygon_copy(&ports[k], &sc.portals[l->first_portal + k].target->polygon);
         long n_escaped = 0, n_missed = 0;
         struct vec3 miss = vec3_make(0, 0, 0);
         if (!light_side(&sc, rep, ports, l->n_portals, 4096, &n_escaped, &n_missed, &miss)) abort();

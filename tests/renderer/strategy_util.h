@@ -16,6 +16,7 @@ struct test_scene {
     struct scene scene;
     struct light lights[TS_MAX];
     struct portal portals[TS_MAX];
+    struct target targets[TS_MAX];   /* portals[k].target is targets[k] */
     struct emitter emitters[TS_MAX]; /* one per light (polygon lights) */
 };
 
@@ -45,6 +46,14 @@ static inline void ts_init(struct test_scene *ts)
     ts->scene.scale = vec3_length(vec3_sub(ts->scene.bounds_hi, ts->scene.bounds_lo));
 }
 
+/* Releases what ts_add_portal built (the pairs' antishadows); ts_init may
+   then start a new scene in ts. */
+static inline void ts_free(struct test_scene *ts)
+{
+    for (int k = 0; k < ts->scene.n_portals; ++k) antishadow_free(&ts->portals[k].antishadow);
+    ts->scene.n_portals = 0;
+}
+
 /* Adds a light; its portals must be added right after it. */
 static inline int ts_add_light(struct test_scene *ts, struct polygon poly, struct rgb radiance, bool two_sided)
 {
@@ -63,9 +72,10 @@ static inline void ts_add_portal(struct test_scene *ts, int light, struct polygo
     struct portal *pt = &ts->portals[k];
     struct error err;
     pt->light = light;
-    CHECK(target_init(&pt->target, &poly));
-    pt->centroid = polygon_centroid(&pt->target.polygon);
-    bool ok = antishadow_build(&ts->lights[light].target.polygon, &pt->target.polygon, &pt->antishadow, &err);
+    CHECK(target_init(&ts->targets[k], &poly));
+    pt->target = &ts->targets[k];
+    pt->centroid = polygon_centroid(&pt->target->polygon);
+    bool ok = antishadow_build(&ts->lights[light].target.polygon, &pt->target->polygon, &pt->antishadow, &err);
     CHECK_MSG(ok, "antishadow_build: %s", err.message);
     ts->lights[light].n_portals++;
 }

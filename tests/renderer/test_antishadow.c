@@ -439,6 +439,7 @@ static void test_build_plane_counts(void)
         if (i < 5) CHECK(a.n_separating == 4);
         /* Beyond the portal is away from the light. */
         for (int k = 0; k < c[i].light.n; ++k) CHECK(plane_distance(&a.portal_plane, c[i].light.v[k]) < 0.0);
+        antishadow_free(&a);
     }
 }
 
@@ -489,6 +490,7 @@ static void test_lampshade_hand_checked(void)
             struct vec3 p = vec3_madd(c, vec3_sub(e, c), 1.25);
             CHECK_MSG(antishadow_classify(&a, p) == REGION_ANTI_PENUMBRA, "s_L %g, p (%g, %g, %g)", s, p.x, p.y, p.z);
         }
+        antishadow_free(&a);
     }
 }
 
@@ -519,6 +521,7 @@ static void test_brute_force_fixed(void)
         else CHECK(g.count[REGION_ANTI_ANTUMBRA] == 0);
         total_compared += g.compared;
         total_disagree += g.disagreements;
+        antishadow_free(&a);
     }
     printf("  fixed configurations: %d points compared, %d disagreements\n", total_compared, total_disagree);
 }
@@ -576,7 +579,10 @@ static void test_brute_force_random_pairs(void)
         /* Keep a clearance so that the brute force's margins are meaningful. */
         double clearance = INFINITY;
         for (int i = 0; i < light.n; ++i) clearance = fmin(clearance, -plane_distance(&a.portal_plane, light.v[i]));
-        if (clearance < 0.02) continue;
+        if (clearance < 0.02) {
+            antishadow_free(&a);
+            continue;
+        }
         with_antumbra += a.has_antumbra;
         struct pair_setup c;
         c.name = "random pair";
@@ -601,6 +607,7 @@ static void test_brute_force_random_pairs(void)
         disagree += g.disagreements;
         for (int k = 0; k < 4; ++k) count[k] += g.count[k];
         ++configs;
+        antishadow_free(&a);
     }
     printf("  %d random pairs (%d with an anti-antumbra): compared %d skipped %d disagree %d"
            "  (out %d umbra %d pen %d antumbra %d)\n",
@@ -692,6 +699,7 @@ static void check_visible(const struct pair_setup *c, uint64_t seed, int points,
             fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g) region %d, %d vertices\n", c->name, p.x, p.y, p.z, (int)reg,
                     n);
     }
+    antishadow_free(&a);
 }
 
 static void test_visible_polygon(void)
@@ -776,6 +784,9 @@ static void test_round_32(void)
                 fprintf(stderr, "  %s: p = (%.9g, %.9g, %.9g): 32/32 %d, 32/8 %d, 8/32 %d\n", c[i].name, p.x, p.y, p.z,
                         (int)r32, (int)rp8, (int)rl8);
         }
+        antishadow_free(&a);
+        antishadow_free(&a_p8);
+        antishadow_free(&a_l8);
     }
     printf("  32-gon visible polygon at %d outside, %d umbra, %d penumbra, %d antumbra points; %d ray checks\n",
            checked[0], checked[1], checked[2], checked[3], rays);
@@ -800,6 +811,7 @@ static void test_round_config(void)
     CHECK_MSG(antishadow_build(&c.lights[0].polygon, &c.portals[0].polygon, &a, &err), "%s", err.message);
     /* Straight below the opening, near it: the whole lamp is seen. */
     CHECK(antishadow_classify(&a, vec3_make(0, 1.7, 0)) == REGION_ANTI_UMBRA);
+    antishadow_free(&a);
     config_free(&c);
     ok = config_load("tests/configs/bad/portal_33_vertices.yaml", NULL, 0, &c, &err);
     CHECK(!ok);
@@ -856,6 +868,7 @@ static void test_build_errors(void)
     nan_light.v[2].x = NAN;
     CHECK(!antishadow_build(&nan_light, &portal, &a, &err));
     CHECK(antishadow_build(&light, &portal, &a, NULL));
+    antishadow_free(&a);
 
     /* A light below its portal is fine: the regions mirror. */
     struct polygon below = square(vec3_make(0, 1.8, 0), X, Z, 0.6);
@@ -864,6 +877,7 @@ static void test_build_errors(void)
     CHECK(antishadow_classify(&a, vec3_make(0, 0.0, 0)) == REGION_OUTSIDE);
     CHECK(antishadow_classify(&a, vec3_make(0, 2.3, 0)) == REGION_ANTI_UMBRA);
     CHECK(antishadow_classify(&a, vec3_make(NAN, 0, 0)) == REGION_OUTSIDE);
+    antishadow_free(&a);
 }
 
 static double now_s(void)
@@ -901,6 +915,7 @@ static void test_timing(void)
         double t2 = now_s();
         printf("  %-50s classify %.1f ns, visible polygon %.0f ns (checksum %u)\n", cf->name,
                1e9 * (t1 - t0) / (REPEAT * N_POINTS), 1e9 * (t2 - t1) / N_POINTS, sink);
+        antishadow_free(&a);
     }
 }
 
@@ -922,8 +937,11 @@ static void test_box_matches_clip(void)
             continue;
         }
         CHECK_MSG(a.box.valid == (i < 5), "%s: box %d", c[i].name, a.box.valid);
-        if (!a.box.valid) continue;
-        plain = a;
+        if (!a.box.valid) {
+            antishadow_free(&a);
+            continue;
+        }
+        plain = a; /* shares a's storage: only a is freed */
         plain.box.valid = false;
         struct brute b;
         brute_init(&b, &c[i].light, &c[i].portal, 700 + (uint64_t)i);
@@ -957,6 +975,7 @@ static void test_box_matches_clip(void)
                         p.y, p.z, n_got, n_got >= 3 ? polygon_area(&got) : 0.0, area);
         }
         CHECK_MSG(bad == 0, "%s: %d points differ", c[i].name, bad);
+        antishadow_free(&a);
     }
     CHECK_MSG(compared > 1000, "only %d anti-penumbra points compared", compared);
 }
@@ -985,6 +1004,7 @@ static void test_box_simple_needs_no_simplifying(void)
         struct error err;
         if (!antishadow_build(&c[i].light, &c[i].portal, &a, &err) || !a.box.valid) {
             CHECK_MSG(false, "%s: no box pair", c[i].name);
+            antishadow_free(&a);
             continue;
         }
         struct brute b;
@@ -1021,6 +1041,7 @@ static void test_box_simple_needs_no_simplifying(void)
         }
         CHECK_MSG(antishadow_visible_polygon_known(&a, in, REGION_ANTI_PENUMBRA, &vis, &simple) == 4 && !simple,
                   "%s: a sliver at x = %.17g is reported simple", c[i].name, in.x);
+        antishadow_free(&a);
     }
     CHECK_MSG(changed == 0, "%d simple rectangles were changed by simplification", changed);
     CHECK_MSG(simple_seen > 1000, "only %d simple rectangles seen", simple_seen);

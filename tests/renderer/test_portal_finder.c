@@ -82,7 +82,7 @@ static int portals_of(const struct scene *sc, int e, struct polygon *out, int ma
     const struct light *l = &sc->lights[sc->emitters[e].first_light];
     int n = 0;
     for (int k = 0; k < l->n_portals && n < max; ++k)
-        polygon_copy(&out[n++], &sc->portals[l->first_portal + k].target.polygon);
+        polygon_copy(&out[n++], &sc->portals[l->first_portal + k].target->polygon);
     return n;
 }
 
@@ -912,7 +912,7 @@ static void test_deterministic(void)
     }
     CHECK(sa.n_portals == sb.n_portals);
     for (int i = 0; i < sa.n_portals && i < sb.n_portals; ++i) {
-        const struct polygon *p = &sa.portals[i].target.polygon, *q = &sb.portals[i].target.polygon;
+        const struct polygon *p = &sa.portals[i].target->polygon, *q = &sb.portals[i].target->polygon;
         CHECK(p->n == q->n && memcmp(p->v, q->v, sizeof p->v[0] * (size_t)p->n) == 0);
     }
     scene_destroy(&sa);

@@ -55,9 +55,11 @@ static void test_lampshade_regions(void)
     /* Inside the shade (the light's side of the portal plane): the portal
        does not apply, the light is sampled directly. */
     check_strategies(&ts, vec3_make(0.25, 2.4, -0.1), "s_L=0.6 inside the shade", 150, true);
+    ts_free(&ts);
     lampshade(&ts, 0.15); /* projected light 0.127 < 0.3: anti-umbra below */
     check_strategies(&ts, vec3_make(0.1, 0, -0.1), "s_L=0.15 below (anti-umbra)", 300, false);
     check_strategies(&ts, vec3_make(0.9, 0, 0.3), "s_L=0.15 penumbra", 400, false);
+    ts_free(&ts);
 }
 
 /* A pentagon light behind a tilted portal: general polygons. */
@@ -81,6 +83,7 @@ static void test_tilted_pentagon(void)
     ts_add_portal(&ts, l, tilted);
     check_strategies(&ts, vec3_make(0.05, 0, 0.1), "pentagon/tilted below", 500, false);
     check_strategies(&ts, vec3_make(0.9, 0.3, -0.5), "pentagon/tilted side", 600, false);
+    ts_free(&ts);
 }
 
 /* Several lights: one with two portals (two-sided light in a tube), one
@@ -118,6 +121,7 @@ static void test_many_lights(void)
                               portal_weight_names[weights[w]], def, pv, report);
                 }
             }
+    ts_free(&ts);
 }
 
 /* Selection by power: a light with twice the power is picked twice as often. */
@@ -149,6 +153,7 @@ static void test_power_selection(void)
     double sigma = sqrt(n * (2.0 / 3.0) * (1.0 / 3.0));
     CHECK_NEAR(second, n * 2.0 / 3.0, 5 * sigma);
     ts_close_strategy(&s, &scratch);
+    ts_free(&ts);
 }
 
 /* Outside the antishadow the antishadow strategies produce nothing (no ray
@@ -174,6 +179,7 @@ static void test_outside_returns_nothing(void)
         CHECK(strategy_pdf(&s, &pt, 0, vec3_normalize(vec3_sub(vec3_make(0, 2.6, 0), p))) == 0.0);
         ts_close_strategy(&s, &scratch);
     }
+    ts_free(&ts);
 }
 
 /* The light-only strategies draw nothing for a light that can deliver
@@ -253,6 +259,8 @@ static void test_light_culled_draws_nothing(void)
         }
         ts_close_strategy(&s, &scratch);
     }
+    ts_free(&ts);
+    ts_free(&two);
 }
 
 /* strategy_point_unlit lets the direct integrator skip a point, so it must
@@ -539,6 +547,7 @@ static void test_mesh_light(void)
                 CHECK(strategy_pdf(&s, &pt, i, vec3_normalize(vec3_sub(ts.scene.lights[i].centroid, p))) == 0.0);
         ts_close_strategy(&s, &scratch);
     }
+    ts_free(&ts);
 }
 
 /* The region of a mesh light's pair (strategy_pair_irradiance, as the
@@ -583,6 +592,8 @@ static void test_mesh_pair_region(void)
         CHECK(counts[size ? REGION_ANTI_ANTUMBRA : REGION_ANTI_UMBRA] > 0);
         strategy_free(&sq_s);
         strategy_free(&mesh_s);
+        ts_free(&quad);
+        ts_free(&mesh);
     }
 }
 

@@ -49,6 +49,7 @@
    half-spaces beyond Pi and on P's side of these planes. */
 #include "geometry/antishadow.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 #include "base/fastmath.h"
@@ -150,15 +151,65 @@ static struct plane section_plane(const struct section *s, double x, double y, d
     return pl;
 }
 
-static void add_separating(struct antishadow *a, struct plane pl, double scale)
+/* The pair's planes while they are found, in arrays of the largest size;
+   antishadow_build then keeps what is used in one block. */
+struct antishadow_parts {
+    int n_separating, n_umbra, n_antumbra;
+    struct plane separating[ANTISHADOW_SEPARATING_MAX];
+    struct plane umbra[POLYGON_INPUT_MAX];
+    struct plane antumbra[POLYGON_INPUT_MAX];
+    struct clip_planes portal_clip;
+};
+
+static void add_separating(struct antishadow_parts *w, struct plane pl, double scale)
 {
-    for (int i = 0; i < a->n_separating; ++i) {
-        const struct plane *q = &a->separating[i];
+    for (int i = 0; i < w->n_separating; ++i) {
+        const struct plane *q = &w->separating[i];
         if (vec3_dot(q->normal, pl.normal) > 1.0 - ANTISHADOW_SAME_REL &&
             fabs(q->offset - pl.offset) <= ANTISHADOW_SAME_REL * scale)
             return;
     }
-    a->separating[a->n_separating++] = pl;
+    w->separating[w->n_separating++] = pl;
+}
+
+/* Moves the parts and copies of the polygons into one block owned by a. */
+static bool keep_parts(struct antishadow *a, const struct antishadow_parts *w, const struct polygon *light,
+                       const struct polygon *portal, struct error *err)
+{
+    size_t n_planes = (size_t)(w->n_separating + w->n_umbra + w->n_antumbra + w->portal_clip.n);
+    size_t n_vertices = (size_t)(light->n + portal->n);
+    /* Planes first: both types are doubles, so the vertices stay aligned. */
+    char *block = malloc(n_planes * sizeof(struct plane) + n_vertices * sizeof(struct vec3));
+    if (!block) return error_set(err, "out of memory for a light/portal pair");
+    struct plane *planes = (struct plane *)(void *)block;
+    struct vec3 *vertices = (struct vec3 *)(void *)(block + n_planes * sizeof(struct plane));
+    a->separating = planes;
+    memcpy(planes, w->separating, (size_t)w->n_separating * sizeof *planes);
+    planes += w->n_separating;
+    a->umbra = planes;
+    memcpy(planes, w->umbra, (size_t)w->n_umbra * sizeof *planes);
+    planes += w->n_umbra;
+    a->antumbra = planes;
+    memcpy(planes, w->antumbra, (size_t)w->n_antumbra * sizeof *planes);
+    planes += w->n_antumbra;
+    a->portal_clip = planes;
+    memcpy(planes, w->portal_clip.plane, (size_t)w->portal_clip.n * sizeof *planes);
+    a->n_separating = w->n_separating;
+    a->n_umbra = w->n_umbra;
+    a->n_antumbra = w->n_antumbra;
+    a->n_portal_clip = w->portal_clip.n;
+    memcpy(vertices, light->v, (size_t)light->n * sizeof *vertices);
+    a->light = (struct antishadow_vertices){ light->n, vertices };
+    memcpy(vertices + light->n, portal->v, (size_t)portal->n * sizeof *vertices);
+    a->portal = (struct antishadow_vertices){ portal->n, vertices + light->n };
+    a->storage = block;
+    return true;
+}
+
+void antishadow_free(struct antishadow *a)
+{
+    free(a->storage);
+    memset(a, 0, sizeof *a);
 }
 
 /* Section along the edge from poly->v[i] to its successor: u0 points into
@@ -228,9 +279,9 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
 {
     if (!check_polygon(light, "light", err) || !check_polygon(portal, "portal", err)) return false;
     memset(a, 0, sizeof *a);
-    a->light = *light;
-    a->portal = *portal;
-    polygon_clip_planes_init(portal, &a->portal_clip);
+    struct antishadow_parts w;
+    w.n_separating = w.n_umbra = w.n_antumbra = 0;
+    polygon_clip_planes_init(portal, &w.portal_clip);
 
     struct vec3 c_light = polygon_centroid(light), c_portal = polygon_centroid(portal);
     double scale = polygon_size(light) + polygon_size(portal) + vec3_length(vec3_sub(c_light, c_portal));
@@ -284,8 +335,8 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
                 y_hi = y;
             }
         }
-        a->umbra[a->n_umbra++] = section_plane(&s, x_hi, y_hi, 1.0);
-        add_separating(a, section_plane(&s, x_lo, y_lo, 1.0), scale);
+        w.umbra[w.n_umbra++] = section_plane(&s, x_hi, y_hi, 1.0);
+        add_separating(&w, section_plane(&s, x_lo, y_lo, 1.0), scale);
     }
 
     /* The anti-antumbra exists only if the portal lies strictly on one side
@@ -312,19 +363,19 @@ bool antishadow_build(const struct polygon *light, const struct polygon *portal,
         struct section s = edge_section(light, k, n_light, n_light);
         struct extremes ex;
         if (!section_extremes(&s, portal, tol, &ex)) continue;
-        if (ex.y_lo >= 0.0) add_separating(a, section_plane(&s, ex.x_lo, ex.y_lo, -1.0), scale);
-        if (ex.y_hi <= 0.0) add_separating(a, section_plane(&s, ex.x_hi, ex.y_hi, 1.0), scale);
+        if (ex.y_lo >= 0.0) add_separating(&w, section_plane(&s, ex.x_lo, ex.y_lo, -1.0), scale);
+        if (ex.y_hi <= 0.0) add_separating(&w, section_plane(&s, ex.x_hi, ex.y_hi, 1.0), scale);
         /* Supporting plane, positive on the side away from portal and light:
            the largest angle when the portal is on the u1 > 0 side, else the
            smallest (the mirror image). */
-        if (side > 0.0) a->antumbra[a->n_antumbra++] = section_plane(&s, ex.x_hi, ex.y_hi, -1.0);
-        else if (side < 0.0) a->antumbra[a->n_antumbra++] = section_plane(&s, ex.x_lo, ex.y_lo, 1.0);
+        if (side > 0.0) w.antumbra[w.n_antumbra++] = section_plane(&s, ex.x_hi, ex.y_hi, -1.0);
+        else if (side < 0.0) w.antumbra[w.n_antumbra++] = section_plane(&s, ex.x_lo, ex.y_lo, 1.0);
     }
     /* Each light edge's line misses the portal when the portal is strictly
        on one side of the light's plane, so every edge gave its plane. */
-    if (a->has_antumbra && a->n_antumbra != light->n) a->has_antumbra = false;
+    if (a->has_antumbra && w.n_antumbra != light->n) a->has_antumbra = false;
     box_build(a, light, portal, scale);
-    return true;
+    return keep_parts(a, &w, light, portal, err);
 }
 
 enum region antishadow_classify(const struct antishadow *a, struct vec3 p)
@@ -424,7 +475,7 @@ int antishadow_visible_polygon_known(const struct antishadow *a, struct vec3 p, 
             out->n = 0;
             return 0;
         }
-        return polygon_clip_by_planes(&projected, &a->portal_clip, out);
+        return polygon_clip_by_plane_list(&projected, a->portal_clip, a->n_portal_clip, out);
     }
     }
     out->n = 0;

@@ -50,29 +50,46 @@ struct antishadow_box {
     bool flip;                     /* the light winds clockwise about u x w */
 };
 
+/* The vertices of one of the pair's polygons (v[0..n), as given). */
+struct antishadow_vertices {
+    int n;
+    const struct vec3 *v;
+};
+
 /* Every plane is oriented so that its positive side (plane_distance > 0) is
-   the side of the region it bounds; distances are in scene units (metres). */
+   the side of the region it bounds; distances are in scene units (metres).
+   The planes and vertices live in one block sized to what the pair uses
+   (`storage`), not in arrays of the largest size: a mesh light has a pair
+   per triangle and portal, and arrays of the largest size made most of a
+   large scene's memory (docs/performance.md). The struct may be moved (copied
+   bitwise) but owns its block: one copy is freed, with antishadow_free. */
 struct antishadow {
-    struct plane portal_plane; /* positive beyond the portal, away from the light */
-    int n_separating;          /* p outside if negative for any of them */
-    struct plane separating[ANTISHADOW_SEPARATING_MAX];
-    int n_umbra; /* anti-umbra if positive for all (one per portal edge) */
-    struct plane umbra[POLYGON_INPUT_MAX];
-    bool has_antumbra; /* false when the portal reaches the light's plane */
-    int n_antumbra;    /* anti-antumbra if positive for all (one per light edge) */
-    struct plane antumbra[POLYGON_INPUT_MAX];
-    struct polygon light, portal;   /* copies of the inputs, as given */
-    struct clip_planes portal_clip; /* the portal's edge planes, for clipping */
-    struct antishadow_box box;      /* the anti-penumbra's clip as intervals, when box.valid */
+    struct plane portal_plane;                /* positive beyond the portal, away from the light */
+    int n_separating;                         /* p outside if negative for any of them */
+    int n_umbra;                              /* anti-umbra if positive for all (one per portal edge) */
+    int n_antumbra;                           /* anti-antumbra if positive for all (one per light edge) */
+    bool has_antumbra;                        /* false when the portal reaches the light's plane */
+    const struct plane *separating;           /* n_separating */
+    const struct plane *umbra;                /* n_umbra */
+    const struct plane *antumbra;             /* n_antumbra */
+    struct antishadow_vertices light, portal; /* copies of the inputs, as given */
+    int n_portal_clip;
+    const struct plane *portal_clip; /* the portal's inward edge planes, for clipping */
+    struct antishadow_box box;       /* the anti-penumbra's clip as intervals, when box.valid */
+    void *storage;                   /* owns the arrays above; NULL before a build and after a failed one */
 };
 
 /* Precomputes the planes of a light/portal pair (once, at scene load). Both
    polygons must be convex, planar, with 3..POLYGON_INPUT_MAX vertices and
    either winding; the light must lie strictly on one side of the portal's
    plane. False with a message otherwise. Only geometry counts here: a
-   one-sided light facing away from its portal is still accepted. */
+   one-sided light facing away from its portal is still accepted. *a
+   must hold no storage (new, or freed); on failure it holds none. */
 bool antishadow_build(const struct polygon *light, const struct polygon *portal, struct antishadow *a,
                       struct error *err);
+/* Releases what antishadow_build allocated (a zeroed or failed one holds
+   nothing; freeing it is harmless) and leaves *a without storage. */
+void antishadow_free(struct antishadow *a);
 
 /* The region of point p (a few dot products, cheapest tests first). Points
    within rounding of a boundary may go either way. */

@@ -328,17 +328,22 @@ void polygon_clip_planes_init(const struct polygon *clip, struct clip_planes *cp
     }
 }
 
-int polygon_clip_by_planes(const struct polygon *subject, const struct clip_planes *cp, struct polygon *out)
+int polygon_clip_by_plane_list(const struct polygon *subject, const struct plane *planes, int n, struct polygon *out)
 {
-    if (subject->n < 3 || cp->n == 0) {
+    if (subject->n < 3 || n == 0) {
         out->n = 0;
         return 0;
     }
     /* The first plane reads the subject, the others clip in place: no copy
        of the whole subject. */
-    polygon_clip_plane(subject, &cp->plane[0], out);
-    for (int i = 1; i < cp->n && out->n > 0; ++i) polygon_clip_plane(out, &cp->plane[i], out);
+    polygon_clip_plane(subject, &planes[0], out);
+    for (int i = 1; i < n && out->n > 0; ++i) polygon_clip_plane(out, &planes[i], out);
     return out->n;
+}
+
+int polygon_clip_by_planes(const struct polygon *subject, const struct clip_planes *cp, struct polygon *out)
+{
+    return polygon_clip_by_plane_list(subject, cp->plane, cp->n, out);
 }
 
 int polygon_clip_convex(const struct polygon *subject, const struct polygon *clip, struct polygon *out)

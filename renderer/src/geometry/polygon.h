@@ -103,6 +103,8 @@ struct clip_planes {
 void polygon_clip_planes_init(const struct polygon *clip, struct clip_planes *cp);
 /* polygon_clip_convex with prepared planes. */
 int polygon_clip_by_planes(const struct polygon *subject, const struct clip_planes *cp, struct polygon *out);
+/* The same with the n planes stored elsewhere (an antishadow's block). */
+int polygon_clip_by_plane_list(const struct polygon *subject, const struct plane *planes, int n, struct polygon *out);
 
 /* Ray o + t d (d need not be unit) against the polygon: true with *t when the
    ray hits the polygon's interior at t > 0 (either side). */

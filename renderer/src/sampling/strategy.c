@@ -22,7 +22,7 @@ static struct aabb shade_box(const struct scene *sc, const struct emitter *e)
     for (int i = 0; i < e->n_lights + first->n_portals; ++i) {
         const struct polygon *poly = i < e->n_lights
                                          ? &sc->lights[e->first_light + i].target.polygon
-                                         : &sc->portals[first->first_portal + i - e->n_lights].target.polygon;
+                                         : &sc->portals[first->first_portal + i - e->n_lights].target->polygon;
         for (int v = 0; v < poly->n; ++v) {
             struct vec3 x = poly->v[v];
             b.lo = vec3_make(fmin(b.lo.x, x.x), fmin(b.lo.y, x.y), fmin(b.lo.z, x.z));
@@ -183,7 +183,7 @@ static bool build_outlines(struct strategy *s, struct error *err)
     for (int i = 0; i < s->n_pairs; ++i) {
         const struct strategy_pair *pair = &s->pairs[i];
         if (pair->portal < 0 || sc->emitters[pair->emitter].n_lights == 1) continue;
-        const struct polygon *q = &sc->portals[pair->portal].target.polygon;
+        const struct polygon *q = &sc->portals[pair->portal].target->polygon;
         struct portal_outline *o = &s->outline[i];
         o->n_edges = (q->n + OUTLINE_BLOCK - 1) / OUTLINE_BLOCK * OUTLINE_BLOCK;
         double *xyz = malloc(sizeof *xyz * 3 * (size_t)(o->n_edges + 1));
@@ -393,9 +393,9 @@ static double technique_pdf(const struct strategy *s, const struct strategy_poin
     case TECHNIQUE_LIGHT_SOLID:
         return target_pdf_solid_angle(&l->target, p, wi);
     case TECHNIQUE_PORTAL_AREA:
-        return target_pdf_area(&sc->portals[pair->portal].target, p, wi);
+        return target_pdf_area(sc->portals[pair->portal].target, p, wi);
     case TECHNIQUE_PORTAL_SOLID:
-        return target_pdf_solid_angle(&sc->portals[pair->portal].target, p, wi);
+        return target_pdf_solid_angle(sc->portals[pair->portal].target, p, wi);
     case TECHNIQUE_VISIBLE_AREA:
         vis = technique_visible(s, pt, pair, pair_index, region, member_vis);
         return vis ? target_pdf_area(vis, p, wi) : 0.0;
@@ -422,9 +422,9 @@ static bool technique_sample(const struct strategy *s, const struct strategy_poi
     case TECHNIQUE_LIGHT_SOLID:
         return target_sample_solid_angle(&l->target, p, u[0], u[1], u[2], tp);
     case TECHNIQUE_PORTAL_AREA:
-        return target_sample_area(&sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
+        return target_sample_area(sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
     case TECHNIQUE_PORTAL_SOLID:
-        return target_sample_solid_angle(&sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
+        return target_sample_solid_angle(sc->portals[pair->portal].target, p, u[0], u[1], u[2], tp);
     case TECHNIQUE_VISIBLE_AREA:
         vis = technique_visible(s, pt, pair, pair_index, region, member_vis);
         return vis && target_sample_area(vis, p, u[0], u[1], u[2], tp);
@@ -589,7 +589,7 @@ static const struct target *waiting_target(const struct strategy *s, const struc
     if (index < 0 || member_vis || s->first_pair[pair->emitter + 1] - s->first_pair[pair->emitter] != 1) return NULL;
     const struct target *target = NULL;
     if (t == TECHNIQUE_LIGHT_SOLID) target = &s->scene->lights[pair->light].target;
-    else if (t == TECHNIQUE_PORTAL_SOLID) target = &s->scene->portals[pair->portal].target;
+    else if (t == TECHNIQUE_PORTAL_SOLID) target = s->scene->portals[pair->portal].target;
     else if (t == TECHNIQUE_VISIBLE_SOLID) {
         const struct target *vis = technique_visible(s, pt, pair, index, region, NULL);
         if (!vis || !vis->is_rectangle) return NULL;

@@ -280,7 +280,7 @@ static enum region mesh_pair_region(const struct strategy *s, int i, struct vec3
 static double mesh_portal_irradiance(const struct strategy *s, const struct strategy_pair *pair, struct vec3 p)
 {
     const struct portal *pt = &s->scene->portals[pair->portal];
-    return rgb_luminance(s->scene->lights[pair->light].radiance) * small_solid_angle(&pt->target, pt->centroid, p);
+    return rgb_luminance(s->scene->lights[pair->light].radiance) * small_solid_angle(pt->target, pt->centroid, p);
 }
 
 /* The `irradiance_estimate` weight of a polygon light's portal pair in a
@@ -300,7 +300,7 @@ static double pair_irradiance_estimate(const struct strategy *s, const struct st
     double light =
         region == REGION_ANTI_ANTUMBRA ? INFINITY : small_projected_solid_angle(&l->target, l->centroid, p, n);
     double portal =
-        region == REGION_ANTI_UMBRA ? INFINITY : small_projected_solid_angle(&pt->target, pt->centroid, p, n);
+        region == REGION_ANTI_UMBRA ? INFINITY : small_projected_solid_angle(pt->target, pt->centroid, p, n);
     return rgb_luminance(l->radiance) * fm_fmin(light, portal);
 }
 
@@ -346,15 +346,15 @@ static struct weight_term pair_weight(const struct strategy *s, const struct str
     switch (heuristic) {
     case PORTAL_WEIGHT_AREA: {
         double sum = 0.0;
-        for (int k = 0; k < l->n_portals; ++k) sum += sc->portals[l->first_portal + k].target.area;
-        return weight_value(e->power * pt->target.area / sum);
+        for (int k = 0; k < l->n_portals; ++k) sum += sc->portals[l->first_portal + k].target->area;
+        return weight_value(e->power * pt->target->area / sum);
     }
     case PORTAL_WEIGHT_DISTANCE: {
         /* Each portal's share of its light falls off as area / distance^2. */
         double sum = 0.0, mine = 0.0;
         for (int k = 0; k < l->n_portals; ++k) {
             const struct portal *q = &sc->portals[l->first_portal + k];
-            double w = q->target.area / fm_fmax(vec3_length2(vec3_sub(q->centroid, p)), 1e-12);
+            double w = q->target->area / fm_fmax(vec3_length2(vec3_sub(q->centroid, p)), 1e-12);
             sum += w;
             if (l->first_portal + k == pair->portal) mine = w;
         }

@@ -122,6 +122,6 @@ int portal_finder_portals(const struct scene *s, int emitter, const struct polyg
 {
     const struct light *l = &s->lights[s->emitters[emitter].first_light];
     int n = 0;
-    for (int k = 0; k < l->n_portals && n < max; ++k) out[n++] = &s->portals[l->first_portal + k].target.polygon;
+    for (int k = 0; k < l->n_portals && n < max; ++k) out[n++] = &s->portals[l->first_portal + k].target->polygon;
     return n;
 }

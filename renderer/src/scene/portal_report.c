@@ -47,7 +47,7 @@ static bool summary_coverage(const struct scene *s, int i, long n_rays, int max_
     int n = l->n_portals;
     struct polygon *copy = malloc(sizeof *copy * (size_t)(n > 0 ? n : 1));
     if (!copy) return error_set(err, "out of memory");
-    for (int k = 0; k < n; ++k) polygon_copy(&copy[k], &s->portals[l->first_portal + k].target.polygon);
+    for (int k = 0; k < n; ++k) polygon_copy(&copy[k], &s->portals[l->first_portal + k].target->polygon);
     memset(cov, 0, sizeof *cov);
     bool ok = true;
     for (int batch = 0; ok && batch < max_batches && cov->n_escaped < PORTAL_FINDER_SUMMARY_ESCAPED; ++batch) {
@@ -93,7 +93,7 @@ bool portal_finder_write_summary(const struct scene *s, const struct config *cfg
         const struct light *l = &s->lights[s->emitters[i].first_light];
         for (int k = 0; k < l->n_portals; ++k) {
             fprintf(out, "#   - {name: %s_auto%d, light: %s, vertices: ", cfg->lights[i].name, k, cfg->lights[i].name);
-            write_polygon(out, &s->portals[l->first_portal + k].target.polygon);
+            write_polygon(out, &s->portals[l->first_portal + k].target->polygon);
             fputs("}\n", out);
         }
     }
@@ -133,7 +133,7 @@ bool portal_finder_write_json(const struct scene *s, const struct config *cfg, l
         fputs(",\"portals\":[", out);
         const struct light *l = &s->lights[s->emitters[i].first_light];
         for (int k = 0; rep->enclosed && k < l->n_portals; ++k) {
-            const struct polygon *p = &s->portals[l->first_portal + k].target.polygon;
+            const struct polygon *p = &s->portals[l->first_portal + k].target->polygon;
             char name[CONFIG_NAME_MAX + 32];
             snprintf(name, sizeof name, "%s_auto%d", cfg->lights[i].name, k);
             fputs(k ? ",{\"name\":" : "{\"name\":", out);

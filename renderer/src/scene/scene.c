@@ -196,7 +196,12 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
     s->lights = calloc(n_lights, sizeof *s->lights);
     s->portals = calloc(n_portals > 0 ? n_portals : 1, sizeof *s->portals);
     s->emitters = calloc((size_t)cfg->n_lights, sizeof *s->emitters);
-    if (!s->lights || !s->portals || !s->emitters) return error_set(err, "out of memory for %zu lights", n_lights);
+    s->target_blocks = malloc(sizeof *s->target_blocks);
+    struct target *targets = calloc((size_t)(cfg->n_portals > 0 ? cfg->n_portals : 1), sizeof *targets);
+    if (s->target_blocks && targets) s->target_blocks[s->n_target_blocks++] = targets;
+    else free(targets);
+    if (!s->lights || !s->portals || !s->emitters || !s->target_blocks || !targets)
+        return error_set(err, "out of memory for %zu lights", n_lights);
     s->n_emitters = cfg->n_lights;
     for (int i = 0; i < cfg->n_lights; ++i) {
         const struct light_desc *d = &cfg->lights[i];
@@ -224,11 +229,13 @@ static bool build_lights(struct scene *s, const struct config *cfg, struct error
                 pt->light = s->n_lights;
                 const struct portal_desc *pd = &cfg->portals[j];
                 struct error aerr;
-                if (!target_init(&pt->target, &pd->polygon))
+                /* Portal j belongs to light i alone: its target is made at the emitter's first member. */
+                if (m == 0 && !target_init(&targets[j], &pd->polygon))
                     return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column,
                                     "portal \"%s\" is degenerate", pd->name);
-                pt->centroid = polygon_centroid(&pt->target.polygon);
-                if (!antishadow_build(&l->target.polygon, &pt->target.polygon, &pt->antishadow, &aerr)) {
+                pt->target = &targets[j];
+                pt->centroid = polygon_centroid(&pt->target->polygon);
+                if (!antishadow_build(&l->target.polygon, &pt->target->polygon, &pt->antishadow, &aerr)) {
                     if (d->mesh.n_triangles > 0)
                         return error_at(err, loc_file(cfg, &pd->loc), pd->loc.line, pd->loc.column,
                                         "portal \"%s\" with triangle %d of light \"%s\": %s", pd->name, m, d->name,
@@ -372,7 +379,10 @@ void scene_destroy(struct scene *s)
     for (int i = 0; s->emitters && i < s->n_emitters; ++i)
         if (s->emitters[i].rtc_scene) rtcReleaseScene(s->emitters[i].rtc_scene);
     free(s->emitters);
+    for (int i = 0; s->portals && i < s->n_portals; ++i) antishadow_free(&s->portals[i].antishadow);
     free(s->portals);
+    for (int i = 0; i < s->n_target_blocks; ++i) free(s->target_blocks[i]);
+    free(s->target_blocks);
     for (int i = 0; s->geometries && i < s->n_geometries; ++i) free(s->geometries[i].prim_face);
     free(s->geometries);
     for (int i = 0; s->auto_portals && i < s->n_emitters; ++i) free(s->auto_portals[i].planes);
@@ -476,9 +486,20 @@ bool scene_add_portals(struct scene *s, int emitter, const struct polygon *porta
     size_t total = (size_t)s->n_portals + (size_t)n * (size_t)e->n_lights;
     if (n == 0) return true;
     if (total > INT_MAX / 2) return error_set(err, "too many light/portal pairs (%zu)", total);
+    struct target **blocks = realloc(s->target_blocks, sizeof *blocks * (size_t)(s->n_target_blocks + 1));
+    if (!blocks) return error_set(err, "out of memory for %zu portals", total);
+    s->target_blocks = blocks;
+    struct target *targets = calloc((size_t)n, sizeof *targets);
+    if (!targets) return error_set(err, "out of memory for %zu portals", total);
+    for (int j = 0; j < n; ++j)
+        if (!target_init(&targets[j], &portals[j])) {
+            free(targets);
+            return error_set(err, "found portal %d is degenerate", j);
+        }
     struct portal *all = calloc(total, sizeof *all);
     int *first = malloc(sizeof *first * (size_t)s->n_lights);
     if (!all || !first) {
+        free(targets);
         free(all);
         free(first);
         return error_set(err, "out of memory for %zu portals", total);
@@ -493,10 +514,14 @@ bool scene_add_portals(struct scene *s, int emitter, const struct polygon *porta
             struct portal *pt = &all[k];
             struct error aerr;
             pt->light = i;
-            bool ok = target_init(&pt->target, &portals[j]) || error_set(&aerr, "portal %d is degenerate", j);
+            pt->target = &targets[j];
             pt->centroid = polygon_centroid(&portals[j]);
-            ok = ok && antishadow_build(&l->target.polygon, &portals[j], &pt->antishadow, &aerr);
-            if (!ok) {
+            if (!antishadow_build(&l->target.polygon, &portals[j], &pt->antishadow, &aerr)) {
+                /* The pairs built so far are this call's; the others still belong to s->portals. */
+                for (int b = 0; b <= i; ++b)
+                    for (int c = 0; s->lights[b].emitter == emitter && c < n; ++c)
+                        antishadow_free(&all[first[b] + s->lights[b].n_portals + c].antishadow);
+                free(targets);
                 free(all);
                 free(first);
                 return error_set(err, "found portal %d with light %d: %s", j, i - e->first_light, aerr.message);
@@ -510,6 +535,7 @@ bool scene_add_portals(struct scene *s, int emitter, const struct polygon *porta
     free(first);
     free(s->portals);
     s->portals = all;
+    s->target_blocks[s->n_target_blocks++] = targets;
     s->n_portals = k;
     return true;
 }

@@ -20,16 +20,19 @@ struct config; /* config.h */
 /* One portal of a light, with its antishadow precomputed at load. */
 struct portal {
     int light;
-    struct target target; /* the opening's polygon, area, normal */
+    /* The opening's polygon, area, normal: one per portal of an emitter,
+       which every light of the emitter shares (scene.target_blocks). */
+    const struct target *target;
     struct vec3 centroid;
     struct antishadow antishadow;
 };
 
 /* A light as the config names it: one polygon light, or a mesh light whose
    every triangle is a light of its own (lights first_light.. first_light +
-   n_lights - 1, in the mesh's order). Each of its lights holds its own copy
-   of each of the emitter's portals (as many as lights[first_light].n_portals),
-   in the same order, with the antishadow of that light and that portal; a
+   n_lights - 1, in the mesh's order). Each of its lights holds its own pair
+   with each of the emitter's portals (as many as lights[first_light].n_portals),
+   in the same order, with the antishadow of that light and that portal and
+   the portal's target, which the pairs of the portal share; a
    portal therefore has the index lights[l].first_portal + k in every light
    l of the emitter. */
 struct emitter {
@@ -78,6 +81,10 @@ struct scene {
     struct emitter *emitters; /* one per config light; lights[i].emitter */
     int n_portals;
     struct portal *portals; /* grouped by light: light.first_portal.. */
+    /* The portals' targets, in blocks that never move (the config's
+       portals, then one block per emitter's found portals); owned. */
+    int n_target_blocks;
+    struct target **target_blocks;
     int n_geometries;
     struct geometry_info *geometries; /* indexed by Embree geomID */
     struct vec3 bounds_lo, bounds_hi; /* of all geometry and lights */
