@@ -6,6 +6,8 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "base/fastmath.h"
+
 #include "geometry/facet_edges.h"
 #include "geometry/polygon_subtract.h"
 
@@ -136,7 +138,7 @@ static int open_region(const struct convex_hull *h, const struct vec3 *points, i
             for (int k = 0; k < 2; ++k) {
                 struct vec3 q = frame_to_local(&fr, e[i].a);
                 if (k) q = frame_to_local(&fr, e[i].b);
-                for (int l = 0; l < nf; ++l) delta = fmin(delta, LINE_D(l, q));
+                for (int l = 0; l < nf; ++l) delta = fm_fmin(delta, LINE_D(l, q));
             }
         }
         i = j;
@@ -146,13 +148,13 @@ static int open_region(const struct convex_hull *h, const struct vec3 *points, i
        outline than delta, off every edge of S. */
     bool proven = false;
     for (int v = 0; v < nf && !proven; ++v) {
-        double reach = fmax(LINE_D(v, c2), LINE_D((v + nf - 1) % nf, c2));
+        double reach = fm_fmax(LINE_D(v, c2), LINE_D((v + nf - 1) % nf, c2));
         if (!(reach > 0.0)) continue;
         for (double frac = 0.5; frac > 0.01 && !proven; frac *= 0.37) {
-            double t = fmin(0.5, frac * fmin(delta, reach) / reach);
+            double t = fm_fmin(0.5, frac * fm_fmin(delta, reach) / reach);
             struct vec3 x0 = vec3_add(fv[v], vec3_scale(vec3_sub(c2, fv[v]), t));
             double dist = INFINITY;
-            for (int i = 0; i < nf; ++i) dist = fmin(dist, LINE_D(i, x0));
+            for (int i = 0; i < nf; ++i) dist = fm_fmin(dist, LINE_D(i, x0));
             if (!(dist > eps && dist < delta)) continue;
             int count = 0;
             bool clear = true;
@@ -232,8 +234,8 @@ bool facet_uncovered_part(const struct convex_hull *h, const struct vec3 *points
            of triangles in one facet). */
         struct vec3 tlo = tri[0], thi = tri[0];
         for (int v = 1; v < 3; ++v) {
-            tlo = vec3_make(fmin(tlo.x, tri[v].x), fmin(tlo.y, tri[v].y), fmin(tlo.z, tri[v].z));
-            thi = vec3_make(fmax(thi.x, tri[v].x), fmax(thi.y, tri[v].y), fmax(thi.z, tri[v].z));
+            tlo = vec3_make(fm_fmin(tlo.x, tri[v].x), fm_fmin(tlo.y, tri[v].y), fm_fmin(tlo.z, tri[v].z));
+            thi = vec3_make(fm_fmax(thi.x, tri[v].x), fm_fmax(thi.y, tri[v].y), fm_fmax(thi.z, tri[v].z));
         }
         tlo = vec3_sub(tlo, vec3_make(cover, cover, cover));
         thi = vec3_add(thi, vec3_make(cover, cover, cover));
@@ -249,8 +251,8 @@ bool facet_uncovered_part(const struct convex_hull *h, const struct vec3 *points
                 struct vec3 plo = cur.p[k].v[0], phi = plo;
                 for (int v = 1; v < cur.p[k].n; ++v) {
                     struct vec3 x = cur.p[k].v[v];
-                    plo = vec3_make(fmin(plo.x, x.x), fmin(plo.y, x.y), fmin(plo.z, x.z));
-                    phi = vec3_make(fmax(phi.x, x.x), fmax(phi.y, x.y), fmax(phi.z, x.z));
+                    plo = vec3_make(fm_fmin(plo.x, x.x), fm_fmin(plo.y, x.y), fm_fmin(plo.z, x.z));
+                    phi = vec3_make(fm_fmax(phi.x, x.x), fm_fmax(phi.y, x.y), fm_fmax(phi.z, x.z));
                 }
                 apart =
                     plo.x > thi.x || plo.y > thi.y || plo.z > thi.z || phi.x < tlo.x || phi.y < tlo.y || phi.z < tlo.z;

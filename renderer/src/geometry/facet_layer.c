@@ -5,6 +5,8 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "base/fastmath.h"
+
 #include "geometry/facet_edges.h"
 
 /* Depths, relative to P's size, tried for the covering layer of a facet
@@ -62,7 +64,7 @@ bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, 
     struct frame fr = frame_from_normal(pl->normal);
     double tol = h->tol, eps = 100.0 * h->tol;
     double h_min = INFINITY;
-    for (int i = 0; i < n_light_pts; ++i) h_min = fmin(h_min, -plane_distance(pl, light_pts[i]));
+    for (int i = 0; i < n_light_pts; ++i) h_min = fm_fmin(h_min, -plane_distance(pl, light_pts[i]));
     if (!(h_min > 0.0)) return false;
     int nf = hf->n, n_g_cap = nf * (n_light_pts + 1);
     struct vec3 *gp = malloc(sizeof *gp * (size_t)n_g_cap);
@@ -109,10 +111,10 @@ bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, 
     int *pre = malloc(sizeof *pre * (size_t)(n_tris + 1)), n_pre = 0;
     bool covered = false;
     /* The triangles within the deepest layer tried, once. */
-    double d_last = fmin(LAYER_REL[sizeof LAYER_REL / sizeof LAYER_REL[0] - 1] * h->size, 0.5 * h_min);
+    double d_last = fm_fmin(LAYER_REL[sizeof LAYER_REL / sizeof LAYER_REL[0] - 1] * h->size, 0.5 * h_min);
     for (int t = 0; pre && t < n_tris; ++t) {
         double dmin = INFINITY;
-        for (int k = 0; k < 3; ++k) dmin = fmin(dmin, -plane_distance(pl, tris[t][k]));
+        for (int k = 0; k < 3; ++k) dmin = fm_fmin(dmin, -plane_distance(pl, tris[t][k]));
         if (dmin >= -tol && dmin <= d_last) pre[n_pre++] = t;
     }
     for (size_t li = 0; gp && gi && ln && e && sp && fl_ok && pre && feet && n_feet > 0 &&
@@ -162,7 +164,8 @@ bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, 
             bool outside = false;
             for (int i = 0; i < c && !outside; ++i)
                 outside = G_D(i, q[0]) < -eps && G_D(i, q[1]) < -eps && G_D(i, q[2]) < -eps;
-            if (outside || fmin(dep[0], fmin(dep[1], dep[2])) > d || fmin(dep[0], fmin(dep[1], dep[2])) < -tol)
+            if (outside || fm_fmin(dep[0], fm_fmin(dep[1], dep[2])) > d ||
+                fm_fmin(dep[0], fm_fmin(dep[1], dep[2])) < -tol)
                 continue;
             struct layer_poly *lp = &sp[n_s];
             lp->n = 0;
@@ -211,8 +214,8 @@ bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, 
                     for (int k = 0; k < c && t0 <= t1; ++k) {
                         double da = G_D(k, a) - tol, db = G_D(k, b) - tol;
                         if (da < 0.0 && db < 0.0) t1 = -1.0;
-                        else if (da < 0.0) t0 = fmax(t0, da / (da - db));
-                        else if (db < 0.0) t1 = fmin(t1, da / (da - db));
+                        else if (da < 0.0) t0 = fm_fmax(t0, da / (da - db));
+                        else if (db < 0.0) t1 = fm_fmin(t1, da / (da - db));
                     }
                     odd_bad = t0 < t1;
                 }

@@ -254,9 +254,13 @@ static int gather_triangles(const struct config *cfg, struct vec3 lo, struct vec
 
 /* The portals of P: every facet's uncovered part, clipped for a one-sided
    polygon light to the half-space it emits into (nothing it emits crosses
-   the rest), split to at most POLYGON_INPUT_MAX corners. */
+   the rest), split to at most POLYGON_INPUT_MAX corners. It stops early,
+   with *open_area at least stop_at and no portals, once the open area of
+   the facets so far reaches stop_at: a caller that keeps a hull only for
+   less open area than stop_at has its answer then (the areas are summed in
+   the same order as the full sum, so the partial sum is no larger). */
 static bool portals_of_hull(const struct finder *f, const struct convex_hull *h, const struct vec3 *points,
-                            struct polygon_list *out, double *open_area, double *hull_area, bool *bad)
+                            double stop_at, struct polygon_list *out, double *open_area, double *hull_area, bool *bad)
 {
     *bad = false;
     struct vec3 lo = vec3_make(INFINITY, INFINITY, INFINITY), hi = vec3_neg(lo);
@@ -274,6 +278,7 @@ static bool portals_of_hull(const struct finder *f, const struct convex_hull *h,
     struct polygon_list open = { 0, 0, NULL };
     bool ok = true;
     *hull_area = 0.0;
+    double partial = 0.0;
     for (int fi = 0; ok && fi < h->n_facets; ++fi) {
         const struct hull_facet *hf = &h->facets[fi];
         struct vec3 a = points[h->index[hf->first]];
@@ -285,6 +290,13 @@ static bool portals_of_hull(const struct finder *f, const struct convex_hull *h,
         if (ok && open.n > before &&
             facet_layer_covers(h, points, fi, (const struct vec3(*)[3])tris, n_tris, f->light_pts, f->n_light_pts))
             open.n = before;
+        for (int k = before; ok && k < open.n; ++k) partial += polygon_area(&open.p[k]);
+        if (ok && partial >= stop_at) {
+            free(tris);
+            free(open.p);
+            *open_area = partial;
+            return true;
+        }
     }
     free(tris);
     *open_area = 0.0;
@@ -370,7 +382,9 @@ static bool try_hull(const struct finder *f, const struct candidate *c, int n, s
         free(ch.points);
         return false;
     }
-    *ok = portals_of_hull(f, &ch.h, ch.points, &ch.ports, &ch.open_area, &ch.hull_area, &ch.bad);
+    /* Only a valid set with less open area can replace a valid best. */
+    double stop_at = best->bad ? INFINITY : best->open_area;
+    *ok = portals_of_hull(f, &ch.h, ch.points, stop_at, &ch.ports, &ch.open_area, &ch.hull_area, &ch.bad);
     bool better = ch.bad ? bad_ok && best->bad : best->bad || ch.open_area < best->open_area;
     if (*ok && better) {
         choice_free(best);
@@ -408,7 +422,8 @@ static bool choose(const struct finder *f, const struct candidates *cs, struct c
     --k;
     *k_out = k;
     if (!*found) return true;
-    bool ok = portals_of_hull(f, &best->h, best->points, &best->ports, &best->open_area, &best->hull_area, &best->bad);
+    bool ok = portals_of_hull(f, &best->h, best->points, INFINITY, &best->ports, &best->open_area, &best->hull_area,
+                              &best->bad);
     /* The tightest of the hulls that add the next nearby candidates (met
        within twice the distance of the last one taken): the least open
        area. Each is complete; more candidates only make P fit them better. */
