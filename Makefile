@@ -250,8 +250,9 @@ test: lint-c test-c test-c-san test-py lint-py
 # variants (both samplers: after it, as they share its references; path
 # tracing), the third-party Little Lamp, then the scenes of several lamps
 # (the weights share multi_lamp's direct reference), the same scenes with
-# automatic portals, and the White Room at night. NAME.yaml is the small
-# default, NAME_full.yaml the paper-quality version (FULL=1).
+# automatic portals, and the White Room at night (auto portals, then hand).
+# NAME.yaml is the small default, NAME_full.yaml the paper-quality version
+# (FULL=1).
 # Two passes: a later sweep may extend a reference an earlier one shares
 # (the samplers' runs ask more of the ratio sweep's), so every sweep is
 # measured again, from stored runs only, before its figures are drawn.
@@ -259,7 +260,7 @@ test: lint-c test-c test-c-san test-py lint-py
 # make figures FULL=1 EXPERIMENTS=lampshade_ratio), in the order given.
 FIGURE_EXPERIMENTS := lampshade_ratio lampshade_ratio_samplers lampshade_ratio_path little_lamp multi_lamp \
                       multi_lamp_weights auto_portals auto_portals_multi_lamp auto_portals_little_lamp \
-                      white_room_night
+                      white_room_night white_room_night_hand
 EXPERIMENTS ?= $(FIGURE_EXPERIMENTS)
 FIGURE_FILE = configs/experiments/$${e}$(if $(FULL),_full,).yaml
 figures: $(BUILD)/render $(VENV_STAMP)
