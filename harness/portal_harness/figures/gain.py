@@ -12,6 +12,8 @@ from the two summary.json files; nothing is typed in.
 
 from __future__ import annotations
 
+import contextlib
+import csv
 import json
 import math
 from dataclasses import dataclass
@@ -74,12 +76,37 @@ def gains(direct_rows: list[dict[str, Any]], path_rows: list[dict[str, Any]], st
     ]
 
 
+# The summary.csv columns the comparison reads as numbers.
+_NUMERIC = ("axis", "efficiency_vs_light", "efficiency_vs_light_stderr")
+
+
+def _csv_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of a summary.csv, the numeric columns as floats (empty
+    cells stay strings, which _values skips)."""
+    rows: list[dict[str, Any]] = []
+    with path.open(newline="") as f:
+        for row in csv.DictReader(f):
+            out: dict[str, Any] = dict(row)
+            for key in _NUMERIC:
+                with contextlib.suppress(KeyError, TypeError, ValueError):
+                    out[key] = float(row[key])
+            rows.append(out)
+    return rows
+
+
 def _rows(layout: ResultsLayout, name: str) -> list[dict[str, Any]]:
+    """The other experiment's summary rows: its summary.json, or, where only
+    the committed summary.csv is there (a FULL experiment run alone in a
+    fresh clone, whose partner ran on another machine), that."""
     try:
         rows: list[dict[str, Any]] = json.loads(layout.summary_json(name).read_text())["rows"]
+        return rows
     except (OSError, ValueError, KeyError):
+        pass
+    try:
+        return _csv_rows(layout.summary_csv(name))
+    except (OSError, csv.Error, UnicodeDecodeError):
         raise HarnessError(f"figures.compare: no summary of experiment {name!r}: run its sweep first") from None
-    return rows
 
 
 def caption(found: list[Gain], region: str, strategy: str, label: str) -> str:

@@ -48,3 +48,25 @@ def test_02_the_numbers_come_from_the_stored_summaries(tmp_path: Path) -> None:
 
     with pytest.raises(HarnessError, match="no summary of experiment 'missing'"):
         gain_figure._rows(layout, "missing")
+
+
+def test_03_a_committed_summary_csv_stands_in_for_a_missing_json(tmp_path: Path) -> None:
+    # A FULL experiment run alone in a fresh clone: its partner's summary.json
+    # was never written here, only the committed summary.csv is.
+    layout = ResultsLayout(tmp_path)
+    csv_path = layout.summary_csv("direct")
+    csv_path.parent.mkdir(parents=True)
+    csv_path.write_text(
+        "point,axis,strategy,region,efficiency_vs_light,efficiency_vs_light_stderr\n"
+        "s_L=0.075,0.25,antishadow_exact,lit,5.0,0.5\n"
+        "s_L=0.075,0.25,light,lit,1.0,\n"
+    )
+    path_json = layout.summary_json("path")
+    path_json.parent.mkdir(parents=True)
+    path_json.write_text(json.dumps({"rows": [_row("antishadow_exact", 0.25, "lit", 2.0, 0.5)]}))
+    (g,) = gain_figure.gains(gain_figure._rows(layout, "direct"), gain_figure._rows(layout, "path"), "antishadow_exact")
+    assert (g.axis, g.direct, g.direct_se, g.path) == (0.25, 5.0, 0.5, 2.0)
+    # The JSON wins where both exist.
+    layout.summary_json("direct").write_text(json.dumps({"rows": [_row("antishadow_exact", 0.25, "lit", 8.0, 0.5)]}))
+    (g,) = gain_figure.gains(gain_figure._rows(layout, "direct"), gain_figure._rows(layout, "path"), "antishadow_exact")
+    assert g.direct == 8.0
