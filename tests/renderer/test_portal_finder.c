@@ -507,14 +507,20 @@ static bool build_text(const char *text, struct config *cfg, struct scene *sc)
     return test_scene_load_string(text, strlen(text), "shade.yaml", cfg, sc);
 }
 
-static void check_shade(const char *what, const char *shapes, const char *light, double hole_area, int expect_ports)
+/* The shade scene (floor, then shapes) around light, with `portals: auto`. */
+static bool build_shade(const char *shapes, const char *light, struct config *cfg, struct scene *sc)
 {
     static char text[1 << 16];
     snprintf(text, sizeof text, "%sshapes:\n%s%slights:\n%sportals: auto\n", shade_scene_head, floor_shape, shapes,
              light);
+    return build_text(text, cfg, sc);
+}
+
+static void check_shade(const char *what, const char *shapes, const char *light, double hole_area, int expect_ports)
+{
     struct config cfg;
     struct scene sc;
-    if (!build_text(text, &cfg, &sc)) {
+    if (!build_shade(shapes, light, &cfg, &sc)) {
         CHECK_MSG(false, "%s", what);
         return;
     }
@@ -604,12 +610,9 @@ static void test_one_mesh_lamp(void)
                        "     quads: [[4, 7, 6, 5], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7],\n"
                        "             [0, 8, 9, 1], [1, 9, 10, 2], [2, 10, 11, 3], [3, 11, 8, 0], [12, 13, 14, 15]]}\n";
     check_shade("shade and stand in one mesh", lamp, light, 0.16, 1);
-    static char text[1 << 14];
-    snprintf(text, sizeof text, "%sshapes:\n%s%slights:\n%sportals: auto\n", shade_scene_head, floor_shape, lamp,
-             light);
     struct config cfg;
     struct scene sc;
-    if (!build_text(text, &cfg, &sc)) {
+    if (!build_shade(lamp, light, &cfg, &sc)) {
         CHECK(false);
         return;
     }
