@@ -229,6 +229,37 @@ static void test_hull_sphere_points(void)
     convex_hull_free(&h);
 }
 
+/* The 2-D hull (convex_hull_2d): a square with inner and edge points has
+   its four corners; nearly collinear points (a tilted line with rounding
+   jitter, as a light seen edge-on gives) never yield more corners than
+   points (the buffer holds n) nor a repeated corner. The second part
+   overflowed with a turn test that was not antisymmetric. */
+static void test_hull_2d(void)
+{
+    struct vec3 sq[7] = { { 0, 0, 0 }, { 1, 0, 0 }, { 1, 1, 0 }, { 0, 1, 0 }, { 0.5, 0, 0 }, { 0.5, 0.5, 0 }, { 0, 0.25, 0 } };
+    int idx[7];
+    CHECK(convex_hull_2d(sq, 7, vec3_make(0, 0, 1), 0.0, idx) == 4);
+    struct rng r = rng_seeded(11, 0, 0);
+    int worst = 0, repeats = 0;
+    for (int trial = 0; trial < 20000; ++trial) {
+        int n = 3 + (int)(rng_uniform(&r) * 6.0);
+        struct vec3 *pts = malloc(sizeof *pts * (size_t)n);
+        int *out = malloc(sizeof *out * (size_t)n);
+        struct vec3 o = vec3_make(rng_uniform(&r), rng_uniform(&r), rng_uniform(&r));
+        struct vec3 d = vec3_normalize(vec3_make(rng_uniform(&r) - 0.5, rng_uniform(&r) - 0.5, 0.1 * rng_uniform(&r)));
+        for (int i = 0; i < n; ++i) pts[i] = vec3_madd(o, d, 10.0 * rng_uniform(&r));
+        struct vec3 nrm = vec3_normalize(vec3_make(0.05 * rng_uniform(&r), 0.05 * rng_uniform(&r), 1.0));
+        int c = convex_hull_2d(pts, n, nrm, 0.0, out);
+        if (c - n > worst) worst = c - n;
+        for (int i = 0; i < c && i < n; ++i)
+            for (int j = i + 1; j < c && j < n; ++j) repeats += out[i] == out[j];
+        free(pts);
+        free(out);
+    }
+    CHECK_MSG(worst <= 0, "%d more corners than points", worst);
+    CHECK_MSG(repeats == 0, "%d repeated corners", repeats);
+}
+
 static void test_subtract_triangle(void)
 {
     struct polygon sq = { 4, { { 0, 0, 0 }, { 2, 0, 0 }, { 2, 2, 0 }, { 0, 2, 0 } } };
@@ -952,6 +983,7 @@ static void test_config_round_trip(void)
 static const struct test_case tests[] = {
     { "hull_box", test_hull_box },
     { "hull_sphere_points", test_hull_sphere_points },
+    { "hull_2d", test_hull_2d },
     { "subtract_triangle", test_subtract_triangle },
     { "config_round_trip", test_config_round_trip },
     { "lampshade_hole_and_light_side", test_lampshade_hole_and_light_side },

@@ -1,5 +1,6 @@
 #include "geometry/convex_hull.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -248,12 +249,27 @@ static int compare_proj(const void *a, const void *b)
 }
 
 /* Distance of b from the line a -> c, positive when b lies to its right,
-   that is when a -> b -> c turns left. */
+   that is when a -> b -> c turns left. The cross product is taken with the
+   three points in sorted order and its sign set by the permutation, so
+   that turn(c, b, a) is exactly -turn(a, b, c): the upper chain then never
+   keeps a point that the lower chain kept as a left turn too (with the
+   plain formula both can round positive for nearly collinear points, and
+   the chain grew past n corners). */
 static double turn(const struct proj *a, const struct proj *b, const struct proj *c)
 {
-    double cr = (b->x - a->x) * (c->y - a->y) - (b->y - a->y) * (c->x - a->x);
+    const struct proj *s[3] = { a, b, c };
+    double sign = 1.0;
+    for (int i = 0; i < 2; ++i)
+        for (int j = 0; j < 2 - i; ++j)
+            if (compare_proj(s[j], s[j + 1]) > 0) {
+                const struct proj *t = s[j];
+                s[j] = s[j + 1];
+                s[j + 1] = t;
+                sign = -sign;
+            }
+    double cr = (s[1]->x - s[0]->x) * (s[2]->y - s[0]->y) - (s[1]->y - s[0]->y) * (s[2]->x - s[0]->x);
     double len = hypot(c->x - a->x, c->y - a->y);
-    return len > 0.0 ? cr / len : 0.0;
+    return len > 0.0 ? sign * cr / len : 0.0;
 }
 
 int convex_hull_2d(const struct vec3 *points, int n, struct vec3 normal, double tol, int *out)
@@ -263,22 +279,41 @@ int convex_hull_2d(const struct vec3 *points, int n, struct vec3 normal, double 
     int k = 0;
     if (p && h) {
         struct frame fr = frame_from_normal(normal);
+        double m = 0.0;
         for (int i = 0; i < n; ++i) {
             struct vec3 l = frame_to_local(&fr, points[i]);
             p[i] = (struct proj){ l.x, l.y, i };
+            m = fmax(m, fmax(fabs(l.x), fabs(l.y)));
         }
+        /* Below the rounding noise of turn() the sign of a turn means
+           nothing, and different triples of nearly collinear points then
+           disagree: a point could stay in both chains (a repeated corner).
+           Such points count as on the line. */
+        double t = fmax(tol, 16.0 * DBL_EPSILON * m);
+        if (!isfinite(m)) t = INFINITY; /* no finite hull: nothing kept */
         qsort(p, (size_t)n, sizeof *p, compare_proj);
         /* The chain keeps b only when a -> b -> c turns left with b more
-           than tol from the line a -> c. */
+           than t from the line a -> c. */
         for (int i = 0; i < n; ++i) {
-            while (k >= 2 && turn(&h[k - 2], &h[k - 1], &p[i]) <= tol) --k;
+            while (k >= 2 && turn(&h[k - 2], &h[k - 1], &p[i]) <= t) --k;
             h[k++] = p[i];
         }
         for (int i = n - 2, lower = k + 1; i >= 0; --i) {
-            while (k >= lower && turn(&h[k - 2], &h[k - 1], &p[i]) <= tol) --k;
+            while (k >= lower && turn(&h[k - 2], &h[k - 1], &p[i]) <= t) --k;
             h[k++] = p[i];
         }
         --k; /* the first point again */
+        /* A corner twice or more corners than points would mean the turns
+           still disagreed: report no area, which every caller takes as
+           "proves nothing". */
+        unsigned char *seen = calloc((size_t)n, 1);
+        bool ok = seen && k <= n;
+        for (int i = 0; ok && i < k; ++i) {
+            ok = !seen[h[i].i];
+            seen[h[i].i] = 1;
+        }
+        free(seen);
+        if (!ok) k = 0;
         for (int i = 0; i < k; ++i) out[i] = h[i].i;
     }
     free(p);
