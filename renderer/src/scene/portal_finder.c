@@ -178,8 +178,9 @@ static bool find_candidates(const struct finder *f, struct candidates *shapes, s
         candidates_free(shapes);
         return false;
     }
-    qsort(shapes->c, (size_t)shapes->n, sizeof *shapes->c, compare_candidates);
-    if (pieces->c) qsort(pieces->c, (size_t)pieces->n, sizeof *pieces->c, compare_candidates);
+    /* (No ray hit anything: no candidates, and qsort must not see NULL.) */
+    if (shapes->n > 1) qsort(shapes->c, (size_t)shapes->n, sizeof *shapes->c, compare_candidates);
+    if (pieces->c && pieces->n > 1) qsort(pieces->c, (size_t)pieces->n, sizeof *pieces->c, compare_candidates);
     return true;
 }
 
