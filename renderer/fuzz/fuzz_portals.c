@@ -221,7 +221,7 @@ static bool light_side(const struct scene *s, const struct auto_portal_report *r
         }
         t_exit -= step;
         struct vec3 o = vec3_madd(p, d, step);
-        if (!isfinite(t_exit) || !(t_exit > 0.0)) continue;
+        if (!isfinite(t_exit) || !(t_exit > scene_offset_height(s, o))) continue;
         bool on_portal = false;
         for (int k = 0; k < n_ports && !on_portal; ++k) {
             double t;

@@ -89,11 +89,14 @@ bool portal_finder_coverage(const struct scene *s, int emitter, const struct pla
         draw_uniforms(&r, u);
         emission_sample(&es, u, &p, &n, &d);
         /* A grazing ray's offset origin can land beyond a wall close to
-           the light (the step grows as 1 / cos): such a ray tests the
-           offset, not the portals, and is not counted. */
+           the light (the step grows as 1 / cos), or within the float
+           resolution of the wall, where whether Embree sees the wall is
+           rounding: such a ray tests the offset, not the portals, and is
+           not counted. So the origin must lie inside P by more than the
+           height the offset clears above a surface. */
         double step = scene_offset_step(s, p, n, d), t_exit = exit_distance(planes, n_planes, p, d) - step;
         struct vec3 o = vec3_madd(p, d, step);
-        if (!isfinite(t_exit) || !(t_exit > 0.0)) continue;
+        if (!isfinite(t_exit) || !(t_exit > scene_offset_height(s, o))) continue;
         bool on_portal = false;
         for (int k = 0; k < n_portals && !on_portal; ++k) {
             double t;
