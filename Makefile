@@ -258,11 +258,15 @@ test: lint-c test-c test-c-san test-py lint-py
 # measured again, from stored runs only, before its figures are drawn.
 # EXPERIMENTS=NAME... runs only those (e.g. one FULL experiment at a time:
 # make figures FULL=1 EXPERIMENTS=lampshade_ratio), in the order given.
+# RERUN=1: the FULL experiments' headline points again with other seeds
+# (NAME_full_rerun.yaml), on the FULL runs' references: the check of their
+# stated precision (portal-harness results-page compares the two).
 FIGURE_EXPERIMENTS := lampshade_ratio lampshade_ratio_samplers lampshade_ratio_path little_lamp multi_lamp \
                       multi_lamp_weights auto_portals auto_portals_multi_lamp auto_portals_little_lamp \
                       white_room_night white_room_night_hand
-EXPERIMENTS ?= $(FIGURE_EXPERIMENTS)
-FIGURE_FILE = configs/experiments/$${e}$(if $(FULL),_full,).yaml
+RERUN_EXPERIMENTS := lampshade_ratio white_room_night lampshade_ratio_path multi_lamp little_lamp
+EXPERIMENTS ?= $(if $(RERUN),$(RERUN_EXPERIMENTS),$(FIGURE_EXPERIMENTS))
+FIGURE_FILE = configs/experiments/$${e}$(if $(FULL)$(RERUN),_full,)$(if $(RERUN),_rerun,).yaml
 figures: $(BUILD)/render $(VENV_STAMP)
 	@set -e; for e in $(EXPERIMENTS); do \
 	  echo "figures: $(FIGURE_FILE)" >&2; \

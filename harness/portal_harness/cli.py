@@ -504,16 +504,17 @@ def cmd_query(args: argparse.Namespace) -> int:
 
 
 def cmd_results_page(args: argparse.Namespace) -> int:
-    from portal_harness.analysis import readme_table, results_page
+    from portal_harness.analysis import agreement, readme_table, results_page
 
     page = args.page or find_repo_root() / "docs" / "results.md"
     readme = args.readme or find_repo_root() / "README.md"
     experiments_dir = _layout(args).root / "experiments"
 
     def results(text: str) -> str:
-        return results_page.replace_block(
+        text = results_page.replace_block(
             text, results_page.generated_block(experiments_dir, args.experiments), str(page)
         )
+        return agreement.replace(text, agreement.block(experiments_dir), str(page))
 
     def table(text: str) -> str:
         return readme_table.replace(text, readme_table.table(experiments_dir), str(readme))

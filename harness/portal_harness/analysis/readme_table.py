@@ -7,6 +7,8 @@ relative to light sampling of `antishadow` and `antishadow_exact`, mean
 +- one standard error over the replicates, with the replicates and
 whether the value reached its precision target. A row whose FULL summary
 is not committed yet is left out, and the table says which are missing.
+Under the table, one line says how well the stored reruns with other
+seeds agree (analysis/agreement.py).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from portal_harness.analysis import precision
+from portal_harness.analysis import agreement, precision
 from portal_harness.analysis.results_page import format_value, read_summary
 from portal_harness.core.errors import HarnessError
 from portal_harness.core.regions import LIT
@@ -77,6 +79,9 @@ def table(experiments_dir: Path, rows: Sequence[Row] = ROWS) -> str:
         "replicates, from the paper-quality runs (`make figures FULL=1`; all of them: "
         "[docs/results.md](docs/results.md)); (\\*) marks a value short of its 10% precision target."
     )
+    rerun = agreement.sentence(experiments_dir)
+    if rerun:
+        out.append(rerun)
     if missing:
         out.append(f"Not run at paper quality yet: {', '.join(f'`{m}`' for m in missing)}.")
     out += ["", END]

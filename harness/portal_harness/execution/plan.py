@@ -25,7 +25,21 @@ def reference_id(experiment: Experiment, point: Point) -> str:
     return experiment.reference_point(point).id
 
 
+def interleaved(runs: list[PlannedRun]) -> list[PlannedRun]:
+    """The runs in the order they are rendered: replicate by replicate, each
+    round over every point and strategy. Efficiency is measured in wall
+    time, so a change in the machine's load falls on whatever runs then;
+    spread this way it falls on every strategy alike and cancels in their
+    ratios to light. (Rendered cell by cell, a load that came and went
+    during one strategy's block biased its ratio: docs/experiments.md,
+    "Checking the precision".)"""
+    points = {r.point.id: i for i, r in reversed(list(enumerate(runs)))}
+    strategies = {r.strategy: i for i, r in reversed(list(enumerate(runs)))}
+    return sorted(runs, key=lambda r: (r.replicate, points[r.point.id], strategies[r.strategy]))
+
+
 def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]:
+    """Replicates 0..budget.replicates-1 of every (point, strategy), interleaved."""
     assert experiment.budget is not None
     out = []
     for point in experiment.points():
@@ -34,7 +48,7 @@ def plan_runs(experiment: Experiment, renderer_version: str) -> list[PlannedRun]
                 spec = experiment.run_spec(point, strategy, replicate=k)
                 key = spec.key(renderer_version)
                 out.append(PlannedRun(point, strategy, k, spec, key, reference_id(experiment, point)))
-    return out
+    return interleaved(out)
 
 
 def more_replicates(
@@ -48,7 +62,7 @@ def more_replicates(
     (replicates 0..K-1, as plan_runs makes them): up to wanted[(point id,
     strategy)] replicates, and with `layout`, every further one the store
     holds finished (an earlier sweep's precision rounds: experiments with
-    `precision:`, capped at its max_replicates)."""
+    `precision:`, capped at its max_replicates), interleaved."""
     have: dict[tuple[str, str], int] = {}
     for r in runs:
         cell = (r.point.id, r.strategy)
@@ -66,4 +80,4 @@ def more_replicates(
                     break
                 out.append(PlannedRun(point, strategy, k, spec, key, reference_id(experiment, point)))
                 k += 1
-    return out
+    return interleaved(out)
