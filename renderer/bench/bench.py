@@ -58,6 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import benchlib as bl
+import dask_scaling
 import equal_error as ee
 import numpy as np
 import time_split as ts
@@ -1832,6 +1833,14 @@ def section_mitsuba_efficiency(ctx: Context) -> dict[str, Any]:
     return results
 
 
+def section_dask(ctx: Context) -> dict[str, Any]:
+    """A sweep on 1 and 2 one-thread Dask workers (dask_scaling.py)."""
+    params = {"what": "portal-harness sweep --scheduler on a LocalCluster of 1, then 2 worker processes"}
+    results = dask_scaling.measure(TMP / "runs", LAMPSHADE, ctx.render, ctx.quick, ctx.machine["nproc"])
+    bl.write_result(ctx, "dask", params, results)
+    return results
+
+
 SECTIONS: dict[str, Callable[[Context], Any]] = {
     "raw_embree": section_raw_embree,
     "micro": section_micro,
@@ -1840,6 +1849,7 @@ SECTIONS: dict[str, Callable[[Context], Any]] = {
     "snapshots": section_snapshots,
     "scene_scaling": section_scene_scaling,
     "harness": section_harness,
+    "dask": section_dask,
     "efficiency": section_efficiency,
     "portal_weights": section_portal_weights,
     "mesh_load": section_mesh_load,

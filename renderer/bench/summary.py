@@ -351,6 +351,19 @@ def harness(d: dict[str, Any]) -> list[str]:
     return out
 
 
+def dask(d: dict[str, Any]) -> list[str]:
+    r = d["results"]
+    one, two = r["one_worker"], r["two_workers"]
+    return [
+        f"The same sweep (`portal-harness sweep --scheduler`, {one['renders']} renders of one thread, references "
+        f"included, fresh results folders) on a local Dask cluster of 1 and of 2 one-thread workers "
+        f"({r['cores']} cores): {f(one['wall_s'], '.1f')} s and {f(two['wall_s'], '.1f')} s, "
+        f"**{f(r['wall_ratio_2_to_1'], '.2f')} of the time on 2 workers** (ideal 0.50; the rest is the "
+        "harness's serial work: planning, metrics, reference extensions on the client).",
+        "",
+    ]
+
+
 def eff_cell(r: dict[str, Any]) -> tuple[str, bool]:
     """Reference-based efficiency vs light, or its lower bound when unresolved."""
     e = r["eff_vs_light_cpu"]
@@ -921,6 +934,7 @@ SECTIONS: list[tuple[str, str, Callable[[dict[str, Any]], list[str]]]] = [
     ("snapshots", "4. Snapshot overhead", snapshots),
     ("scene_scaling", "6. Scaling with the number of lamps", scene_scaling),
     ("harness", "7. Harness overhead", harness),
+    ("dask", "7b. A sweep on 1 and 2 Dask workers", dask),
     ("efficiency", "8. Efficiency on the lampshade sweep", efficiency),
     ("wasted_rays", "9. Wasted shadow rays", wasted_rays),
     ("micro", "10. Per-call cost vs one shadow ray (micro.c)", micro),

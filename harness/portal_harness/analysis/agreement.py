@@ -146,7 +146,11 @@ def block(experiments_dir: Path) -> str:
         "Reruns: " + ", ".join(f"`{n}{RERUN_SUFFIX}`" for n in names) + ". Over the lit region and the insets: "
         f"{verdict(cs)}."
     )
-    out += ["", "| experiment | point | strategy | FULL (replicates) | rerun (replicates) | z |", "|---|---|---|---|---|---|"]
+    out += [
+        "",
+        "| experiment | point | strategy | FULL (replicates) | rerun (replicates) | z |",
+        "|---|---|---|---|---|---|",
+    ]
     for c in cs:
         if c.region != LIT:
             continue
