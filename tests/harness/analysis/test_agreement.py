@@ -24,24 +24,31 @@ def _pair(experiments: Path, full: list[dict[str, str]], rerun: list[dict[str, s
     _summary(experiments / "lampshade_ratio_full_rerun", rerun)
 
 
+def _r(point: str, strategy: str, region: str, value: str, se: str, rel_mse: str, spp: str, **extra: str) -> dict:
+    return (
+        _row(point, strategy, region, value, se, rel_mse=rel_mse, rel_mse_stderr=str(float(rel_mse) / 10), spp=spp)
+        | extra
+    )
+
+
 def test_values_are_compared_by_their_combined_standard_error(tmp_path: Path) -> None:
     exp = tmp_path / "experiments"
     _pair(
         exp,
         [
-            _row("s_L=1.2", "light", "lit", "1.0", "0.04"),
-            _row("s_L=1.2", "antishadow", "lit", "6.56", "0.43"),
-            _row("s_L=1.2", "antishadow", "centre", "50.0", "3.0"),
-            _row("s_L=1.2", "portal", "lit", "0.5", "0.1", bound="upper"),
-            _row("s_L=0.3", "antishadow", "lit", "4.0", "0.2"),  # not rerun
-            _row("s_L=1.2", "antishadow", "image", "6.0", "0.1"),
+            _r("s_L=1.2", "light", "lit", "1.0", "0.04", "0.004", "500"),
+            _r("s_L=1.2", "antishadow", "lit", "6.56", "0.43", "0.001", "400"),
+            _r("s_L=1.2", "antishadow", "centre", "50.0", "3.0", "0.0001", "400"),
+            _r("s_L=1.2", "portal", "lit", "0.5", "0.1", "0.01", "400", bound="upper"),
+            _r("s_L=0.3", "antishadow", "lit", "4.0", "0.2", "0.001", "400"),  # not rerun
+            _r("s_L=1.2", "antishadow", "image", "6.0", "0.1", "0.001", "400"),
         ],
         [
-            _row("s_L=1.2", "light", "lit", "1.0", "0.05"),
-            _row("s_L=1.2", "antishadow", "lit", "7.16", "0.55"),
-            _row("s_L=1.2", "antishadow", "centre", "62.0", "4.0"),
-            _row("s_L=1.2", "portal", "lit", "0.6", "0.1"),  # a bound in the FULL run: not compared
-            _row("s_L=1.2", "antishadow", "image", "9.0", "0.1"),  # not a headline region
+            _r("s_L=1.2", "light", "lit", "1.0", "0.05", "0.004", "250"),  # the machine ran at half speed
+            _r("s_L=1.2", "antishadow", "lit", "7.16", "0.55", "0.002", "200"),
+            _r("s_L=1.2", "antishadow", "centre", "62.0", "4.0", "0.0002", "200"),  # no light row: no per-sample z
+            _r("s_L=1.2", "portal", "lit", "0.6", "0.1", "0.01", "200"),  # a bound in the FULL run: not compared
+            _r("s_L=1.2", "antishadow", "image", "9.0", "0.1", "0.001", "200"),  # not a headline region
         ],
     )
     cs = ag.comparisons(exp)
@@ -51,13 +58,20 @@ def test_values_are_compared_by_their_combined_standard_error(tmp_path: Path) ->
     ]
     assert cs[0].z == pytest.approx(0.60 / math.hypot(0.43, 0.55))
     assert cs[1].z == pytest.approx(12.0 / 5.0)
-    assert ag.verdict(cs) == (
+    # per sample: (0.004 x 500) / (0.001 x 400) = 5 in the FULL run, (0.004 x 250) / (0.002 x 200) = 2.5 in the
+    # rerun, each with a relative error of hypot(0.1, 0.1)
+    assert cs[0].full_per_sample is not None and cs[0].full_per_sample.value == pytest.approx(5.0)
+    assert cs[0].z_per_sample == pytest.approx(-2.5 / math.hypot(5.0, 2.5) / math.hypot(0.1, 0.1))
+    assert cs[1].z_per_sample is None
+    assert ag.verdict([c.z for c in cs]) == (
         "1 of 2 values within 2 combined standard errors (50%; a normal gives 95%); largest |z| 2.4"
     )
     block = ag.block(exp)
     assert "`lampshade_ratio_full_rerun`" in block
-    assert "| `lampshade_ratio_full` | s_L=1.2 | `antishadow` | 6.56 +- 0.43 (5) | 7.16 +- 0.55 (5) | +0.9 |" in block
-    assert "centre |" not in block  # the table shows the lit region; the verdict counts the insets too
+    row = "| `lampshade_ratio_full` | s_L=1.2 | `antishadow` | 6.56 +- 0.43 (5) | 7.16 +- 0.55 (5) | +0.9 | -3.2 |"
+    assert row in block
+    assert "centre |" not in block  # the table shows the lit region; the verdicts count the insets too
+    assert "per sample (relMSE × spp" in block
     assert "1 of 2 values" in readme_table.table(exp)
 
 
@@ -85,7 +99,8 @@ def test_the_verdict_is_calibrated_for_honest_standard_errors() -> None:
         for i in range(2000):
             sa, sb = rng.uniform(0.02, 0.2), rng.uniform(0.02, 0.2)
             a, b = rng.gauss(1.0, sa), rng.gauss(1.0, sb)
-            cs.append(ag.Comparison("x_full", str(i), "antishadow", "lit", a, sa * scale, b, sb * scale, "24", "24"))
+            full, rerun = ag.Estimate(a, sa * scale), ag.Estimate(b, sb * scale)
+            cs.append(ag.Comparison("x_full", str(i), "antishadow", "lit", full, rerun, None, None, "24", "24"))
         return sum(abs(c.z) <= ag.Z_LIMIT for c in cs) / len(cs)
 
     assert 0.934 <= fraction(1.0) <= 0.974

@@ -24,6 +24,9 @@ FIELDS += [
     "bound",
     "precision_target",
     "efficiency_vs_light_rel_se",
+    "rel_mse",
+    "rel_mse_stderr",
+    "spp",
 ]
 
 
