@@ -81,7 +81,7 @@ def table(experiments_dir: Path, rows: Sequence[Row] = ROWS) -> str:
     )
     rerun = agreement.sentence(experiments_dir)
     if rerun:
-        out.append(rerun)
+        out += ["", rerun]
     if missing:
         out.append(f"Not run at paper quality yet: {', '.join(f'`{m}`' for m in missing)}.")
     out += ["", END]
