@@ -236,7 +236,8 @@ static void test_hull_sphere_points(void)
    overflowed with a turn test that was not antisymmetric. */
 static void test_hull_2d(void)
 {
-    struct vec3 sq[7] = { { 0, 0, 0 }, { 1, 0, 0 }, { 1, 1, 0 }, { 0, 1, 0 }, { 0.5, 0, 0 }, { 0.5, 0.5, 0 }, { 0, 0.25, 0 } };
+    struct vec3 sq[7] = { { 0, 0, 0 },   { 1, 0, 0 },     { 1, 1, 0 },   { 0, 1, 0 },
+                          { 0.5, 0, 0 }, { 0.5, 0.5, 0 }, { 0, 0.25, 0 } };
     int idx[7];
     CHECK(convex_hull_2d(sq, 7, vec3_make(0, 0, 1), 0.0, idx) == 4);
     struct rng r = rng_seeded(11, 0, 0);
