@@ -196,7 +196,7 @@ def block(experiments_dir: Path) -> str:
     out.append(f"- efficiency relative to `light` (per second of wall time): {verdict([c.z for c in cs])};")
     per_sample = _per_sample_zs(cs)
     if per_sample:
-        out.append(f"- the same per sample (relMSE × spp of `light` over the strategy's): {verdict(per_sample)}.")
+        out.append(f"- the same per sample (relMSE x spp of `light` over the strategy's): {verdict(per_sample)}.")
     out += [
         "",
         "| experiment | point | strategy | FULL (replicates) | rerun (replicates) | z | z per sample |",

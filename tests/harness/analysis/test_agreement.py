@@ -24,7 +24,9 @@ def _pair(experiments: Path, full: list[dict[str, str]], rerun: list[dict[str, s
     _summary(experiments / "lampshade_ratio_full_rerun", rerun)
 
 
-def _r(point: str, strategy: str, region: str, value: str, se: str, rel_mse: str, spp: str, **extra: str) -> dict:
+def _r(
+    point: str, strategy: str, region: str, value: str, se: str, rel_mse: str, spp: str, **extra: str
+) -> dict[str, str]:
     return (
         _row(point, strategy, region, value, se, rel_mse=rel_mse, rel_mse_stderr=str(float(rel_mse) / 10), spp=spp)
         | extra
@@ -71,7 +73,7 @@ def test_values_are_compared_by_their_combined_standard_error(tmp_path: Path) ->
     row = "| `lampshade_ratio_full` | s_L=1.2 | `antishadow` | 6.56 +- 0.43 (5) | 7.16 +- 0.55 (5) | +0.9 | -3.2 |"
     assert row in block
     assert "centre |" not in block  # the table shows the lit region; the verdicts count the insets too
-    assert "per sample (relMSE × spp" in block
+    assert "per sample (relMSE x spp" in block
     assert "1 of 2 values" in readme_table.table(exp)
 
 
