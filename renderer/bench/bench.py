@@ -613,32 +613,14 @@ def sweep_overhead(ctx: Context) -> dict[str, Any]:
     and the harness's (Python start, EXR reading, metrics, index, summary)."""
     q = ctx.quick
     time_s, ref_s = (0.5, 1.0) if q else (2.0, 4.0)
-    folder = TMP / "runs" / "harness_sweep"
-    if folder.exists():
-        shutil.rmtree(folder)
-    folder.mkdir(parents=True)
+    folder = bl.fresh_dir(TMP / "runs" / "harness_sweep")
     exp = folder / "bench_sweep.yaml"
     exp.write_text(SWEEP_EXPERIMENT.format(scene=LAMPSHADE, time_s=time_s, ref_s=ref_s))
     results = folder / "results"
-    cmd = [
-        sys.executable,
-        "-m",
-        "portal_harness",
-        "sweep",
-        str(exp),
-        "--results",
-        str(results),
-        "--renderer",
-        str(ctx.render),
-        "--jobs",
-        "1",
-    ]
-    w0 = time.monotonic()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.monotonic() - w0
-    if p.returncode != 0:
-        raise RuntimeError(f"harness sweep failed ({p.returncode}): {' '.join(cmd)}\n{p.stderr.strip()[-2000:]}")
-    manifests = [json.loads(m.read_text()) for m in results.glob("*/*/manifest.json")]
+    wall = bl.harness_sweep(exp, results, ctx.render)
+    # The runs' and references' manifests (not the experiment's own, results/experiments/NAME/).
+    found = [*results.glob("runs/*/manifest.json"), *results.glob("references/*/manifest.json")]
+    manifests = [json.loads(m.read_text()) for m in found]
     if not manifests:
         raise RuntimeError(f"harness sweep left no manifests under {results}")
     render = sum(m["timings"]["render_time_s"] for m in manifests)

@@ -251,6 +251,28 @@ def run_render(
     return RenderRun(cmd, out, start, final, snaps, wall, cpu)
 
 
+def fresh_dir(path: Path) -> Path:
+    """path as an empty folder (what a run before left there removed)."""
+    if path.exists():
+        shutil.rmtree(path)
+    path.mkdir(parents=True)
+    return path
+
+
+def harness_sweep(experiment: Path, results: Path, render: Path, scheduler: str | None = None) -> float:
+    """`portal-harness sweep` of an experiment into a results folder, one
+    job locally or on the Dask scheduler given: its wall time in seconds."""
+    cmd = [sys.executable, "-m", "portal_harness", "sweep", str(experiment), "--results", str(results)]
+    cmd += ["--renderer", str(render), "--no-progress"]
+    cmd += ["--scheduler", scheduler] if scheduler else ["--jobs", "1"]
+    w0 = time.monotonic()
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.monotonic() - w0
+    if p.returncode != 0:
+        raise RuntimeError(f"harness sweep failed ({p.returncode}): {' '.join(cmd)}\n{p.stderr.strip()[-2000:]}")
+    return wall
+
+
 def run_json(cmd: list[str]) -> dict[str, Any]:
     """Runs a C benchmark that prints one JSON object; its stderr passes through."""
     p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)

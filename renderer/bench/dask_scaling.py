@@ -16,11 +16,10 @@ free cores it says nothing, and the section records the cores it had.
 from __future__ import annotations
 
 import shutil
-import subprocess
-import sys
-import time
 from pathlib import Path
 from typing import Any
+
+import benchlib as bl
 
 DASK_EXPERIMENT = """\
 # A small sweep for the bench's `dask` section: one-thread renders of a
@@ -48,19 +47,6 @@ reference:
 """
 
 
-def _sweep(exp: Path, results: Path, render: Path, scheduler: str | None) -> float:
-    cmd = [sys.executable, "-m", "portal_harness", "sweep", str(exp), "--results", str(results)]
-    cmd += ["--renderer", str(render), "--no-progress"]
-    cmd += ["--scheduler", scheduler] if scheduler else ["--jobs", "1"]
-    w0 = time.monotonic()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.monotonic() - w0
-    if p.returncode != 0:
-        where = f"on {scheduler}" if scheduler else "locally"
-        raise RuntimeError(f"sweep {where} failed ({p.returncode}):\n{p.stderr.strip()[-2000:]}")
-    return wall
-
-
 def measure(tmp: Path, scene: Path, render: Path, quick: bool, cores: int) -> dict[str, Any]:
     """The experiment once locally (references and runs), then its runs again
     on 1 and on 2 workers, each in a fresh results folder holding only the
@@ -70,14 +56,11 @@ def measure(tmp: Path, scene: Path, render: Path, quick: bool, cores: int) -> di
     from distributed import LocalCluster
 
     spp, replicates = (16, 2) if quick else (64, 3)
-    folder = tmp / "dask"
-    if folder.exists():
-        shutil.rmtree(folder)
-    folder.mkdir(parents=True)
+    folder = bl.fresh_dir(tmp / "dask")
     exp = folder / "bench_dask.yaml"
     exp.write_text(DASK_EXPERIMENT.format(scene=scene, spp=spp, replicates=replicates))
     base = folder / "local"
-    local_wall = _sweep(exp, base, render, None)
+    local_wall = bl.harness_sweep(exp, base, render)
     runs = len(list((base / "runs").glob("*/manifest.json")))
     out: dict[str, Any] = {"cores": cores, "runs": runs, "spp": spp, "local_with_references_s": local_wall}
     for workers in (1, 2):
@@ -88,7 +71,7 @@ def measure(tmp: Path, scene: Path, render: Path, quick: bool, cores: int) -> di
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
         )
         with cluster_of as cluster:
-            out[f"runs_on_{workers}_workers_s"] = _sweep(exp, results, render, str(cluster.scheduler_address))
+            out[f"runs_on_{workers}_workers_s"] = bl.harness_sweep(exp, results, render, str(cluster.scheduler_address))
         rendered = len(list((results / "runs").glob("*/manifest.json")))
         if rendered != runs:
             raise RuntimeError(f"{workers} worker(s) rendered {rendered} runs, not {runs}")
