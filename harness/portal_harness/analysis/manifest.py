@@ -87,17 +87,21 @@ def machine() -> dict[str, Any]:
     }
 
 
-def git_commit() -> dict[str, Any] | None:
-    """HEAD of the checkout the harness runs from, and whether its tracked files differ from it; None outside git."""
+def git_commit(root: Path | None = None) -> dict[str, Any] | None:
+    """HEAD of the checkout the harness runs from (or of `root`), and whether
+    its tracked files outside results/ differ from it; None outside git.
+    results/ is left out because a sweep rewrites committed summaries and
+    manifests there (and a FULL redo moves them aside first): those are its
+    outputs, and "dirty" is to say whether the code that made them is HEAD's."""
     try:
-        root = find_repo_root(Path(__file__).resolve().parent)
+        root = root or find_repo_root(Path(__file__).resolve().parent)
         head = subprocess.run(
             ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=30, check=False
         )
         if head.returncode != 0:
             return None
         dirty = subprocess.run(
-            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results"],
             capture_output=True,
             text=True,
             timeout=60,
