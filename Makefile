@@ -224,7 +224,7 @@ browser: $(CHROMIUM_STAMP)
 
 test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
-	  $(VENV)/bin/python -m pytest -q tests/harness tests/bench tests/tools tests/docs; fi
+	  $(VENV)/bin/python -m pytest -q --durations=15 tests/harness tests/bench tests/tools tests/docs; fi
 
 # Linters of every Python file of the project: the harness, its tests, the tools
 # and the benchmark scripts (configured in harness/pyproject.toml). ruff and
