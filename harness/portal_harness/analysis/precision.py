@@ -31,17 +31,20 @@ time. So the sweep looks once:
 
 1. the first stage, budget.replicates = n0 replicates of every cell,
    gives each value's terms;
-2. `allocate` fixes the second stage from them: while some value's
-   predicted relative variance, its terms inflated by variance_safety(n0)
-   (the one-sided SAFETY_CONFIDENCE upper bound of a variance from n0
-   replicates), is above the target's, the value furthest from it gets one
-   replicate, in whichever of its two cells lowers its predicted variance
-   most: a cell's term a K/(K + k) after k more (light's cell serves every
-   value of its point, so its replicates are shared; a cell at
-   precision.max_replicates gets no more, the value's other cell may);
-   then every cell of a value is topped up to MIN_FINAL_REPLICATES (or the
-   cap), so that no reported standard error rests on a handful of
-   replicates;
+2. `allocate` fixes the second stage from them. First every cell of a
+   value is topped up to MIN_FINAL_REPLICATES (or the cap), one replicate
+   per cell in turn, so that no reported standard error rests on a handful
+   of replicates even when the time cap cuts the stage: the White Room's
+   FULL run (2026-12-07) spent its cap on path tracing's urgent replicates
+   and kept its direct-light cells at 4 when the top-ups came last. Then,
+   while some value's predicted relative variance, its terms inflated by
+   variance_safety(n0) (the one-sided SAFETY_CONFIDENCE upper bound of a
+   variance from n0 replicates), is above the target's, the value furthest
+   from it gets one replicate, in whichever of its two cells lowers its
+   predicted variance most: a cell's term a K/(K + k) after k more (light's
+   cell serves every value of its point, so its replicates are shared; a
+   cell at precision.max_replicates gets no more, the value's other cell
+   may);
 3. the second stage is run, and every value and its standard error come
    from all the replicates of its cells. The measured rel. SE is the
    verdict (reached or not), but nothing more is added on it.
@@ -139,15 +142,23 @@ def allocate(
     values: list[Value], counts: dict[Cell, int], precision: Precision, safety: float = 1.0, minimum: int = 0
 ) -> list[Cell]:
     """The second stage's replicates, one cell per replicate in the order
-    they were given (the most urgent first: a stage cut short by the time
-    cap keeps a prefix); empty when every value is predicted to reach the
-    target or no cell that would help can grow. `values` are the first
-    stage's, `safety` the factor its variance terms are inflated by
-    (variance_safety), `minimum` the replicates every cell of a value ends
-    with at least (capped; its top-ups come last: module docstring)."""
+    they were given (a stage cut short by the time cap keeps a prefix): the
+    top-ups to `minimum` replicates of every cell of a value (capped), one
+    cell after another in turn, then the most urgent first; empty when every
+    value is predicted to reach the target or no cell that would help can
+    grow. `values` are the first stage's, `safety` the factor its variance
+    terms are inflated by (variance_safety)."""
     target2 = precision.rel_se**2
     extra: dict[Cell, int] = {}
     order: list[Cell] = []
+    floor = min(minimum, precision.max_replicates)
+    cells = list(dict.fromkeys(c for v in values for c in ((v.point, BASELINE), (v.point, v.strategy))))
+    short = [c for c in cells if 0 < counts.get(c, 0) < floor]
+    while short:
+        for c in short:
+            extra[c] = extra.get(c, 0) + 1
+            order.append(c)
+        short = [c for c in short if counts[c] + extra[c] < floor]
 
     def predicted(v: Value) -> float:
         return sum(safety * a * counts[c] / (counts[c] + extra.get(c, 0)) for c, a in v.terms if counts.get(c))
@@ -172,11 +183,6 @@ def allocate(
         cell = max(candidates, key=gain)[0]
         extra[cell] = extra.get(cell, 0) + 1
         order.append(cell)
-    for v in values:
-        for c in ((v.point, v.strategy), (v.point, BASELINE)):
-            while counts.get(c, 0) > 0 and counts[c] + extra.get(c, 0) < min(minimum, precision.max_replicates):
-                extra[c] = extra.get(c, 0) + 1
-                order.append(c)
     return order
 
 

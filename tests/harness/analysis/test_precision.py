@@ -81,10 +81,17 @@ def test_the_second_stage_is_planned_conservatively() -> None:
     assert precision.variance_safety(4) == pytest.approx(3 / 1.005174, rel=1e-5)
     assert precision.variance_safety(11) == pytest.approx(10 / 6.179079, rel=1e-5)
     assert precision.variance_safety(4, confidence=0.5) == pytest.approx(3 / 2.365974, rel=1e-5)
-    # every cell of a value ends with MIN_FINAL_REPLICATES, after the most urgent ones
+    # every cell of a value ends with MIN_FINAL_REPLICATES, topped up first and in turn
     counts = {("a", "light"): 3, ("a", "portal"): 3}
     order = precision.allocate([_value("a", "portal", own=0.001, light=0.0001)], counts, _precision(), minimum=8)
-    assert sorted(order) == [("a", "light")] * 5 + [("a", "portal")] * 5
+    assert order == [("a", "light"), ("a", "portal")] * 5
+    # so a stage that the time cap cuts to a prefix leaves no cell with a handful of replicates
+    # when an urgent value elsewhere wants many more
+    two = {("d", "light"): 4, ("d", "portal"): 4, ("p", "light"): 4, ("p", "portal"): 4}
+    values = [_value("d", "portal", own=0.001, light=0.001), _value("p", "portal", own=0.5, light=0.5)]
+    order = precision.allocate(values, two, _precision(), minimum=8)
+    assert sorted(order[:16]) == sorted([("d", "light"), ("d", "portal"), ("p", "light"), ("p", "portal")] * 4)
+    assert len(order) > 16 and set(order[16:]) <= {("p", "light"), ("p", "portal")}
     capped = precision.allocate([_value("a", "portal", 0.0, 0.0)], counts, _precision(max_replicates=6), minimum=8)
     assert len(capped) == 6
 
