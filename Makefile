@@ -7,6 +7,9 @@ ROOT := $(CURDIR)
 
 CC ?= cc
 SANITIZE ?= 0
+# Jobs for the steps that run in parallel inside `make test` (the C builds,
+# the C test programs, pytest -n): CI's limit is 30 minutes on 2 cores.
+JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 BUILD := renderer/build
 ifeq ($(SANITIZE),1)
 BUILD := renderer/build-san
@@ -186,8 +189,13 @@ $(FUZZ_BUILD)/fuzz_portals: renderer/fuzz/fuzz_portals.c $(SRCS) $(wildcard rend
 
 # C tests: every tests/renderer/test_*.c is its own executable. The runner
 # also takes a filter: tests/run_c_tests.sh $(BUILD) PROGRAM [CASE].
-test-c: $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(TOOL_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY) $(FUZZ_PORTALS_REPLAY)
-	@tests/run_c_tests.sh $(BUILD)
+# The programs are built JOBS at a time (a sub-make, so that `make test`
+# itself still runs its steps one after another).
+C_TEST_PROGRAMS = $(BUILD)/render $(TEST_BINS) $(BENCH_BINS) $(TOOL_BINS) $(FUZZ_REPLAY) $(FUZZ_MESH_REPLAY) \
+                  $(FUZZ_PORTALS_REPLAY)
+test-c:
+	@$(MAKE) --no-print-directory -j$(JOBS) $(C_TEST_PROGRAMS)
+	@C_TEST_JOBS=$(JOBS) tests/run_c_tests.sh $(BUILD)
 	@tests/check_run_c_tests.sh $(BUILD)
 	@$(FUZZ_REPLAY) $(FUZZ_CORPUS)
 	@$(FUZZ_MESH_REPLAY) $(FUZZ_MESH_CORPUS)
@@ -224,7 +232,7 @@ browser: $(CHROMIUM_STAMP)
 
 test-py: $(VENV_STAMP) $(BUILD)/render $(CHROMIUM_STAMP)
 	@if [ -d tests/harness ] && ls tests/harness/test_*.py >/dev/null 2>&1; then \
-	  $(VENV)/bin/python -m pytest -q --durations=15 tests/harness tests/bench tests/tools tests/docs; fi
+	  $(VENV)/bin/python -m pytest -q -n $(JOBS) --dist loadfile --durations=15 tests/harness tests/bench tests/tools tests/docs; fi
 
 # Linters of every Python file of the project: the harness, its tests, the tools
 # and the benchmark scripts (configured in harness/pyproject.toml). ruff and

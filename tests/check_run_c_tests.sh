@@ -22,8 +22,9 @@ expect 0 '^1 passed, 0 failed$' "$build/tests/test_rng" streams_are_pinned
 expect nonzero 'no test executable .* matches "no_such_program"' "$runner" "$build" no_such_program
 expect nonzero 'renderer: 0 passed, 1 failed' "$runner" "$build" test_rng no_such_case
 expect 0 'renderer: 1 passed, 0 failed' "$runner" "$build" test_rng streams_are_pinned
+expect nonzero 'C_TEST_JOBS must be a positive integer' env C_TEST_JOBS=0 "$runner" "$build" test_rng
 if [ $fails -ne 0 ]; then
   echo "test runner: $fails checks failed" >&2
   exit 1
 fi
-echo "test runner: empty filters fail, 5 checks passed"
+echo "test runner: empty filters fail, 6 checks passed"
