@@ -40,10 +40,22 @@ bool polygon_list_push(struct polygon_list *ps, const struct polygon *p);
 bool facet_uncovered_part(const struct convex_hull *h, const struct vec3 *points, int fi, const struct vec3 (*tris)[3],
                           int n_tris, struct polygon_list *out);
 
+/* A sphere holding a triangle: a facet's scan for the triangles near its
+   plane rejects a far one with one distance instead of three. */
+struct tri_sphere {
+    struct vec3 centre;
+    double radius;
+};
+/* The spheres of tris[0..n_tris) into out[0..n_tris): centroids, and radii
+   rounded up beyond any rounding of the distances they bound. */
+void tri_spheres(const struct vec3 (*tris)[3], int n_tris, struct tri_sphere *out);
+
 /* Whether the surfaces of tris[0..n_tris) just under facet fi of h cover
    it: no unblocked segment from a point of the convex hull of
-   light_pts[0..n_light_pts) (strictly inside h) leaves h through it. */
+   light_pts[0..n_light_pts) (strictly inside h) leaves h through it.
+   spheres: tri_spheres of tris (they only skip triangles that cannot
+   matter, so the answer is the same bit for bit). */
 bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, int fi, const struct vec3 (*tris)[3],
-                        int n_tris, const struct vec3 *light_pts, int n_light_pts);
+                        const struct tri_sphere *spheres, int n_tris, const struct vec3 *light_pts, int n_light_pts);
 
 #endif

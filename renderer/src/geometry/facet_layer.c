@@ -56,8 +56,20 @@ struct layer_poly {
    triangles only make odd edges: a facet not proven stays open. The
    tests "interior" and "off every edge" use tolerances of P's size times
    1e-9 (tol) and 1e-7 (eps), as the rest of the finder does (scene/portal_finder.c). */
+void tri_spheres(const struct vec3 (*tris)[3], int n_tris, struct tri_sphere *out)
+{
+    for (int t = 0; t < n_tris; ++t) {
+        struct vec3 c = vec3_scale(vec3_add(vec3_add(tris[t][0], tris[t][1]), tris[t][2]), 1.0 / 3.0);
+        double r = 0.0;
+        for (int k = 0; k < 3; ++k) r = fm_fmax(r, vec3_length(vec3_sub(tris[t][k], c)));
+        /* Rounding of a plane distance is ~1e-16 of the coordinates'
+           size: 1e-9 of it (and of r) leaves a wide margin. */
+        out[t] = (struct tri_sphere){ c, r * (1.0 + 1e-9) + 1e-9 * (vec3_max_abs(c) + r) };
+    }
+}
+
 bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, int fi, const struct vec3 (*tris)[3],
-                        int n_tris, const struct vec3 *light_pts, int n_light_pts)
+                        const struct tri_sphere *spheres, int n_tris, const struct vec3 *light_pts, int n_light_pts)
 {
     const struct hull_facet *hf = &h->facets[fi];
     const struct plane *pl = &hf->plane;
@@ -113,6 +125,11 @@ bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, 
     /* The triangles within the deepest layer tried, once. */
     double d_last = fm_fmin(LAYER_REL[sizeof LAYER_REL / sizeof LAYER_REL[0] - 1] * h->size, 0.5 * h_min);
     for (int t = 0; pre && t < n_tris; ++t) {
+        /* Every vertex is within the sphere's radius of its centre's
+           depth: a sphere wholly above the plane (beyond tol) or wholly
+           deeper than d_last holds no triangle the exact test keeps. */
+        double dc = -plane_distance(pl, spheres[t].centre), r = spheres[t].radius;
+        if (dc - r > d_last || dc + r < -tol) continue;
         double dmin = INFINITY;
         for (int k = 0; k < 3; ++k) dmin = fm_fmin(dmin, -plane_distance(pl, tris[t][k]));
         if (dmin >= -tol && dmin <= d_last) pre[n_pre++] = t;

@@ -276,6 +276,12 @@ static bool portals_of_hull(const struct finder *f, const struct convex_hull *h,
     struct vec3(*tris)[3] = NULL;
     int n_tris = gather_triangles(f->cfg, lo, hi, &tris);
     if (n_tris < 0) return false;
+    struct tri_sphere *spheres = malloc(sizeof *spheres * (size_t)(n_tris > 0 ? n_tris : 1));
+    if (!spheres) {
+        free(tris);
+        return false;
+    }
+    tri_spheres((const struct vec3(*)[3])tris, n_tris, spheres);
     struct polygon_list open = { 0, 0, NULL };
     bool ok = true;
     *hull_area = 0.0;
@@ -289,17 +295,20 @@ static bool portals_of_hull(const struct finder *f, const struct convex_hull *h,
         int before = open.n;
         ok = facet_uncovered_part(h, points, fi, (const struct vec3(*)[3])tris, n_tris, &open);
         if (ok && open.n > before &&
-            facet_layer_covers(h, points, fi, (const struct vec3(*)[3])tris, n_tris, f->light_pts, f->n_light_pts))
+            facet_layer_covers(h, points, fi, (const struct vec3(*)[3])tris, spheres, n_tris, f->light_pts,
+                               f->n_light_pts))
             open.n = before;
         for (int k = before; ok && k < open.n; ++k) partial += polygon_area(&open.p[k]);
         if (ok && partial >= stop_at) {
             free(tris);
+            free(spheres);
             free(open.p);
             *open_area = partial;
             return true;
         }
     }
     free(tris);
+    free(spheres);
     *open_area = 0.0;
     const struct emitter *e = &f->s->emitters[f->emitter];
     const struct light *l0 = &f->s->lights[e->first_light];
