@@ -331,7 +331,7 @@ $(VALGRIND):
 	@test -x $@ || { echo "bench-ab: valgrind did not install $@" >&2; exit 1; }
 
 fuzz:
-	@renderer/fuzz/run.sh $(or $(FUZZ_SECONDS),60)
+	@JOBS=$(JOBS) renderer/fuzz/run.sh $(or $(FUZZ_SECONDS),60)
 
 # Independent-renderer check against Mitsuba 3 (own venv): the lampshade with
 # light sampling, then the lampshade with a third-party mesh from a binary PLY

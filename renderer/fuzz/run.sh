@@ -33,7 +33,7 @@ fi
 out=renderer/build-fuzz
 mkdir -p "$out" renderer/fuzz/crashes
 # The Makefile targets hold the sources and flags (FUZZ_SRCS, FUZZ_MESH_SRCS, FUZZ_CC).
-make --no-print-directory -j"$(nproc)" "$out/fuzz_config" "$out/fuzz_mesh" "$out/fuzz_portals"
+make --no-print-directory -j"${JOBS:-$(nproc)}" "$out/fuzz_config" "$out/fuzz_mesh" "$out/fuzz_portals"
 
 # fuzz TARGET SECONDS MAX_LEN SEED_FILES...: runs one target on its own
 # corpus folder; returns its exit status.

@@ -19,6 +19,18 @@ struct layer_poly {
     struct vec3 v[4];
 };
 
+void tri_spheres(const struct vec3 (*tris)[3], int n_tris, struct tri_sphere *out)
+{
+    for (int t = 0; t < n_tris; ++t) {
+        struct vec3 c = vec3_scale(vec3_add(vec3_add(tris[t][0], tris[t][1]), tris[t][2]), 1.0 / 3.0);
+        double r = 0.0;
+        for (int k = 0; k < 3; ++k) r = fm_fmax(r, vec3_length(vec3_sub(tris[t][k], c)));
+        /* Rounding of a plane distance is ~1e-16 of the coordinates'
+           size: 1e-9 of it (and of r) leaves a wide margin. */
+        out[t] = (struct tri_sphere){ c, r * (1.0 + 1e-9) + 1e-9 * (vec3_max_abs(c) + r) };
+    }
+}
+
 /* Whether the surfaces just under facet fi cover it: no unblocked segment
    from the light leaves P through it. For a shade whose wall lies a little
    inside its hull (float vertices, a waist, non-planar quads, a rim
@@ -56,18 +68,6 @@ struct layer_poly {
    triangles only make odd edges: a facet not proven stays open. The
    tests "interior" and "off every edge" use tolerances of P's size times
    1e-9 (tol) and 1e-7 (eps), as the rest of the finder does (scene/portal_finder.c). */
-void tri_spheres(const struct vec3 (*tris)[3], int n_tris, struct tri_sphere *out)
-{
-    for (int t = 0; t < n_tris; ++t) {
-        struct vec3 c = vec3_scale(vec3_add(vec3_add(tris[t][0], tris[t][1]), tris[t][2]), 1.0 / 3.0);
-        double r = 0.0;
-        for (int k = 0; k < 3; ++k) r = fm_fmax(r, vec3_length(vec3_sub(tris[t][k], c)));
-        /* Rounding of a plane distance is ~1e-16 of the coordinates'
-           size: 1e-9 of it (and of r) leaves a wide margin. */
-        out[t] = (struct tri_sphere){ c, r * (1.0 + 1e-9) + 1e-9 * (vec3_max_abs(c) + r) };
-    }
-}
-
 bool facet_layer_covers(const struct convex_hull *h, const struct vec3 *points, int fi, const struct vec3 (*tris)[3],
                         const struct tri_sphere *spheres, int n_tris, const struct vec3 *light_pts, int n_light_pts)
 {
